@@ -1,0 +1,132 @@
+"""MicroRacer as a single-car Gymnasium environment."""
+from __future__ import annotations
+
+import gymnasium as gym
+import numpy as np
+from gymnasium import spaces
+
+from league.physics import MAX_TURN, RUNNING, RaceOptions, as_actions, start_cars
+from league.track import Track
+
+MAX_LIDAR_RANGE = 3.7  # no reading exceeds the map's diagonal (world units)
+MAX_SPEED = 50.0  # no car reaches this in a 4000-step episode (0.1 * 0.04 * 4000 + 0.5 = 16.5)
+
+
+def observation_space(observation: str) -> spaces.Box:
+    if observation == "compact":
+        low = np.array([-MAX_TURN, 0, 0, 0, 0], dtype=np.float32)
+        high = np.array([MAX_TURN, MAX_LIDAR_RANGE, MAX_LIDAR_RANGE, MAX_LIDAR_RANGE, MAX_SPEED], dtype=np.float32)
+    else:
+        low = np.zeros(20, dtype=np.float32)
+        high = np.array([MAX_LIDAR_RANGE] * 19 + [MAX_SPEED], dtype=np.float32)
+    return spaces.Box(low, high, dtype=np.float32)
+
+
+ACTION_SPACE = spaces.Box(-1.0, 1.0, (2,), dtype=np.float32)
+
+
+class MicroRacerEnv(gym.Env):
+    """
+    ## Description
+    MicroRacer (Galletti, thesis, ch. 3): a car races one clockwise lap of a random closed
+    track drawn from cubic splines and rasterised to a 1300 x 1300 grid, with a chicane and
+    six obstacles. The car sees the track through a 19-ray lidar. Every reset draws a new track.
+
+    ## Action Space
+    `Box(-1, 1, (2,), float32)`: `[acceleration, turn]`; positive turn steers right. Values
+    outside [-1, 1] are clipped; NaN or a wrong shape raises `ValueError`.
+
+    ## Observation Space
+    `observation="compact"` (default), `Box` of 5 numbers `[direction, left, max, right, speed]`:
+    the angle (rad, positive = left) of the longest lidar ray, the readings of the rays beside
+    it and of itself, and the speed. `observation="lidar"`: the 19 readings plus the speed.
+
+    ## Rewards
+    The distance covered in the step (`speed * tstep`); -3 for a crash.
+
+    ## Starting State
+    On the mid-line at polar angle 0, heading clockwise, speed ~ U(0, 0.5) (at least 0.07 with
+    low-speed termination).
+
+    ## Episode Termination
+    `terminated` when the lap is complete or the car goes off road (border or obstacle), turns
+    back (wrong direction) or, with low-speed termination, drops below speed 0.05. A crash
+    leaves the car where it was and returns its last valid observation. `truncated` after
+    `max_episode_steps`. `info["outcome"]` says which: "running", "finished", "off_road",
+    "wrong_direction", "too_slow"; `info` also has "progress" (lap fraction), "time" (s),
+    "distance" and "speed".
+
+    ## Arguments
+    ```python
+    gymnasium.make("league/MicroRacer-v0", obstacles=True, chicanes=True, turn_limit=True,
+                   low_speed_termination=True, observation="compact", curves=20,
+                   track_width=0.04, n_obstacles=6, tstep=0.04, max_episode_steps=4000)
+    ```
+    `reset(options={"track": track})` races on a given `league.track.Track` instead of a new
+    one; `options={"initial_speed": v}` sets the start speed.
+
+    ## Version History
+    * v0: first version, SPEC of the reference implementation with a 1/500-accurate lidar.
+    """
+
+    metadata = {"render_modes": ["human", "rgb_array"], "render_fps": 25}
+
+    def __init__(self, render_mode: str | None = None, **options):
+        self.options = RaceOptions.from_kwargs(**options)
+        if render_mode is not None and render_mode not in self.metadata["render_modes"]:
+            raise ValueError(f"render_mode must be one of {self.metadata['render_modes']} or None, got {render_mode!r}")
+        self.render_mode = render_mode
+        self.action_space = ACTION_SPACE
+        self.observation_space = observation_space(self.options.observation)
+        self.cars = None  # league.lidar.CarBatch of one car, made at reset
+        self.track: Track | None = None
+        self._trail: list[tuple[float, float]] = []
+        self._window = None
+
+    def reset(self, *, seed: int | None = None, options: dict | None = None):
+        super().reset(seed=seed)
+        options = options or {}
+        self.track = options.get("track") or self.options.new_track(self.np_random)
+        speed = options.get("initial_speed")
+        speed = self.options.initial_speed(self.np_random) if speed is None else float(speed)
+        self.cars = start_cars(self.cars, 1, self.track, self.options, speed)
+        self._trail = [self.track.start_position]
+        return self.cars.observation(0), self.cars.info(0)
+
+    def step(self, action):
+        cars = self.cars
+        if cars is None:
+            raise RuntimeError("call reset() before step()")
+        if cars.outcome[0] != RUNNING:
+            raise RuntimeError("the episode is over; call reset() to start a new one")
+        try:  # fast path: any pair of numbers
+            acc, turn = action
+            outcome = cars.step_one(acc, turn)
+        except (TypeError, ValueError):
+            outcome = cars.step_one(*as_actions(action, 1)[0])  # raises the error that says what is wrong
+        if self.render_mode is not None:
+            self._trail.append((float(cars.x[0]), float(cars.y[0])))
+            if self.render_mode == "human":
+                self.render()
+        truncated = outcome == RUNNING and cars.steps >= self.options.max_episode_steps
+        return cars.observation(0), cars.reward[0].item(), outcome != RUNNING, truncated, cars.info(0)
+
+    def render(self):
+        from league import render
+
+        if self.render_mode is None:
+            gym.logger.warn('render() needs a render_mode: gymnasium.make(..., render_mode="rgb_array")')
+            return None
+        cars = self.cars
+        frame = render.render_frame(self.track, cars.x, cars.y, cars.heading, [np.array(self._trail)])
+        if self.render_mode == "rgb_array":
+            return frame
+        self._window = render.show_frame(frame, self._window)
+        return None
+
+    def close(self):
+        if self._window is not None:
+            from league import render
+
+            render.close_window(self._window)
+            self._window = None

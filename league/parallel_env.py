@@ -1,0 +1,177 @@
+"""MicroRacer for N cars on one shared track, as a PettingZoo ParallelEnv."""
+from __future__ import annotations
+
+import functools
+
+import gymnasium as gym
+import numpy as np
+from pettingzoo import ParallelEnv
+from pettingzoo.utils import parallel_to_aec, wrappers
+
+from league.env import ACTION_SPACE, observation_space
+from league.physics import FINISHED, RUNNING, RaceOptions, as_actions, start_cars
+from league.track import Track
+
+
+class MicroRacerParallelEnv(ParallelEnv):
+    """
+    ## Description
+    N non-interacting cars (`car_0` ... `car_{N-1}`) race one lap of the same random track,
+    from the same start with the same initial speed; cars may overlap. Each car has the
+    observation, action, reward and termination rules of `league/MicroRacer-v0`.
+
+    ## Agents
+    A car that is done (finished, crashed, or out of time) leaves `agents`; the episode ends
+    when every car is done.
+
+    ## Infos
+    Per car: "outcome", "progress", "time", "distance", "speed"; finishers also get
+    "position" (1-based finishing order) and "finish_time" (s), the time interpolated inside
+    the step in which the car crossed the line, so cars finishing in the same step are ordered.
+
+    ## Batched interface
+    `step_arrays(actions)` takes a float32 `(n_cars, 2)` array and returns arrays
+    `(obs, rewards, terminated, truncated)`, skipping the per-agent dicts (for training).
+
+    ## Arguments
+    ```python
+    league.parallel_env(n_cars=4, render_mode=None, **options)  # options as league/MicroRacer-v0
+    ```
+    """
+
+    metadata = {"name": "microracer_v0", "render_modes": ["human", "rgb_array"], "render_fps": 25, "is_parallelizable": True}
+
+    def __init__(self, n_cars: int = 4, render_mode: str | None = None, **options):
+        if not isinstance(n_cars, (int, np.integer)) or n_cars < 1:
+            raise ValueError(f"n_cars must be an integer >= 1, got {n_cars!r}")
+        if render_mode is not None and render_mode not in self.metadata["render_modes"]:
+            raise ValueError(f"render_mode must be one of {self.metadata['render_modes']} or None, got {render_mode!r}")
+        self.options = RaceOptions.from_kwargs(**options)
+        self.render_mode = render_mode
+        self.possible_agents = [f"car_{i}" for i in range(n_cars)]
+        self.agents: list[str] = []
+        self.n_cars = n_cars
+        self.cars = None  # league.lidar.CarBatch, made at reset
+        self.track: Track | None = None
+        self.np_random, _ = gym.utils.seeding.np_random(None)
+        self._trails: list[list[tuple[float, float]]] = []
+        self._finishers = 0
+        self._window = None
+
+    @functools.lru_cache(maxsize=None)
+    def observation_space(self, agent):
+        return observation_space(self.options.observation)
+
+    @functools.lru_cache(maxsize=None)
+    def action_space(self, agent):
+        return ACTION_SPACE
+
+    def reset(self, seed: int | None = None, options: dict | None = None):
+        if seed is not None:
+            self.np_random, _ = gym.utils.seeding.np_random(seed)
+        options = options or {}
+        self.track = options.get("track") or self.options.new_track(self.np_random)
+        speed = options.get("initial_speed")
+        speed = self.options.initial_speed(self.np_random) if speed is None else float(speed)
+        self.cars = start_cars(self.cars, self.n_cars, self.track, self.options, speed)
+        obs = self.cars.obs
+        self.agents = self.possible_agents[:]
+        self.position = np.zeros(self.n_cars, dtype=np.int64)
+        self._finishers = 0
+        self._trails = [[self.track.start_position] for _ in self.agents]
+        infos = {agent: self._info(i) for i, agent in enumerate(self.agents)}
+        return {agent: obs[i].copy() for i, agent in enumerate(self.agents)}, infos
+
+    def step_arrays(self, actions: np.ndarray):
+        """Advance all running cars: actions float32 (n_cars, 2) -> obs, rewards, terminated, truncated.
+
+        The arrays are the simulator's own buffers, overwritten by the next step: copy what you keep.
+        """
+        if self.cars is None:
+            raise RuntimeError("call reset() before step()")
+        cars = self.cars
+        was_running = cars.outcome == RUNNING
+        cars.step(as_actions(actions, self.n_cars))
+        terminated = was_running & (cars.outcome != RUNNING)
+        finished_now = terminated & (cars.outcome == FINISHED)
+        if finished_now.any():
+            self._place_finishers(finished_now)
+        truncated = was_running & ~terminated & (cars.steps >= self.options.max_episode_steps)
+        if self.render_mode is not None:
+            for i in np.flatnonzero(was_running):
+                self._trails[i].append((float(cars.x[i]), float(cars.y[i])))
+        return cars.obs, cars.reward, terminated, truncated
+
+    def step(self, actions: dict):
+        unknown = set(actions) - set(self.agents)
+        if unknown:
+            raise ValueError(f"actions for agents that are not racing: {sorted(unknown)}; live agents: {self.agents}")
+        missing = [agent for agent in self.agents if agent not in actions]
+        if missing:
+            raise ValueError(f"missing actions for {missing}; every live agent needs an action")
+        batch = np.zeros((self.n_cars, 2), dtype=np.float32)
+        index = {agent: int(agent[4:]) for agent in self.agents}
+        for agent, i in index.items():
+            batch[i] = as_actions(actions[agent], 1)[0]
+        obs, rewards, terminated, truncated = self.step_arrays(batch)
+        observations = {a: obs[i].copy() for a, i in index.items()}
+        reward_dict = {a: float(rewards[i]) for a, i in index.items()}
+        terminations = {a: bool(terminated[i]) for a, i in index.items()}
+        truncations = {a: bool(truncated[i]) for a, i in index.items()}
+        infos = {a: self._info(i) for a, i in index.items()}
+        self.agents = [a for a in self.agents if not (terminations[a] or truncations[a])]
+        if self.render_mode == "human":
+            self.render()
+        return observations, reward_dict, terminations, truncations, infos
+
+    def _place_finishers(self, finished_now: np.ndarray):
+        """Finishing positions by interpolated finish time (ties: lower car index first)."""
+        if not finished_now.any():
+            return
+        cars = np.flatnonzero(finished_now)
+        for i in cars[np.argsort(self.cars.finish_time[cars], kind="stable")]:
+            self._finishers += 1
+            self.position[i] = self._finishers
+
+    def _info(self, i: int) -> dict:
+        info = self.cars.info(i)
+        if info["outcome"] == "finished":
+            info["position"] = int(self.position[i])
+            info["finish_time"] = float(self.cars.finish_time[i])
+        return info
+
+    def car_states(self) -> dict[str, np.ndarray]:
+        """Position, heading and speed of every car (done or not), as float64 arrays."""
+        c = self.cars
+        return {"x": c.x.copy(), "y": c.y.copy(), "heading": c.heading.copy(), "speed": c.speed.copy()}
+
+    def render(self):
+        from league import render
+
+        if self.render_mode is None:
+            gym.logger.warn('render() needs a render_mode: league.parallel_env(..., render_mode="rgb_array")')
+            return None
+        cars = self.cars
+        frame = render.render_frame(self.track, cars.x, cars.y, cars.heading, [np.array(t) for t in self._trails])
+        if self.render_mode == "rgb_array":
+            return frame
+        self._window = render.show_frame(frame, self._window)
+        return None
+
+    def close(self):
+        if self._window is not None:
+            from league import render
+
+            render.close_window(self._window)
+            self._window = None
+
+
+def parallel_env(n_cars: int = 4, render_mode: str | None = None, **options) -> MicroRacerParallelEnv:
+    """N cars on one shared track (PettingZoo Parallel API)."""
+    return MicroRacerParallelEnv(n_cars=n_cars, render_mode=render_mode, **options)
+
+
+def env(n_cars: int = 4, render_mode: str | None = None, **options):
+    """The AEC form of `parallel_env`, through PettingZoo's conversion."""
+    aec = parallel_to_aec(parallel_env(n_cars=n_cars, render_mode=render_mode, **options))
+    return wrappers.OrderEnforcingWrapper(aec) if not isinstance(aec, wrappers.OrderEnforcingWrapper) else aec
