@@ -22,7 +22,9 @@ def observation_space(observation: str) -> spaces.Box:
     return spaces.Box(low, high, dtype=np.float32)
 
 
-ACTION_SPACE = spaces.Box(-1.0, 1.0, (2,), dtype=np.float32)
+def action_space() -> spaces.Box:
+    """[acceleration, turn] in [-1, 1]; a new object each call, so each can be seeded on its own."""
+    return spaces.Box(-1.0, 1.0, (2,), dtype=np.float32)
 
 
 class MicroRacerEnv(gym.Env):
@@ -76,7 +78,7 @@ class MicroRacerEnv(gym.Env):
         if render_mode is not None and render_mode not in self.metadata["render_modes"]:
             raise ValueError(f"render_mode must be one of {self.metadata['render_modes']} or None, got {render_mode!r}")
         self.render_mode = render_mode
-        self.action_space = ACTION_SPACE
+        self.action_space = action_space()
         self.observation_space = observation_space(self.options.observation)
         self.cars = None  # league.lidar.CarBatch of one car, made at reset
         self.track: Track | None = None

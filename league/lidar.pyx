@@ -325,6 +325,18 @@ cdef class CarBatch:
         scan(self.g, nx, ny, h, self.ry + c * N_RAYS)
         write_observation(self.ry + c * N_RAYS, v, self.compact, self.ob + c * self.obs_dim)
 
+    def __reduce__(self):
+        options = dict(tstep=self.tstep, max_acc=self.max_acc, max_turn=self.max_turn, turn_limit=self.turn_limit,
+                       low_speed_termination=self.low_speed_termination, compact=self.compact)
+        state = {name: getattr(self, name).copy() for name in STATE_ARRAYS}
+        state["steps"] = self.steps
+        return (_restore_car_batch, (self.n, self.grid, options, state))
+
+    def _set_state(self, dict state):
+        for name in STATE_ARRAYS:
+            np.copyto(getattr(self, name), state[name])
+        self.steps = state["steps"]
+
     def observation(self, int c):
         """A copy of car c's observation."""
         return self.obs[c].copy()
@@ -345,3 +357,14 @@ cdef class CarBatch:
             "distance": self.ds[c],
             "speed": self.vs[c],
         }
+
+
+STATE_ARRAYS = ("x", "y", "heading", "speed", "theta", "outcome", "rays", "obs", "reward",
+                "distance", "finish_time", "steps_taken")
+
+
+def _restore_car_batch(n, grid, options, state):
+    """Unpickle a CarBatch (its state arrays are copied in)."""
+    cars = CarBatch(n, np.ascontiguousarray(grid), **options)
+    cars._set_state(state)
+    return cars

@@ -1,14 +1,12 @@
 """MicroRacer for N cars on one shared track, as a PettingZoo ParallelEnv."""
 from __future__ import annotations
 
-import functools
-
 import gymnasium as gym
 import numpy as np
 from pettingzoo import ParallelEnv
 from pettingzoo.utils import parallel_to_aec, wrappers
 
-from league.env import ACTION_SPACE, observation_space
+from league.env import action_space, observation_space
 from league.physics import FINISHED, RUNNING, RaceOptions, as_actions, start_cars
 from league.track import Track
 
@@ -50,6 +48,8 @@ class MicroRacerParallelEnv(ParallelEnv):
         self.render_mode = render_mode
         self.possible_agents = [f"car_{i}" for i in range(n_cars)]
         self.agents: list[str] = []
+        self._observation_spaces = {a: observation_space(self.options.observation) for a in self.possible_agents}
+        self._action_spaces = {a: action_space() for a in self.possible_agents}
         self.n_cars = n_cars
         self.cars = None  # league.lidar.CarBatch, made at reset
         self.track: Track | None = None
@@ -58,13 +58,11 @@ class MicroRacerParallelEnv(ParallelEnv):
         self._finishers = 0
         self._window = None
 
-    @functools.lru_cache(maxsize=None)
     def observation_space(self, agent):
-        return observation_space(self.options.observation)
+        return self._observation_spaces[agent]
 
-    @functools.lru_cache(maxsize=None)
     def action_space(self, agent):
-        return ACTION_SPACE
+        return self._action_spaces[agent]
 
     def reset(self, seed: int | None = None, options: dict | None = None):
         if seed is not None:

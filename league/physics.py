@@ -10,7 +10,7 @@ from dataclasses import asdict, dataclass, fields
 import numpy as np
 
 from league import lidar
-from league.track import CURVES, N_OBSTACLES, TRACK_WIDTH, Track, generate_track
+from league.track import CURVES, MAX_TRACK_WIDTH, N_OBSTACLES, TRACK_WIDTH, Track, generate_track
 
 TSTEP = 0.04  # seconds per step
 MAX_ACC = 0.1  # world units / s^2 at full throttle
@@ -51,8 +51,8 @@ class RaceOptions:
         _check_int("curves", self.curves, 5)
         _check_int("n_obstacles", self.n_obstacles, 0)
         _check_int("max_episode_steps", self.max_episode_steps, 1)
-        if not 0 < self.track_width <= 0.2:
-            raise ValueError(f"track_width must be in (0, 0.2] world units, got {self.track_width!r}")
+        if not 0 < self.track_width <= MAX_TRACK_WIDTH:
+            raise ValueError(f"track_width must be in (0, {MAX_TRACK_WIDTH}] world units, got {self.track_width!r}")
         if not 0 < self.tstep <= 1:
             raise ValueError(f"tstep must be in (0, 1] seconds, got {self.tstep!r}")
 

@@ -17,6 +17,7 @@ from league import lidar
 
 CURVES = 20  # control points of the mid-line
 TRACK_WIDTH = 0.04  # world units (1 unit = 1000 m)
+MAX_TRACK_WIDTH = 0.08  # wider borders fold on tight bends
 N_OBSTACLES = 6
 GRID = lidar.GRID_SIZE  # cells per side of the map
 CELLS_PER_UNIT = 500  # grid resolution
@@ -167,6 +168,9 @@ class Track:
         obstacles = np.array(data["obstacles"], dtype=np.float64).reshape(-1, 2, 2)
         return cls(np.array(data["control_theta"]), np.array(data["control_points"]), data["width"], obstacles)
 
+    def __reduce__(self):
+        return (Track.from_dict, (self.to_dict(),))  # compact: the maps are re-derived
+
     def __eq__(self, other) -> bool:
         if not isinstance(other, Track):
             return NotImplemented
@@ -197,19 +201,23 @@ def generate_track(
     """Draw a random track (SPEC 'Track'); redraw when it leaves the grid."""
     if curves < 5:
         raise ValueError(f"curves must be at least 5, got {curves}")
-    if not 0 < track_width <= 0.2:
-        raise ValueError(f"track_width must be in (0, 0.2], got {track_width}")
+    if not 0 < track_width <= MAX_TRACK_WIDTH:
+        raise ValueError(f"track_width must be in (0, {MAX_TRACK_WIDTH}], got {track_width}")
     if n_obstacles < 0:
         raise ValueError(f"n_obstacles must be >= 0, got {n_obstacles}")
-    for _ in range(MAX_DRAWS):
-        theta, points = _midline_controls(rng, curves, chicanes)
-        track = Track(theta, points, track_width)
-        if not (_borders_are_star_shaped(track) and track.fits_grid()):
-            continue
-        if obstacles and n_obstacles:
-            track = track.with_obstacles(_draw_obstacles(rng, track, n_obstacles))
-        return track
-    raise TrackGenerationError(f"no track fitted the grid in {MAX_DRAWS} draws (track_width={track_width})")
+    candidates = (Track(*_midline_controls(rng, curves, chicanes), track_width) for _ in range(MAX_DRAWS))
+    track = first_fitting(candidates)
+    if obstacles and n_obstacles:
+        track = track.with_obstacles(_draw_obstacles(rng, track, n_obstacles))
+    return track
+
+
+def first_fitting(candidates) -> Track:
+    """The first candidate whose borders are functions of the polar angle and that fits the grid."""
+    for track in candidates:
+        if _borders_are_star_shaped(track) and track.fits_grid():
+            return track
+    raise TrackGenerationError(f"no track fitted the grid in {MAX_DRAWS} draws; try a narrower track_width")
 
 
 # -- mid-line ------------------------------------------------------------------------------

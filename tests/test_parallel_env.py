@@ -1,0 +1,117 @@
+import pickle
+
+import numpy as np
+import pytest
+from pettingzoo.test import api_test, parallel_api_test, parallel_seed_test
+
+import league
+
+from . import reference
+
+ALL_OFF = dict(obstacles=False, chicanes=False, turn_limit=False, low_speed_termination=False)
+
+
+@pytest.mark.parametrize("options", [{}, ALL_OFF, {"observation": "lidar"}])
+def test_pettingzoo_parallel_api(options):
+    parallel_api_test(league.parallel_env(n_cars=3, **options), num_cycles=300)
+
+
+@pytest.mark.parametrize("options", [{}, ALL_OFF])
+def test_pettingzoo_parallel_seed(options):
+    parallel_seed_test(lambda: league.parallel_env(n_cars=3, **options), num_cycles=100)
+
+
+def test_aec_form():
+    api_test(league.env(n_cars=2), num_cycles=100)
+
+
+def drive(penv, seed, perturb=0.0):
+    """Heuristic driver for every car, car i's acceleration shifted by i * perturb."""
+    observations, infos = penv.reset(seed=seed)
+    last = dict(infos)
+    while penv.agents:
+        actions = {}
+        for agent in penv.agents:
+            acc, turn = reference.heuristic(observations[agent])
+            actions[agent] = np.array([acc + int(agent[4:]) * perturb, turn], dtype=np.float32)
+        observations, _, _, _, infos = penv.step(actions)
+        last.update(infos)
+    return last
+
+
+def test_cars_share_track_start_and_speed_and_identical_actions_give_identical_races():
+    penv = league.parallel_env(n_cars=4)
+    observations, infos = penv.reset(seed=3)
+    assert len({tuple(o) for o in observations.values()}) == 1
+    assert len({i["speed"] for i in infos.values()}) == 1
+    final = drive(penv, 3)
+    assert len({(i["outcome"], i["distance"], i["time"]) for i in final.values()}) == 1
+
+
+def test_finishing_positions_follow_interpolated_finish_times():
+    penv = league.parallel_env(n_cars=8, **ALL_OFF)
+    final = drive(penv, 4, perturb=0.004)
+    finishers = [i for i in final.values() if i["outcome"] == "finished"]
+    assert len(finishers) >= 4
+    by_time = sorted(finishers, key=lambda i: i["finish_time"])
+    assert [i["position"] for i in by_time] == list(range(1, len(finishers) + 1))
+    times = [i["finish_time"] for i in by_time]
+    assert len(set(times)) == len(times)
+    # interpolated inside the crossing step: not a whole number of steps, within that step
+    for info in finishers:
+        assert info["time"] - 0.04 < info["finish_time"] <= info["time"]
+    # some cars crossed in the same step and are still ordered
+    assert len({round(i["time"], 6) for i in finishers}) < len(finishers)
+
+
+def test_done_cars_leave_the_agents_and_get_no_more_actions():
+    penv = league.parallel_env(n_cars=2)
+    observations, _ = penv.reset(seed=0)
+    for _ in range(30):  # car_0 steers full right into the border, car_1 drives well
+        actions = {"car_0": [0.0, 1.0], "car_1": reference.heuristic(observations["car_1"])}
+        observations, _, terminations, _, _ = penv.step({a: actions[a] for a in penv.agents})
+        if "car_0" not in penv.agents:
+            break
+    assert terminations["car_0"] and penv.agents == ["car_1"]
+    with pytest.raises(ValueError, match="not racing"):
+        penv.step({"car_0": [0, 0], "car_1": [0, 0]})
+    with pytest.raises(ValueError, match="missing actions"):
+        penv.step({})
+    with pytest.raises(ValueError, match="NaN"):
+        penv.step({"car_1": [np.nan, 0]})
+
+
+def test_batched_interface_matches_the_dict_interface():
+    a, b = league.parallel_env(n_cars=5), league.parallel_env(n_cars=5)
+    obs_a, _ = a.reset(seed=12)
+    b.reset(seed=12)
+    obs = np.stack([obs_a[x] for x in a.possible_agents])
+    rng = np.random.default_rng(0)
+    while a.agents:
+        actions = np.array([reference.heuristic(o) for o in obs], dtype=np.float32)
+        actions[:, 0] += rng.normal(0, 0.05, len(actions)).astype(np.float32)
+        live = list(a.agents)
+        obs_d, rew_d, term_d, trunc_d, _ = a.step({x: actions[int(x[4:])] for x in live})
+        obs_b, rew_b, term_b, trunc_b = b.step_arrays(actions)
+        for x in live:
+            i = int(x[4:])
+            np.testing.assert_array_equal(obs_d[x], obs_b[i])
+            assert (rew_d[x], term_d[x], trunc_d[x]) == (rew_b[i], term_b[i], trunc_b[i])
+        obs = obs_b.copy()
+    assert not (b.cars.outcome == 0).any()
+
+
+def test_car_states_and_pickling():
+    penv = league.parallel_env(n_cars=3)
+    observations, _ = penv.reset(seed=1)
+    states = penv.car_states()
+    assert set(states) == {"x", "y", "heading", "speed"} and states["x"].shape == (3,)
+    clone = pickle.loads(pickle.dumps(penv))
+    actions = {a: reference.heuristic(observations[a]) for a in penv.agents}
+    ra, rb = penv.step(actions), clone.step(actions)
+    assert ra[1:] == rb[1:]
+
+
+def test_bad_n_cars():
+    with pytest.raises(ValueError, match="n_cars"):
+        league.parallel_env(n_cars=0)
