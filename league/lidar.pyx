@@ -30,6 +30,7 @@ cdef enum:
     OFF_ROAD = 2
     WRONG_DIRECTION = 3
     TOO_SLOW = 4
+    RETIRED = 5                  # taken out of the race from outside (e.g. its agent failed)
 
 cdef double CELLS_PER_UNIT = 500.0
 cdef double FINE_STEP = 0.004     # 1/250
@@ -195,7 +196,7 @@ cdef void write_observation(const double* rays, double speed, bint compact, floa
 
 
 # -- cars ------------------------------------------------------------------------------------
-OUTCOME_NAMES = ("running", "finished", "off_road", "wrong_direction", "too_slow")
+OUTCOME_NAMES = ("running", "finished", "off_road", "wrong_direction", "too_slow", "retired")
 
 
 cdef class CarBatch:
@@ -336,6 +337,11 @@ cdef class CarBatch:
         for name in STATE_ARRAYS:
             np.copyto(getattr(self, name), state[name])
         self.steps = state["steps"]
+
+    def retire(self, int c):
+        """Take car c out of the race where it stands; it is done, with outcome "retired"."""
+        if self.oc[c] == RUNNING:
+            self.oc[c] = RETIRED
 
     def observation(self, int c):
         """A copy of car c's observation."""

@@ -122,6 +122,13 @@ class MicroRacerParallelEnv(ParallelEnv):
             self.render()
         return observations, reward_dict, terminations, truncations, infos
 
+    def retire(self, agent: str) -> None:
+        """Take a car out of the race (say, its agent failed): it leaves `agents` with outcome "retired"."""
+        if agent not in self.agents:
+            raise ValueError(f"{agent!r} is not racing; live agents: {self.agents}")
+        self.cars.retire(int(agent[4:]))
+        self.agents.remove(agent)
+
     def _place_finishers(self, finished_now: np.ndarray):
         """Finishing positions by interpolated finish time (ties: lower car index first)."""
         if not finished_now.any():

@@ -115,3 +115,14 @@ def test_car_states_and_pickling():
 def test_bad_n_cars():
     with pytest.raises(ValueError, match="n_cars"):
         league.parallel_env(n_cars=0)
+
+
+def test_retire_takes_a_car_out_of_the_race():
+    penv = league.parallel_env(n_cars=2)
+    observations, _ = penv.reset(seed=0)
+    penv.retire("car_0")
+    assert penv.agents == ["car_1"]
+    _, _, _, _, infos = penv.step({"car_1": reference.heuristic(observations["car_1"])})
+    assert penv.cars.info(0)["outcome"] == "retired" and infos["car_1"]["outcome"] == "running"
+    with pytest.raises(ValueError, match="not racing"):
+        penv.retire("car_0")

@@ -1,0 +1,273 @@
+"""league.agents: loaders, the contract checks with their error messages, the heuristic driver."""
+import math
+import sys
+import warnings
+import zipfile
+
+import numpy as np
+import pytest
+
+from league.agents import (
+    Agent,
+    AgentError,
+    as_agent,
+    callable_agent,
+    compact_from_lidar,
+    export_heuristic_onnx,
+    export_onnx,
+    export_torchscript,
+    heuristic_agent,
+    load_agent,
+)
+
+from . import toolkit_models as models
+
+torch = pytest.importorskip("torch")
+pytest.importorskip("onnxruntime")
+
+RNG = np.random.default_rng(0)
+OBS5 = RNG.uniform(0, 0.5, (8, 5)).astype(np.float32)
+OBS5[:, 0] = RNG.uniform(-math.pi / 6, math.pi / 6, 8)
+
+
+def torch_actions(module, obs):
+    with torch.no_grad():
+        return module(torch.from_numpy(obs)).numpy()
+
+
+# --------------------------------------------------------------------------- the heuristic driver
+
+
+def test_heuristic_follows_spec_formula():
+    obs = np.array([[0.2, 0.3, 0.4, 0.3, 0.20],  # free direction to the left, slow
+                    [-0.1, 0.3, 0.4, 0.3, 0.25],  # to the right, at the target speed: brake
+                    [math.pi / 6, 0.3, 0.4, 0.3, 0.30]], dtype=np.float32)
+    actions = heuristic_agent()(obs)
+    assert actions.dtype == np.float32 and actions.shape == (3, 2)
+    np.testing.assert_allclose(actions[:, 0], [0.5, -0.2, -0.2])
+    np.testing.assert_allclose(actions[:, 1], [-0.2 / (math.pi / 6), 0.1 / (math.pi / 6), -1.0], rtol=1e-6)
+
+
+def test_heuristic_is_named_and_compact_by_default():
+    agent = load_agent("heuristic")
+    assert (agent.name, agent.obs_dim, agent.kind) == ("heuristic", 5, "heuristic")
+    assert load_agent("heuristic-lidar").obs_dim == 20
+
+
+def test_compact_features_from_lidar_follow_spec():
+    rays = np.linspace(0.1, 0.2, 19)
+    rays[7] = rays[12] = 0.9  # two maxima: the first one counts
+    compact = compact_from_lidar(np.append(rays, 0.33)[None, :].astype(np.float32))[0]
+    direction = -math.pi / 6 + 7 * (math.pi / 3) / 18
+    np.testing.assert_allclose(compact, [direction, rays[6], 0.9, rays[8], 0.33], rtol=1e-6)
+
+
+@pytest.mark.parametrize("k, left, right", [(0, 0, 1), (18, 17, 18)])
+def test_compact_features_at_the_edges_repeat_the_maximum(k, left, right):
+    rays = np.full(19, 0.1)
+    rays[k] = 0.8
+    compact = compact_from_lidar(np.append(rays, 0.2)[None, :].astype(np.float32))[0]
+    assert compact[1] == pytest.approx(rays[k] if k == 0 else rays[left])
+    assert compact[3] == pytest.approx(rays[k] if k == 18 else rays[right])
+
+
+def test_heuristic_on_lidar_drives_as_on_compact():
+    lidar = RNG.uniform(0, 0.6, (16, 20)).astype(np.float32)
+    np.testing.assert_array_equal(heuristic_agent(20)(lidar), heuristic_agent(5)(compact_from_lidar(lidar)))
+
+
+def test_heuristic_exported_to_onnx_drives_identically(tmp_path):
+    agent = load_agent(export_heuristic_onnx(tmp_path / "heuristic.onnx"))
+    assert agent.kind == "onnx"
+    np.testing.assert_allclose(agent(OBS5), heuristic_agent()(OBS5), atol=1e-7)
+
+
+# --------------------------------------------------------------------------- loading good models
+
+
+def test_onnx_agent_reads_obs_dim_and_matches_torch(onnx_actor, thesis_module):
+    agent = load_agent(onnx_actor)
+    assert (agent.obs_dim, agent.name, agent.kind) == (5, "thesis_actor", "onnx")
+    np.testing.assert_allclose(agent(OBS5), torch_actions(thesis_module, OBS5), atol=1e-6)
+
+
+def test_torchscript_agent_matches_torch(torchscript_actor, thesis_module):
+    agent = load_agent(torchscript_actor)
+    assert (agent.obs_dim, agent.kind) == (5, "torchscript")
+    np.testing.assert_allclose(agent(OBS5), torch_actions(thesis_module, OBS5), atol=1e-6)
+
+
+def test_lidar_models_are_recognised(lidar_onnx_actor, tmp_path):
+    assert load_agent(lidar_onnx_actor).obs_dim == 20
+    torchscript = export_torchscript(models.thesis_driver(obs_dim=20), tmp_path / "lidar.pt")
+    assert load_agent(torchscript).obs_dim == 20  # probed: 5 values fail, 20 work
+
+
+def test_single_observation_is_a_batch_of_one(onnx_actor):
+    assert load_agent(onnx_actor)(OBS5[0]).shape == (1, 2)
+
+
+def test_onnx_exported_with_a_fixed_batch_of_one_runs_row_by_row(thesis_module, tmp_path):
+    path = tmp_path / "fixed.onnx"
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", DeprecationWarning)  # the legacy exporter needs no onnxscript
+        torch.onnx.export(thesis_module, (torch.zeros(1, 5),), str(path), dynamo=False)
+    agent = load_agent(path)
+    np.testing.assert_allclose(agent(OBS5), torch_actions(thesis_module, OBS5), atol=1e-6)
+
+
+def test_several_outputs_use_the_first(thesis_module, tmp_path):
+    two_heads = models.TwoHeads(thesis_module)
+    expected = torch_actions(thesis_module, OBS5)
+    onnx_agent = load_agent(export_onnx(two_heads, tmp_path / "two_heads.onnx"))
+    script_agent = load_agent(export_torchscript(two_heads, tmp_path / "two_heads.pt"))
+    for agent in (onnx_agent, script_agent):
+        np.testing.assert_allclose(agent(OBS5), expected, atol=1e-6)
+
+
+def test_actions_are_clipped():
+    agent = callable_agent(lambda obs: np.tile([3.0, -7.5], (len(obs), 1)), obs_dim=5)
+    np.testing.assert_array_equal(agent(OBS5), np.tile(np.float32([1.0, -1.0]), (8, 1)))
+
+
+def test_as_agent_accepts_thesis_style_actors(thesis_module):
+    expected = torch_actions(thesis_module, OBS5)
+
+    class KerasLike:  # a Keras model is callable on numpy and returns its outputs as a list
+        name = "keras_actor"
+
+        def __call__(self, obs):
+            return [torch_actions(thesis_module, np.asarray(obs)), np.zeros(len(obs))]
+
+    class PredictOnly:
+        def predict(self, obs):
+            return torch_actions(thesis_module, obs)
+
+    for actor in (thesis_module, KerasLike(), PredictOnly(), lambda obs: torch_actions(thesis_module, obs)):
+        agent = as_agent(actor)
+        assert isinstance(agent, Agent)
+        np.testing.assert_allclose(agent(OBS5), expected, atol=1e-6)
+    assert as_agent(KerasLike()).name == "keras_actor"
+
+
+# --------------------------------------------------------------------------- bad files, clear reasons
+
+
+def bad_file(kind, tmp_path, onnx_actor, torchscript_actor):
+    path = tmp_path / {"random": "model.onnx", "random_pt": "model.pt", "pickle": "actor.pt",
+                       "checkpoint": "checkpoint.pt", "truncated_pt": "cut.pt"}.get(kind, f"{kind}.onnx")
+    if kind in ("random", "random_pt"):
+        path.write_bytes(np.random.default_rng(1).bytes(2048))
+    elif kind == "empty":
+        path.write_bytes(b"")
+    elif kind == "truncated":
+        models.truncated_copy(onnx_actor, path)
+    elif kind == "truncated_pt":
+        models.truncated_copy(torchscript_actor, path)
+    elif kind == "pickle":
+        models.pickle_renamed_pt(path)
+    elif kind == "checkpoint":
+        torch.save(models.thesis_driver(), path)
+    else:
+        getattr(models, f"onnx_{kind}")(path)
+    return path
+
+
+@pytest.mark.parametrize("kind, message", [
+    ("random", "not an ONNX model"),
+    ("random_pt", "not a TorchScript file"),
+    ("empty", "is empty"),
+    ("truncated", "truncated"),
+    ("truncated_pt", "truncated"),
+    ("wrong_input", "wrong input size: the model takes 7 values"),
+    ("three_outputs", "returns 3 values per observation, expected 2"),
+    ("nan_outputs", "NaN"),
+    ("integer_outputs", "not floating point"),
+    ("pickle", "is a Python pickle, not TorchScript"),
+    ("checkpoint", "torch.save checkpoint (a pickle), not TorchScript"),
+])
+def test_bad_files_are_rejected_with_a_clear_reason(kind, message, tmp_path, onnx_actor, torchscript_actor):
+    path = bad_file(kind, tmp_path, onnx_actor, torchscript_actor)
+    with pytest.raises(AgentError) as caught:
+        load_agent(path)
+    assert message in caught.value.reason
+    assert "\n" not in caught.value.reason
+
+
+def test_pickles_are_refused_before_anything_unpickles_them(tmp_path):
+    # A pickle whose loading would write a file: refusing it must leave no trace.
+    marker = tmp_path / "pwned"
+
+    class Exploit:
+        def __reduce__(self):
+            return (open, (str(marker), "w"))
+
+    path = tmp_path / "exploit.pt"
+    path.write_bytes(__import__("pickle").dumps(Exploit()))
+    with pytest.raises(AgentError, match="pickle"):
+        load_agent(path)
+    assert not marker.exists()
+
+
+def test_torchscript_with_a_wrong_input_size(tmp_path):
+    module = torch.nn.Sequential(torch.nn.Linear(7, 2), torch.nn.Tanh())
+    with pytest.raises(AgentError, match="wrong input size"):
+        load_agent(export_torchscript(module, tmp_path / "seven.pt"))
+
+
+def test_torchscript_with_three_outputs(tmp_path):
+    module = torch.nn.Sequential(torch.nn.Linear(5, 3), torch.nn.Tanh())
+    with pytest.raises(AgentError, match="returns 3 values per observation"):
+        load_agent(export_torchscript(module, tmp_path / "three.pt"))
+
+
+def test_a_zip_that_is_not_torchscript(tmp_path):
+    path = tmp_path / "notes.pt"
+    with zipfile.ZipFile(path, "w") as archive:
+        archive.writestr("notes.txt", "hello")
+    with pytest.raises(AgentError, match="not TorchScript"):
+        load_agent(path)
+
+
+def test_missing_file_names_what_to_give():
+    with pytest.raises(AgentError, match="no such agent file: nowhere.onnx"):
+        load_agent("nowhere.onnx")
+
+
+def test_missing_onnxruntime_names_the_install_command(onnx_actor, monkeypatch):
+    monkeypatch.setitem(sys.modules, "onnxruntime", None)  # makes `import onnxruntime` fail
+    with pytest.raises(AgentError, match=r'pip install "microracer-league\[onnx\]"'):
+        load_agent(onnx_actor)
+
+
+# --------------------------------------------------------------------------- failures while acting
+
+
+def test_failures_while_acting_raise_agent_error():
+    calls = []
+
+    def flaky(obs):
+        calls.append(1)
+        if len(calls) > 2:  # the dry run makes two calls
+            raise RuntimeError("CUDA out of memory")
+        return np.zeros((len(obs), 2))
+
+    agent = callable_agent(flaky, obs_dim=5)
+    with pytest.raises(AgentError, match="the model raised RuntimeError: CUDA out of memory"):
+        agent(OBS5)
+
+
+@pytest.mark.parametrize("output, message", [
+    (lambda obs: np.full((len(obs), 2), np.nan), "NaN"),
+    (lambda obs: np.zeros((len(obs), 3)), "3 values per observation"),
+    (lambda obs: np.zeros((len(obs), 2), dtype=np.int32), "not floating point"),
+    (lambda obs: "left", "not floating point"),
+])
+def test_callable_contract_checked_at_creation(output, message):
+    with pytest.raises(AgentError, match=message):
+        callable_agent(output, obs_dim=5)
+
+
+def test_observations_of_the_wrong_size_are_a_caller_error():
+    with pytest.raises(ValueError, match=r"expects observations of shape \(batch, 5\)"):
+        heuristic_agent()(np.zeros((1, 20), dtype=np.float32))

@@ -1,0 +1,158 @@
+"""league.render: numpy frames, track pictures, race animations (all without a display)."""
+import time
+
+import numpy as np
+import pytest
+from PIL import Image
+
+import league
+from league import render
+from league.evaluation import race
+
+
+@pytest.fixture(scope="module")
+def track():
+    env = league.MicroRacerEnv()
+    env.reset(seed=5)
+    return env.track
+
+
+@pytest.fixture(scope="module")
+def small_race():
+    return race(["heuristic", "heuristic-lidar", "heuristic"], seed=1, names=["a", "b", "c"])
+
+
+def pixel_of(track, x, y):
+    row, col = render.track_image(track).to_pixels(x, y)
+    return int(round(float(row))), int(round(float(col)))
+
+
+# --------------------------------------------------------------------------- numpy frames
+
+
+def test_frame_is_a_cropped_rgb_image_of_the_track(track):
+    frame = render.render_frame(track, [], [], [], [])
+    assert frame.dtype == np.uint8 and frame.ndim == 3 and frame.shape[2] == 3
+    assert max(frame.shape[:2]) <= 650
+    road = np.asarray(track.valid).sum() / render.DOWNSAMPLE**2
+    assert (frame == render.ROAD).all(axis=2).sum() == pytest.approx(road, rel=0.15)
+    assert (frame == render.OBSTACLE).all(axis=2).any()
+    for edge in (frame[0], frame[-1], frame[:, 0], frame[:, -1]):  # the crop keeps a margin of field
+        assert (edge == render.OFF_ROAD).all()
+
+
+def test_start_is_on_the_road_and_obstacles_where_the_map_says(track):
+    frame = render.render_frame(track, [], [], [], [])
+    assert tuple(frame[pixel_of(track, *track.start_position)]) == render.ROAD
+    i, j = np.argwhere(track.obstacle_cells)[len(np.argwhere(track.obstacle_cells)) // 2]
+    x, y = (i - 650 + 0.5) / 500, (j - 650 + 0.5) / 500
+    row, col = pixel_of(track, x, y)
+    patch = frame[row - 1:row + 2, col - 1:col + 2]
+    assert (patch == render.OBSTACLE).all(axis=2).any()
+
+
+def test_cars_and_trails_are_drawn_in_their_colours(track):
+    x0, y0 = track.start_position
+    theta = np.linspace(0, -0.3, 40)
+    trail = track.midline(np.mod(theta, 2 * np.pi))
+    colors = [(255, 0, 255), (0, 255, 255)]
+    frame = render.render_frame(track, [trail[-1, 0], x0], [trail[-1, 1], y0], [0.0, track.start_heading],
+                                [trail, None], colors=colors)
+    assert tuple(frame[pixel_of(track, *trail[-1])]) == colors[0]
+    assert tuple(frame[pixel_of(track, x0, y0)]) == colors[1]
+    middle = trail[20]
+    assert tuple(frame[pixel_of(track, *middle)]) == colors[0]  # the trail between start and car
+    magenta = (frame == colors[0]).all(axis=2).sum()
+    assert magenta > 100  # a line, not just the marker
+
+
+def test_frames_are_fast(track):
+    render.render_frame(track, [0.0], [0.0], [0.0], [])  # the background is drawn once per track
+    trails = [track.midline(np.linspace(0, 2 * np.pi * k / 10, 600)) for k in range(1, 11)]
+    xs, ys = [t[-1, 0] for t in trails], [t[-1, 1] for t in trails]
+    start = time.perf_counter()
+    for _ in range(20):
+        render.render_frame(track, xs, ys, np.zeros(10), trails)
+    assert (time.perf_counter() - start) / 20 < 0.03  # 10 cars with 600-point trails
+
+
+def test_env_rgb_array_uses_the_frame(track):
+    env = league.MicroRacerEnv(render_mode="rgb_array")
+    env.reset(seed=5)
+    for _ in range(10):
+        env.step(np.array([0.5, 0.0], dtype=np.float32))
+    frame = env.render()
+    assert frame.dtype == np.uint8 and frame.shape == render.track_image(env.track).rgb.shape
+
+
+# --------------------------------------------------------------------------- pictures and animations
+
+
+def test_track_png(track, tmp_path):
+    path = render.save_track_png(track, tmp_path / "track.png", title="seed 5")
+    with Image.open(path) as image:
+        assert image.format == "PNG" and image.size == (650, 650)
+
+
+@pytest.mark.parametrize("acc, turn, speed, text", [
+    (0.523, 0.31, 0.271, "accelerating 0.52 | right 0.31 | speed 0.27"),
+    (-0.2, -0.5, 0.3, "braking 0.20 | left 0.50 | speed 0.30"),
+    (0.0, 0.0, 0.1, "accelerating 0.00 | straight | speed 0.10"),
+])
+def test_action_text(acc, turn, speed, text):
+    assert render.action_text(acc, turn, speed) == text
+
+
+def test_ordinals():
+    assert [render.ordinal(n) for n in (1, 2, 3, 4, 11, 12, 13, 21, 22, 101, 111)] == [
+        "1st", "2nd", "3rd", "4th", "11th", "12th", "13th", "21st", "22nd", "101st", "111th"]
+
+
+def test_legend_shows_actions_then_places_or_reasons(small_race):
+    replay = small_race.replay
+    animation = render.RaceAnimation(replay, render._agg_figure((10, 6.5), 60))
+    animation.draw(10)
+    car = replay["cars"][0]
+    assert animation.status[0].get_text() == render.action_text(car["acc"][10], car["turn"][10], car["speed"][10])
+    animation.draw(animation.total_steps)
+    for i, row in enumerate(r for r in sorted(replay["classification"], key=lambda r: r["car"])):
+        expected = f"{render.ordinal(row['position'])}  {row['time']:.1f} s" if row["outcome"] == "finished" else "off road"
+        assert animation.status[i].get_text() == expected
+
+
+def test_legend_explains_why_a_car_stopped():
+    for outcome, text in [("off_road", "off road"), ("wrong_direction", "wrong direction"), ("too_slow", "too slow")]:
+        assert render.final_text({"outcome": outcome, "position": 3, "time": 2.0}) == text
+    assert render.final_text({"outcome": "dnf", "reason": "the model returned NaN"}) == "DNF: the model returned NaN"
+
+
+def test_gif_has_every_frame_and_ends_on_the_result(small_race, tmp_path):
+    path = render.animate_replay(small_race.replay, save=tmp_path / "race.gif")
+    animation = render.RaceAnimation(small_race.replay, render._agg_figure((10, 6.5), 80))
+    with Image.open(path) as gif:
+        assert gif.n_frames == len(animation.frame_steps())
+        assert gif.size == (800, 520)
+    assert animation.frame_steps()[-1] == max(len(c["x"]) - 1 for c in small_race.replay["cars"])
+
+
+def test_long_races_are_subsampled_to_a_bounded_number_of_frames(small_race):
+    animation = render.RaceAnimation(small_race.replay, render._agg_figure((10, 6.5), 60))
+    animation.total_steps = 4000
+    assert len(animation.frame_steps()) <= render.MAX_FRAMES + 1
+
+
+def test_saving_errors_are_clear(small_race, tmp_path, monkeypatch):
+    with pytest.raises(render.RenderError, match="use a .gif or .mp4"):
+        render.animate_replay(small_race.replay, save=tmp_path / "race.avi")
+    monkeypatch.setenv("PATH", str(tmp_path))  # no ffmpeg anywhere
+    monkeypatch.setitem(__import__("matplotlib").rcParams, "animation.ffmpeg_path", "ffmpeg")
+    with pytest.raises(render.RenderError, match="needs ffmpeg"):
+        render.animate_replay(small_race.replay, save=tmp_path / "race.mp4")
+
+
+def test_showing_without_a_display_is_a_clear_error(monkeypatch):
+    monkeypatch.delenv("DISPLAY", raising=False)
+    monkeypatch.delenv("WAYLAND_DISPLAY", raising=False)
+    monkeypatch.setattr(render.sys, "platform", "linux")
+    with pytest.raises(render.RenderError, match="no display"):
+        render.require_display()
