@@ -146,3 +146,26 @@ def test_info_fields():
     assert info["time"] == pytest.approx(0.04) and info["distance"] == pytest.approx(reward)
     assert 0 < info["progress"] < 0.01
     json.dumps(info)  # plain Python types
+
+
+def test_rgb_array_render_draws_track_obstacles_car_and_trail_without_a_display():
+    env = gym.make("league/MicroRacer-v0", render_mode="rgb_array")
+    obs, _ = env.reset(seed=5)
+    first = env.render()
+    for _ in range(100):
+        obs, *_ = env.step(reference.heuristic(obs))
+    frame = env.render()
+    assert frame.dtype == np.uint8 and frame.ndim == 3 and frame.shape[2] == 3 and min(frame.shape[:2]) > 300
+    colours = {tuple(c) for c in frame.reshape(-1, 3)[:: 7]}
+    assert len(colours) >= 4  # background, road, obstacles, car/trail
+    assert (frame != first).any(axis=2).sum() > 50  # the trail grew
+
+
+def test_parallel_render_draws_every_car():
+    penv = league.parallel_env(n_cars=3, render_mode="rgb_array")
+    observations, _ = penv.reset(seed=2)
+    for step in range(60):
+        actions = {a: np.array(reference.heuristic(observations[a])) * (1 + 0.3 * int(a[4:])) for a in penv.agents}
+        observations, *_ = penv.step(actions)
+    frame = penv.render()
+    assert frame.ndim == 3 and frame.dtype == np.uint8
