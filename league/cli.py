@@ -93,6 +93,9 @@ def build_parser() -> argparse.ArgumentParser:
 
 
 def _add_server_commands(subparsers) -> None:
+    from league.baselines.cli import add_commands as add_baseline_commands  # imports torch only when run
+
+    add_baseline_commands(subparsers)
     try:
         from league.server.cli import add_commands
     except ImportError:  # the server extra is not installed

@@ -1,0 +1,76 @@
+"""The web pages (web/): HTML for the leaderboard, login, submissions, race viewer and instructor
+console, their assets under /static, and the track geometry the race viewer draws.
+
+`mount_web(app)` adds all of it to the FastAPI app. The pages are plain HTML and JavaScript
+modules talking to the JSON API; they load nothing from any other host, which the
+Content-Security-Policy sent with every page enforces in the browser.
+"""
+from __future__ import annotations
+
+import os
+from pathlib import Path
+from typing import Any
+
+from fastapi import APIRouter, Body, FastAPI, HTTPException, status
+from fastapi.responses import FileResponse
+from fastapi.staticfiles import StaticFiles
+
+from league.web_geometry import track_geometry
+
+MAX_TRACK_BYTES = 256 * 1024  # a track dict is a few KB
+# Pages may talk to and load from their own server only; no inline scripts or styles.
+PAGE_HEADERS = {
+    "Content-Security-Policy": "default-src 'self'; img-src 'self' data: blob:; object-src 'none'; "
+                               "base-uri 'none'; form-action 'self'; frame-ancestors 'none'",
+    "Cache-Control": "no-cache",
+    "X-Content-Type-Options": "nosniff",
+    "Referrer-Policy": "no-referrer",
+}
+
+router = APIRouter(tags=["web"])
+
+
+def web_dir() -> Path:
+    """The web/ folder: LEAGUE_WEB_DIR, else the repository's (an editable install), else ./web."""
+    configured = os.environ.get("LEAGUE_WEB_DIR")
+    candidates = [Path(configured)] if configured else [Path(__file__).resolve().parents[4] / "web",
+                                                         Path.cwd() / "web"]
+    for candidate in candidates:
+        if (candidate / "index.html").is_file():
+            return candidate
+    raise RuntimeError(f"the web pages were not found (looked in {', '.join(map(str, candidates))}); "
+                       "set LEAGUE_WEB_DIR to the repository's web/ folder")
+
+
+@router.post("/api/tracks/geometry")
+def read_track_geometry(track: dict[str, Any] = Body(description="a track as in a replay (Track.to_dict)")) -> dict:
+    """Drawable borders, obstacles and start of a replay's track (public; the race viewer's background)."""
+    try:
+        return track_geometry(track)
+    except (KeyError, TypeError, ValueError) as error:
+        raise HTTPException(status.HTTP_422_UNPROCESSABLE_CONTENT, f"not a track: {error}") from error
+
+
+def mount_web(app: FastAPI, directory: Path | None = None) -> None:
+    """Serve the pages of `directory` (default `web_dir()`) and the geometry endpoint on `app`."""
+    directory = directory or web_dir()
+
+    def page(name: str):
+        path = directory / name
+
+        async def serve_page() -> FileResponse:
+            return FileResponse(path, media_type="text/html", headers=PAGE_HEADERS)
+
+        serve_page.__name__ = f"page_{path.stem}"
+        return serve_page
+
+    pages = APIRouter(include_in_schema=False)
+    pages.add_api_route("/", page("index.html"), methods=["GET", "HEAD"])
+    pages.add_api_route("/login", page("login.html"), methods=["GET", "HEAD"])
+    pages.add_api_route("/submissions", page("submissions.html"), methods=["GET", "HEAD"])
+    pages.add_api_route("/races/{race_id}", page("race.html"), methods=["GET", "HEAD"])
+    pages.add_api_route("/replay", page("race.html"), methods=["GET", "HEAD"])  # the viewer for a replay file saved by `league race`
+    pages.add_api_route("/instructor", page("instructor.html"), methods=["GET", "HEAD"])
+    app.include_router(pages)
+    app.include_router(router, max_body_size=MAX_TRACK_BYTES)
+    app.mount("/static", StaticFiles(directory=directory / "static"), name="static")

@@ -1,0 +1,78 @@
+"""The league server's settings: one pydantic-settings class, read from LEAGUE_* variables and `.env`.
+
+Every default runs the embedded league (SQLite database and SQLite task queue in the data
+directory); point `database_url` at PostgreSQL and `queue_url` at Redis to run workers on
+several machines.
+"""
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Any
+
+from pydantic import Field
+from pydantic_settings import BaseSettings, SettingsConfigDict
+
+MB = 1024 * 1024
+
+
+class Settings(BaseSettings):
+    """Environment variables are the field names in upper case with the prefix LEAGUE_,
+    e.g. LEAGUE_DATABASE_URL; dicts are JSON (LEAGUE_EVAL_ENV_OPTIONS='{"obstacles": false}')."""
+
+    model_config = SettingsConfigDict(env_prefix="LEAGUE_", env_file=".env", extra="ignore")
+
+    # where things live
+    data_dir: Path = Field(Path("agents_submissions"), description="submission store, SQLite files, baselines/")
+    database_url: str | None = Field(None, description="SQLAlchemy URL; default sqlite:///DATA_DIR/league.db")
+    queue_url: str | None = Field(None, description="redis://host:port/db, or default SQLite DATA_DIR/queue.db")
+    queue_name: str = Field("league", description="Huey queue name (the Redis key prefix)")
+    baselines_dir: Path | None = Field(None, description="bundled agents registered on an empty database; "
+                                                         "default DATA_DIR/baselines")
+    bootstrap: bool = Field(True, description="register and evaluate the baselines on an empty database")
+
+    # uploads and quotas
+    max_upload_mb: float = Field(10.0, description="largest model file accepted")
+    quota_per_day: int = Field(10, description="submissions per student per rolling 24 h (rejected ones are free)")
+
+    # sandbox limits
+    sandbox_memory_mb: int = Field(512, description="address space a model may use on top of its runtime")
+    sandbox_cpu_seconds: int = Field(600, description="CPU time of one sandbox process")
+    step_deadline_ms: float = Field(20.0, description="wall-clock time of one agent call")
+    first_call_allowance_ms: float = Field(1000.0, description="banked extra time for warm-up calls")
+    episode_deadline_s: float = Field(60.0, description="model time within one episode")
+    load_timeout_s: float = Field(30.0, description="starting the sandbox and loading the model")
+    sandbox_user: str | None = Field("nobody", description="user the sandbox runs as when the worker is root")
+    sandbox_max_restarts: int = Field(3, description="sandbox crashes tolerated in one evaluation")
+    log_limit_kb: int = Field(16, description="sandbox output kept per run")
+
+    # evaluation defaults (of a new course; instructors change them through the API)
+    eval_seed: int = 0
+    eval_episodes: int = 100
+    eval_env_options: dict[str, Any] = Field(default_factory=dict)
+
+    # jobs: leases as in fishtest, a job whose worker stops heart-beating is given to another
+    worker_threads: int = Field(1, description="jobs one worker process runs at once")
+    heartbeat_interval_s: float = 5.0
+    lease_timeout_s: float = Field(60.0, description="a running job without heartbeat for this long is re-queued")
+    reaper_interval_s: float = 10.0
+    requeue_queued_after_s: float = Field(600.0, description="re-send a job left queued this long (lost message)")
+    max_job_attempts: int = 3
+
+    @property
+    def max_upload_bytes(self) -> int:
+        return int(self.max_upload_mb * MB)
+
+    @property
+    def resolved_database_url(self) -> str:
+        return self.database_url or f"sqlite:///{self.data_dir.resolve() / 'league.db'}"
+
+    @property
+    def resolved_queue_url(self) -> str:
+        return self.queue_url or f"sqlite:///{self.data_dir.resolve() / 'queue.db'}"
+
+    @property
+    def resolved_baselines_dir(self) -> Path:
+        return self.baselines_dir or self.data_dir / "baselines"
+
+    def default_evaluation(self) -> dict[str, Any]:
+        return {"seed": self.eval_seed, "episodes": self.eval_episodes, "env_options": dict(self.eval_env_options)}

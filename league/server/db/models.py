@@ -1,0 +1,193 @@
+"""SQLAlchemy 2 models. The database is the source of truth for every status a user sees.
+
+Schema changes go through an Alembic migration (league/server/migrations/versions/).
+"""
+from __future__ import annotations
+
+from datetime import datetime, timezone
+from typing import Any
+
+from sqlalchemy import (
+    JSON, BigInteger, DateTime, Float, ForeignKey, Index, Integer, LargeBinary, String, Text, UniqueConstraint,
+)
+from sqlalchemy.orm import DeclarativeBase, Mapped, mapped_column, relationship
+from sqlalchemy.types import TypeDecorator
+
+# roles
+INSTRUCTOR, STUDENT, BASELINE = "instructor", "student", "baseline"
+
+# submission statuses (what students see)
+PENDING, VALIDATING, READY, REJECTED, FAILED = "pending", "validating", "ready", "rejected", "failed"
+
+# evaluation and job statuses
+QUEUED, RUNNING, DONE = "queued", "running", "done"
+
+# job kinds
+VALIDATE, EVALUATE = "validate", "evaluate"
+
+
+def utcnow() -> datetime:
+    return datetime.now(timezone.utc)
+
+
+class UTCDateTime(TypeDecorator):
+    """Aware UTC datetimes on every backend (SQLite keeps no time zone: stored naive, read back as UTC)."""
+
+    impl = DateTime
+    cache_ok = True
+
+    def process_bind_param(self, value: datetime | None, dialect: Any) -> datetime | None:
+        if value is None:
+            return None
+        if value.tzinfo is None:
+            raise ValueError("naive datetime given to a UTC column")
+        return value.astimezone(timezone.utc).replace(tzinfo=None)
+
+    def process_result_value(self, value: datetime | None, dialect: Any) -> datetime | None:
+        return None if value is None else value.replace(tzinfo=timezone.utc)
+
+
+class Base(DeclarativeBase):
+    type_annotation_map = {datetime: UTCDateTime(), dict[str, Any]: JSON(), list[Any]: JSON()}
+
+
+class Course(Base):
+    """A class of students with its evaluation settings (the same tracks for everyone)."""
+
+    __tablename__ = "courses"
+
+    id: Mapped[int] = mapped_column(primary_key=True)
+    name: Mapped[str] = mapped_column(String(100), unique=True)
+    eval_seed: Mapped[int] = mapped_column(BigInteger, default=0)
+    eval_episodes: Mapped[int] = mapped_column(Integer, default=100)
+    eval_env_options: Mapped[dict[str, Any]] = mapped_column(default=dict)
+    created_at: Mapped[datetime] = mapped_column(default=utcnow)
+    updated_at: Mapped[datetime] = mapped_column(default=utcnow, onupdate=utcnow)
+
+    def evaluation_settings(self) -> dict[str, Any]:
+        return {"seed": self.eval_seed, "episodes": self.eval_episodes, "env_options": dict(self.eval_env_options)}
+
+
+class User(Base):
+    """An instructor, a student, or the `baselines` account that owns the bundled agents (no token)."""
+
+    __tablename__ = "users"
+
+    id: Mapped[int] = mapped_column(primary_key=True)
+    name: Mapped[str] = mapped_column(String(100), unique=True)
+    role: Mapped[str] = mapped_column(String(20))
+    course_id: Mapped[int | None] = mapped_column(ForeignKey("courses.id"))
+    token_hash: Mapped[str | None] = mapped_column(String(64), unique=True)  # sha256 hex of the bearer token
+    created_at: Mapped[datetime] = mapped_column(default=utcnow)
+    created_by_id: Mapped[int | None] = mapped_column(ForeignKey("users.id"))
+    revoked_at: Mapped[datetime | None] = mapped_column(default=None)
+
+    course: Mapped[Course | None] = relationship(lazy="joined")
+
+    @property
+    def active(self) -> bool:
+        return self.revoked_at is None
+
+
+class Blob(Base):
+    """A submitted file's bytes, by sha256: workers on other machines fetch models from here into
+    their own store, so they need only the database and the queue, no shared filesystem."""
+
+    __tablename__ = "blobs"
+
+    sha256: Mapped[str] = mapped_column(String(64), primary_key=True)
+    size: Mapped[int] = mapped_column(Integer)
+    data: Mapped[bytes] = mapped_column(LargeBinary)
+    created_at: Mapped[datetime] = mapped_column(default=utcnow)
+
+
+class Submission(Base):
+    """An uploaded model file; the file itself lives in the content-addressed store (by sha256)."""
+
+    __tablename__ = "submissions"
+    __table_args__ = (Index("ix_submissions_owner_created", "owner_id", "created_at"),)
+
+    id: Mapped[int] = mapped_column(primary_key=True)
+    owner_id: Mapped[int] = mapped_column(ForeignKey("users.id"))
+    name: Mapped[str] = mapped_column(String(100))
+    filename: Mapped[str] = mapped_column(String(255))
+    kind: Mapped[str] = mapped_column(String(20))  # "onnx" or "torchscript", from the file name
+    sha256: Mapped[str] = mapped_column(String(64), index=True)
+    size: Mapped[int] = mapped_column(Integer)
+    status: Mapped[str] = mapped_column(String(20), default=PENDING, index=True)
+    error: Mapped[str | None] = mapped_column(Text, default=None)
+    log: Mapped[str | None] = mapped_column(Text, default=None)  # sandbox output of the validation, truncated
+    obs_dim: Mapped[int | None] = mapped_column(Integer, default=None)
+    public: Mapped[bool] = mapped_column(default=False)
+    created_at: Mapped[datetime] = mapped_column(default=utcnow)
+    updated_at: Mapped[datetime] = mapped_column(default=utcnow, onupdate=utcnow)
+
+    owner: Mapped[User] = relationship(lazy="joined")
+
+
+class Evaluation(Base):
+    """One `metrics_run` of a submission with a course's settings; re-runs add new rows."""
+
+    __tablename__ = "evaluations"
+
+    id: Mapped[int] = mapped_column(primary_key=True)
+    submission_id: Mapped[int] = mapped_column(ForeignKey("submissions.id"), index=True)
+    course_id: Mapped[int | None] = mapped_column(ForeignKey("courses.id"))
+    settings: Mapped[dict[str, Any]] = mapped_column()  # {"seed", "episodes", "env_options"} as requested
+    status: Mapped[str] = mapped_column(String(20), default=QUEUED)
+    error: Mapped[str | None] = mapped_column(Text, default=None)
+    log: Mapped[str | None] = mapped_column(Text, default=None)
+    completed: Mapped[int | None] = mapped_column(Integer, default=None)
+    episodes_total: Mapped[int | None] = mapped_column(Integer, default=None)
+    mean_return: Mapped[float | None] = mapped_column(Float, default=None)
+    mean_steps: Mapped[float | None] = mapped_column(Float, default=None)
+    mean_speed: Mapped[float | None] = mapped_column(Float, default=None)
+    result_settings: Mapped[dict[str, Any] | None] = mapped_column(JSON, default=None)  # metrics_run's record
+    created_at: Mapped[datetime] = mapped_column(default=utcnow)
+    finished_at: Mapped[datetime | None] = mapped_column(default=None)
+
+    episodes: Mapped[list[EpisodeResult]] = relationship(order_by="EpisodeResult.index", lazy="selectin")
+
+
+class EpisodeResult(Base):
+    __tablename__ = "episode_results"
+    __table_args__ = (UniqueConstraint("evaluation_id", "index"),)
+
+    id: Mapped[int] = mapped_column(primary_key=True)
+    evaluation_id: Mapped[int] = mapped_column(ForeignKey("evaluations.id"))
+    index: Mapped[int] = mapped_column(Integer)
+    seed: Mapped[int] = mapped_column(BigInteger)  # episode seeds are uint32
+    steps: Mapped[int] = mapped_column(Integer)
+    episode_return: Mapped[float] = mapped_column(Float)
+    mean_speed: Mapped[float] = mapped_column(Float)
+    outcome: Mapped[str] = mapped_column(String(20))
+    reason: Mapped[str | None] = mapped_column(Text, default=None)
+
+
+class Job(Base):
+    """A unit of work for the queue, with its lease: the queue only carries the job id.
+
+    A worker claims a queued job (status -> running, its worker_id, attempts + 1), heart-beats
+    while it works, and writes the results in the same transaction that marks the job done,
+    only if it still holds the lease. The reaper gives jobs whose heartbeat stopped to another
+    worker (fishtest's dead-task scavenging).
+    """
+
+    __tablename__ = "jobs"
+    __table_args__ = (Index("ix_jobs_status_heartbeat", "status", "heartbeat_at"),)
+
+    id: Mapped[int] = mapped_column(primary_key=True)
+    kind: Mapped[str] = mapped_column(String(20))
+    submission_id: Mapped[int | None] = mapped_column(ForeignKey("submissions.id"), index=True)
+    evaluation_id: Mapped[int | None] = mapped_column(ForeignKey("evaluations.id"))
+    payload: Mapped[dict[str, Any]] = mapped_column(default=dict)
+    status: Mapped[str] = mapped_column(String(20), default=QUEUED)
+    attempts: Mapped[int] = mapped_column(Integer, default=0)
+    max_attempts: Mapped[int] = mapped_column(Integer, default=3)
+    worker_id: Mapped[str | None] = mapped_column(String(100), default=None)
+    error: Mapped[str | None] = mapped_column(Text, default=None)
+    created_at: Mapped[datetime] = mapped_column(default=utcnow)
+    enqueued_at: Mapped[datetime] = mapped_column(default=utcnow)
+    started_at: Mapped[datetime | None] = mapped_column(default=None)
+    heartbeat_at: Mapped[datetime | None] = mapped_column(default=None)
+    finished_at: Mapped[datetime | None] = mapped_column(default=None)

@@ -1,0 +1,91 @@
+"""Content-addressed store of submitted files: DATA_DIR/blobs/ab/abcdef... (sha256 of the content).
+
+The same file uploaded twice is stored once. Files are written to DATA_DIR/tmp first and moved
+into place atomically, so a reader never sees half a file.
+"""
+from __future__ import annotations
+
+import hashlib
+import os
+import tempfile
+from pathlib import Path
+from typing import BinaryIO
+
+CHUNK = 1024 * 1024
+MODEL_KINDS = {".onnx": "onnx", ".pt": "torchscript", ".pth": "torchscript", ".ts": "torchscript",
+               ".jit": "torchscript", ".torchscript": "torchscript"}
+
+
+def model_kind_of(filename: str | None) -> str | None:
+    """"onnx" or "torchscript" from a file name (the sandbox checks the content), None if neither."""
+    return MODEL_KINDS.get(Path(filename or "").suffix.lower())
+
+
+class FileTooLarge(Exception):
+    def __init__(self, limit: int):
+        super().__init__(f"file too large: the limit is {limit / (1024 * 1024):g} MB")
+        self.limit = limit
+
+
+class EmptyFile(Exception):
+    pass
+
+
+class BlobStore:
+    def __init__(self, root: Path):
+        self.root = Path(root)
+        self.blobs = self.root / "blobs"
+        self.tmp = self.root / "tmp"
+
+    def ensure(self) -> None:
+        for directory in (self.root, self.blobs, self.tmp):
+            directory.mkdir(parents=True, exist_ok=True)
+        os.chmod(self.blobs, 0o700)  # sandboxes run as another user and must not read the store
+
+    def path(self, sha256: str) -> Path:
+        return self.blobs / sha256[:2] / sha256
+
+    def save(self, source: BinaryIO, *, max_bytes: int) -> tuple[str, int]:
+        """Copy a stream into the store, hashing and counting as it goes; return (sha256, size)."""
+        digest, size = hashlib.sha256(), 0
+        handle, tmp_name = tempfile.mkstemp(dir=self.tmp, prefix="upload-")
+        try:
+            with os.fdopen(handle, "wb") as out:
+                while chunk := source.read(CHUNK):
+                    size += len(chunk)
+                    if size > max_bytes:
+                        raise FileTooLarge(max_bytes)
+                    digest.update(chunk)
+                    out.write(chunk)
+            if size == 0:
+                raise EmptyFile()
+            sha256 = digest.hexdigest()
+            self._move_into_place(Path(tmp_name), sha256)
+            return sha256, size
+        finally:
+            Path(tmp_name).unlink(missing_ok=True)
+
+    def _move_into_place(self, tmp_path: Path, sha256: str) -> None:
+        target = self.path(sha256)
+        if target.exists():
+            return  # already stored: content-addressed, identical bytes
+        target.parent.mkdir(exist_ok=True)
+        os.chmod(tmp_path, 0o600)
+        os.replace(tmp_path, target)
+
+    def write_verified(self, sha256: str, data: bytes) -> Path:
+        """Store bytes fetched from elsewhere (the database) after checking they are what was asked for."""
+        if hashlib.sha256(data).hexdigest() != sha256:
+            raise ValueError(f"stored bytes do not match their sha256 {sha256}")
+        handle, tmp_name = tempfile.mkstemp(dir=self.tmp, prefix="fetch-")
+        try:
+            with os.fdopen(handle, "wb") as out:
+                out.write(data)
+            self._move_into_place(Path(tmp_name), sha256)
+        finally:
+            Path(tmp_name).unlink(missing_ok=True)
+        return self.path(sha256)
+
+    def add_file(self, path: Path) -> tuple[str, int]:
+        with open(path, "rb") as source:
+            return self.save(source, max_bytes=2**62)

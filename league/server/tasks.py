@@ -1,0 +1,141 @@
+"""The jobs of issue 5: validating a submission in a sandbox, and evaluating it with metrics_run.
+
+Each handler follows league.server.jobs.JobHandler: `begin` and `finish` run inside the
+lease transactions, `run` does the slow work with no transaction open.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+from sqlalchemy import delete
+from sqlalchemy.orm import Session
+
+from league.agents import AgentError
+from league.evaluation import metrics_run
+from league.server.db import crud
+from league.server.db.models import (
+    DONE, EVALUATE, FAILED, READY, REJECTED, RUNNING, VALIDATE, VALIDATING, EpisodeResult, Evaluation, Job,
+    Submission, User, utcnow,
+)
+from league.server.jobs import JobRun, register_handler
+from league.server.sandbox import LogBuffer, SandboxedAgent, SandboxLimits, ValidationReport, validate_model
+
+
+def evaluation_course(session: Session, owner: User):
+    """The course whose settings evaluate a submission: its owner's, or the first course for the baselines."""
+    if owner.course is not None:
+        return owner.course
+    return crud.first_course(session)
+
+
+def queue_evaluation(session: Session, *, submission: Submission, max_attempts: int, course=None) -> Job:
+    """A new evaluation with the course's current settings (by default the owner's course)."""
+    course = course or evaluation_course(session, submission.owner)
+    _, job = crud.create_evaluation(session, submission=submission, course=course,
+                                    settings=course.evaluation_settings(), max_attempts=max_attempts)
+    return job
+
+
+class ValidateSubmission:
+    def begin(self, session: Session, job: Job) -> None:
+        submission = session.get(Submission, job.submission_id)
+        submission.status, submission.error = VALIDATING, None
+
+    def run(self, run: JobRun) -> ValidationReport:
+        submission = _submission_of(run)
+        limits = SandboxLimits.from_settings(run.context.settings)
+        return validate_model(model_file(run, submission), submission.kind, limits)
+
+    def finish(self, session: Session, job: Job, report: ValidationReport) -> list[int]:
+        submission = session.get(Submission, job.submission_id)
+        submission.log = report.log
+        if not report.ok:
+            submission.status, submission.error = REJECTED, report.error
+            return []
+        submission.status, submission.error, submission.obs_dim = READY, None, report.obs_dim
+        return [queue_evaluation(session, submission=submission, max_attempts=job.max_attempts).id]
+
+    def give_up(self, session: Session, job: Job, reason: str) -> None:
+        submission = session.get(Submission, job.submission_id)
+        submission.status, submission.error = FAILED, f"the validation could not be completed: {reason}"
+
+
+@dataclass
+class EvaluationOutcome:
+    result: dict[str, Any] | None  # MetricsResult.to_dict()
+    error: str | None
+    log: str
+
+
+class EvaluateSubmission:
+    def begin(self, session: Session, job: Job) -> None:
+        evaluation = session.get(Evaluation, job.evaluation_id)
+        evaluation.status, evaluation.error = RUNNING, None
+
+    def run(self, run: JobRun) -> EvaluationOutcome:
+        submission = _submission_of(run)
+        with run.context.sessions() as session:
+            settings = session.get(Evaluation, run.job.evaluation_id).settings
+        limits = SandboxLimits.from_settings(run.context.settings)
+        log = LogBuffer(limits.log_limit)
+        try:
+            with SandboxedAgent(model_file(run, submission), submission.kind, limits,
+                                name=submission.name, log=log, cancel=run.lease_lost) as agent:
+                result = metrics_run(agent, episodes=settings["episodes"], seed=settings["seed"],
+                                     on_episode=lambda i, episode: agent.new_episode(), **settings["env_options"])
+        except AgentError as error:  # the model no longer starts (it passed validation: a changed runtime?)
+            return EvaluationOutcome(None, error.reason, log.text())
+        except (TypeError, ValueError) as error:  # settings the simulator refuses: re-running cannot help
+            return EvaluationOutcome(None, f"invalid evaluation settings: {error}", log.text())
+        return EvaluationOutcome(result.to_dict(), None, log.text())
+
+    def finish(self, session: Session, job: Job, outcome: EvaluationOutcome) -> list[int]:
+        evaluation = session.get(Evaluation, job.evaluation_id)
+        evaluation.log, evaluation.finished_at = outcome.log, utcnow()
+        if outcome.result is None:
+            evaluation.status, evaluation.error = FAILED, outcome.error
+            return []
+        _store_result(session, evaluation, outcome.result)
+        evaluation.status, evaluation.error = DONE, None
+        return []
+
+    def give_up(self, session: Session, job: Job, reason: str) -> None:
+        evaluation = session.get(Evaluation, job.evaluation_id)
+        evaluation.status, evaluation.error = FAILED, f"the evaluation could not be completed: {reason}"
+        evaluation.finished_at = utcnow()
+
+
+def _store_result(session: Session, evaluation: Evaluation, result: dict[str, Any]) -> None:
+    """Totals and episodes; replaces any earlier rows of this evaluation (idempotent)."""
+    session.execute(delete(EpisodeResult).where(EpisodeResult.evaluation_id == evaluation.id))
+    session.add_all(EpisodeResult(evaluation_id=evaluation.id, index=i, seed=e["seed"], steps=e["steps"],
+                                  episode_return=e["return"], mean_speed=e["mean_speed"], outcome=e["outcome"],
+                                  reason=e["reason"]) for i, e in enumerate(result["episodes"]))
+    for key in ("completed", "episodes_total", "mean_return", "mean_steps", "mean_speed"):
+        setattr(evaluation, key, result[key])
+    evaluation.result_settings = result["settings"]
+    session.expire(evaluation, ["episodes"])
+
+
+def _submission_of(run: JobRun) -> Submission:
+    with run.context.sessions() as session:
+        return session.get(Submission, run.job.submission_id)
+
+
+def model_file(run: JobRun, submission: Submission) -> Path:
+    """The submission's file in this worker's store, fetched from the database on first use here."""
+    store = run.context.store
+    path = store.path(submission.sha256)
+    if path.exists():
+        return path
+    with run.context.sessions() as session:
+        data = crud.blob_data(session, sha256=submission.sha256)
+    if data is None:
+        raise FileNotFoundError(f"the file of submission {submission.id} ({submission.sha256}) is missing")
+    return store.write_verified(submission.sha256, data)
+
+
+register_handler(VALIDATE, ValidateSubmission())
+register_handler(EVALUATE, EvaluateSubmission())

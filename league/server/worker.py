@@ -1,0 +1,95 @@
+"""Workers: a Huey consumer that runs league jobs, and the reaper that keeps jobs from getting stuck.
+
+`league worker` runs one in the foreground (Huey handles SIGINT/SIGTERM); `league serve` runs
+one in background threads of the API process, for the one-command embedded league.
+"""
+from __future__ import annotations
+
+import logging
+import threading
+
+from huey.consumer import Consumer
+
+from league.server import tasks  # noqa: F401  (registers the job handlers)
+from league.server.config import Settings
+from league.server.db.session import make_engine, make_sessionmaker, migrate
+from league.server.jobs import WorkerContext, reap, release_active, run_job
+from league.server.storage import BlobStore
+from league.server.taskqueue import JobQueue, build_queue
+
+log = logging.getLogger("league.server.worker")
+MAX_POLL_DELAY_S = 1.0  # an idle SQLite-queue worker looks for work at least this often (Redis blocks instead)
+
+
+class _EmbeddedConsumer(Consumer):
+    """A consumer started from a process that owns its signals (uvicorn's)."""
+
+    def _set_signal_handlers(self) -> None:
+        pass
+
+
+class Reaper:
+    def __init__(self, context: WorkerContext):
+        self.context = context
+        self._stop = threading.Event()
+        self._thread = threading.Thread(target=self._loop, name="league-reaper", daemon=True)
+
+    def start(self) -> None:
+        self._thread.start()
+
+    def stop(self) -> None:
+        self._stop.set()
+        self._thread.join(timeout=5)
+
+    def _loop(self) -> None:
+        while True:
+            try:
+                sent = reap(self.context)
+                if sent:
+                    log.info("reaper re-sent jobs %s", sent)
+            except Exception:  # an outage must not end the reaper: it is what recovers from outages
+                log.exception("reaper pass failed")
+            if self._stop.wait(self.context.settings.reaper_interval_s):
+                return
+
+
+class Worker:
+    def __init__(self, context: WorkerContext, *, threads: int, embedded: bool):
+        context.queue.runner = lambda job_id: run_job(context, job_id)
+        consumer_class = _EmbeddedConsumer if embedded else Consumer
+        self.context = context
+        self.consumer = consumer_class(context.queue.huey, workers=threads, periodic=False,
+                                       max_delay=MAX_POLL_DELAY_S, check_worker_health=True)
+        self.reaper = Reaper(context)
+
+    def start(self) -> None:
+        """Run in background threads (embedded in `league serve`)."""
+        self.consumer.start()
+        self.reaper.start()
+
+    def stop(self) -> None:
+        self.consumer.stop(graceful=False)
+        self._hand_back()
+        self.reaper.stop()
+
+    def run_forever(self) -> None:
+        """Run in the foreground until SIGINT (graceful: running jobs finish) or SIGTERM (they are handed back)."""
+        self.reaper.start()
+        try:
+            self.consumer.run()
+        finally:
+            self._hand_back()
+            self.reaper.stop()
+
+    def _hand_back(self) -> None:
+        released = release_active(self.context)
+        if released:
+            log.info("handed jobs %s back to the queue", released)
+
+
+def worker_context(settings: Settings, queue: JobQueue | None = None) -> WorkerContext:
+    engine = make_engine(settings.resolved_database_url)
+    migrate(engine)
+    store = BlobStore(settings.data_dir)
+    store.ensure()
+    return WorkerContext(settings, make_sessionmaker(engine), queue or build_queue(settings), store)

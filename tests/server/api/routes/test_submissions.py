@@ -1,0 +1,186 @@
+"""Submissions over real HTTP, on SQLite + SQLite queue and on PostgreSQL + Redis."""
+from __future__ import annotations
+
+import hashlib
+import re
+import uuid
+from datetime import datetime, timedelta
+
+import pytest
+
+from league.agents import load_agent
+from league.evaluation import metrics_run
+
+from ...conftest import create_student, submission, upload, wait_settled
+
+EPISODES, SEED = 3, 11  # conftest.TEST_SETTINGS
+
+
+def unique(name: str) -> str:
+    return f"{name}-{uuid.uuid4().hex[:6]}"
+
+
+def episode_rows(episodes: list[dict]) -> list[tuple]:
+    return [(e["seed"], e["steps"], e["outcome"], round(e["return"], 9), round(e["mean_speed"], 9)) for e in episodes]
+
+
+@pytest.mark.parametrize("kind", ["onnx", "torchscript"])
+def test_upload_becomes_ready_with_the_local_metrics_run(league_server, models, kind):
+    student = create_student(league_server, unique("alice"))
+    response = upload(student, models[kind], name=f"my {kind} actor")
+    assert response.status_code == 201, response.text
+    assert set(response.json()) == {"id", "status"} and response.json()["status"] == "pending"
+
+    result = wait_settled(student, response.json()["id"])
+
+    assert result["status"] == "ready", result["error"]
+    assert (result["name"], result["kind"], result["obs_dim"]) == (f"my {kind} actor", kind, 5)
+    evaluation = result["evaluation"]
+    assert evaluation["status"] == "done", evaluation["error"]
+    assert evaluation["settings"] == {"seed": SEED, "episodes": EPISODES, "env_options": {}}
+    local = metrics_run(load_agent(models[kind]), episodes=EPISODES, seed=SEED).to_dict()
+    assert episode_rows(evaluation["episodes"]) == episode_rows(local["episodes"])
+    assert evaluation["completed"] == local["completed"] and evaluation["episodes_total"] == EPISODES
+    assert evaluation["mean_return"] == pytest.approx(local["mean_return"], abs=1e-9)
+    assert evaluation["mean_speed"] == pytest.approx(local["mean_speed"], abs=1e-9)
+    assert "network namespace" in evaluation["log"] or "network user-namespace" in evaluation["log"]
+
+
+BAD_UPLOADS = {
+    "random_bytes": r"not an ONNX model",
+    "truncated": r"not an ONNX model \(or the file is truncated\)",
+    "pickle_pt": r"is a Python pickle, not TorchScript",
+    "wrong_input": r"wrong input size: the model takes 7 values per observation",
+    "wrong_output": r"the model returns 3 values per observation, expected 2",
+    "nan": r"NaN or infinite actions",
+    "loop": r"did not load and pass its dry run within 8 s",
+    "slow": r"step deadline|too slow",
+    "memory_hog": r"out of memory \(the cap is 512 MB\)",
+    "external_data": r"refers to external data",
+    "custom_domain": r"non-standard operator domain 'com.example'",
+    "reads_file": r"uses 'from_file'",
+}
+
+
+@pytest.mark.parametrize("bad", sorted(BAD_UPLOADS))
+def test_bad_model_is_rejected_with_its_reason_and_the_server_goes_on(league_server, models, bad):
+    student = create_student(league_server, unique(bad))
+    response = upload(student, models[bad])
+    assert response.status_code == 201, response.text
+
+    result = wait_settled(student, response.json()["id"])
+
+    assert result["status"] == "rejected"
+    assert re.search(BAD_UPLOADS[bad], result["error"]), result["error"]
+    assert result["evaluation"] is None
+    assert isinstance(result["log"], str)
+    assert student.get("/api/health").status_code == 200
+
+
+def test_empty_file_is_refused(league_server, tmp_path):
+    student = create_student(league_server, unique("empty"))
+    empty = tmp_path / "empty.onnx"
+    empty.write_bytes(b"")
+    response = upload(student, empty)
+    assert response.status_code == 400
+    assert response.json() == {"detail": "the file is empty"}
+
+
+def test_unknown_file_type_is_refused(league_server, tmp_path):
+    student = create_student(league_server, unique("type"))
+    script = tmp_path / "agent.py"
+    script.write_text("print('hello')")
+    response = upload(student, script)
+    assert response.status_code == 415
+    assert response.json()["detail"] == "unsupported file type '.py': upload an .onnx or a TorchScript .pt file"
+
+
+def test_file_over_the_size_limit_is_refused(league_server, tmp_path):
+    student = create_student(league_server, unique("big"))
+    big = tmp_path / "big.onnx"
+    big.write_bytes(b"\0" * (5 * 1024 * 1024 + 1))
+    response = upload(student, big)
+    assert response.status_code == 413
+    assert response.json() == {"detail": "file too large: the limit is 5 MB"}
+    assert student.get("/api/submissions").json() == []
+
+
+def test_size_limit_holds_for_a_streamed_upload_without_length(league_server):
+    """Chunked transfer: no Content-Length to trust, the limit is enforced while reading."""
+    student = create_student(league_server, unique("stream"))
+    boundary = "leaguetestboundary"
+
+    def body():
+        yield (f"--{boundary}\r\nContent-Disposition: form-data; name=\"file\"; filename=\"big.onnx\"\r\n"
+               "Content-Type: application/octet-stream\r\n\r\n").encode()
+        for _ in range(7):  # 7 MB > 5 MB
+            yield b"\1" * (1024 * 1024)
+        yield f"\r\n--{boundary}--\r\n".encode()
+
+    response = student.post("/api/submissions", content=body(),
+                            headers={"Content-Type": f"multipart/form-data; boundary={boundary}"})
+    assert response.status_code == 413
+    assert student.get("/api/health").status_code == 200
+
+
+def test_same_file_twice_is_stored_once(league_server, models):
+    student = create_student(league_server, unique("twice"))
+    first = upload(student, models["heuristic_onnx"]).json()["id"]
+    second = upload(student, models["heuristic_onnx"]).json()["id"]
+    one, two = submission(student, first), submission(student, second)
+    digest = hashlib.sha256(models["heuristic_onnx"].read_bytes()).hexdigest()
+    assert one["sha256"] == two["sha256"] == digest
+    stored = list((league_server.data_dir / "blobs").rglob(digest))
+    assert len(stored) == 1 and stored[0].read_bytes() == models["heuristic_onnx"].read_bytes()
+
+
+def test_quota_counts_accepted_uploads_only_and_names_the_next_free_slot(league_server, models):
+    student = create_student(league_server, unique("quota"))
+    rejected = upload(student, models["random_bytes"]).json()["id"]
+    assert wait_settled(student, rejected)["status"] == "rejected"
+    for _ in range(4):  # LEAGUE_QUOTA_PER_DAY=4; the rejected upload is free
+        assert upload(student, models["heuristic_onnx"]).status_code == 201
+
+    response = upload(student, models["heuristic_onnx"])
+
+    assert response.status_code == 429
+    detail = response.json()["detail"]
+    assert detail.startswith("quota reached: 4 submissions per 24 hours (rejected ones do not count); "
+                             "next free slot at ")
+    oldest = min(datetime.fromisoformat(s["created_at"]) for s in student.get("/api/submissions").json()
+                 if s["status"] != "rejected")
+    assert detail.endswith((oldest + timedelta(hours=24)).isoformat(timespec="seconds"))
+
+
+def test_missing_and_wrong_tokens_are_refused(league_server, models):
+    with league_server.client() as anonymous:
+        response = upload(anonymous, models["onnx"])
+        assert response.status_code == 401
+        assert response.json() == {"detail": "missing token: send the header Authorization: Bearer TOKEN"}
+    with league_server.client("lg_not-a-real-token") as stranger:
+        assert stranger.get("/api/submissions").status_code == 401
+        assert stranger.get("/api/submissions").json() == {"detail": "invalid token"}
+
+
+def test_students_see_only_their_own_submissions(league_server, models):
+    alice, bob = create_student(league_server, unique("alice")), create_student(league_server, unique("bob"))
+    alice_id = upload(alice, models["heuristic_onnx"]).json()["id"]
+    wait_settled(alice, alice_id)
+
+    assert bob.get(f"/api/submissions/{alice_id}").status_code == 404
+    assert bob.get("/api/submissions").json() == []
+    assert [s["id"] for s in alice.get("/api/submissions").json()] == [alice_id]
+    with league_server.client(league_server.instructor_token) as instructor:
+        seen = instructor.get(f"/api/submissions/{alice_id}")
+        assert seen.status_code == 200 and seen.json()["log"] is not None
+        assert alice_id in [s["id"] for s in instructor.get("/api/submissions", params={"all": True}).json()]
+
+
+def test_the_baselines_are_registered_and_evaluated_on_the_first_start(league_server):
+    with league_server.client(league_server.instructor_token) as instructor:
+        listing = instructor.get("/api/submissions", params={"all": True}).json()
+        baselines = [s for s in listing if s["owner"] == "baselines"]
+        assert [s["name"] for s in baselines] == ["heuristic"]
+        settled = wait_settled(instructor, baselines[0]["id"])
+    assert settled["status"] == "ready" and settled["evaluation"]["status"] == "done"
+    assert (league_server.data_dir / "baselines" / "heuristic.onnx").is_file()

@@ -1,0 +1,80 @@
+"""Accounts over real HTTP: instructors create students (one or a CSV roster) and revoke them."""
+from __future__ import annotations
+
+import uuid
+
+from ...conftest import create_student
+
+
+def unique(name: str) -> str:
+    return f"{name}-{uuid.uuid4().hex[:6]}"
+
+
+def test_cli_token_authenticates_the_instructor(league_server):
+    with league_server.client(league_server.instructor_token) as instructor:
+        me = instructor.get("/api/users/me")
+    assert me.status_code == 200
+    assert (me.json()["name"], me.json()["role"], me.json()["active"]) == ("prof", "instructor", True)
+
+
+def test_instructor_creates_a_student_whose_token_works(league_server):
+    name = unique("carol")
+    with league_server.client(league_server.instructor_token) as instructor:
+        created = instructor.post("/api/users", json={"name": name})
+        assert created.status_code == 201
+        assert created.json()["token"].startswith("lg_") and created.json()["role"] == "student"
+        assert name in [u["name"] for u in instructor.get("/api/users").json()]
+        duplicate = instructor.post("/api/users", json={"name": name})
+    assert duplicate.status_code == 409
+    assert duplicate.json() == {"detail": f"user name {name!r} is already taken"}
+    with league_server.client(created.json()["token"]) as student:
+        assert student.get("/api/users/me").json()["name"] == name
+
+
+def test_roster_creates_every_student_or_none(league_server):
+    names = [unique("dora"), unique("eve")]
+    roster = ("name,email\n" + "".join(f"{n},{n}@school.example\n" for n in names)).encode()
+    with league_server.client(league_server.instructor_token) as instructor:
+        created = instructor.post("/api/users/roster", files={"file": ("roster.csv", roster, "text/csv")})
+        assert created.status_code == 201
+        assert [u["name"] for u in created.json()] == names
+        assert all(u["token"].startswith("lg_") for u in created.json())
+
+        again = ("name\n" + unique("frank") + "\n" + names[0] + "\n").encode()
+        refused = instructor.post("/api/users/roster", files={"file": ("roster.csv", again, "text/csv")})
+        assert refused.status_code == 409
+        assert refused.json()["detail"] == f"no student was created: user name {names[0]!r} is already taken"
+        listed = [u["name"] for u in instructor.get("/api/users").json()]
+    assert not any(name.startswith("frank-") for name in listed)
+
+
+def test_revoked_student_is_locked_out_and_a_new_token_restores_them(league_server):
+    name = unique("gus")
+    with league_server.client(league_server.instructor_token) as instructor:
+        created = instructor.post("/api/users", json={"name": name}).json()
+        revoked = instructor.post(f"/api/users/{created['id']}/revoke")
+        assert revoked.status_code == 200 and revoked.json()["active"] is False
+        with league_server.client(created["token"]) as student:
+            response = student.get("/api/users/me")
+            assert response.status_code == 401
+            assert response.json() == {"detail": "this account was revoked"}
+        renewed = instructor.post(f"/api/users/{created['id']}/token").json()
+    with league_server.client(renewed["token"]) as student:
+        assert student.get("/api/users/me").json()["active"] is True
+    with league_server.client(created["token"]) as old:
+        assert old.get("/api/users/me").status_code == 401
+
+
+def test_student_calling_instructor_endpoints_is_forbidden(league_server):
+    student = create_student(league_server, unique("mallory"))
+    forbidden = [
+        student.get("/api/users"),
+        student.post("/api/users", json={"name": unique("sneaky")}),
+        student.post("/api/users/1/revoke"),
+        student.put("/api/settings/evaluation", json={"seed": 1, "episodes": 1, "env_options": {}}),
+        student.post("/api/evaluations/rerun", json={"all": True}),
+        student.get("/api/jobs"),
+    ]
+    for response in forbidden:
+        assert response.status_code == 403, response.request.url
+        assert response.json() == {"detail": "only instructors may do this"}

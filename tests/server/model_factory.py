@@ -1,0 +1,205 @@
+"""Model files for the server tests and benchmark: good agents and every kind of bad upload.
+
+Each function writes one file and returns its path. Built with the onnx helper API and
+torch.jit, deterministically (fixed seeds), so tests never depend on downloaded models.
+"""
+from __future__ import annotations
+
+import math
+import pickle
+from pathlib import Path
+
+import numpy as np
+import onnx
+from onnx import TensorProto, helper, numpy_helper
+
+from league.agents import export_heuristic_onnx
+
+OPSET = [helper.make_opsetid("", 17)]
+
+
+def _save(graph, path: Path, opsets=OPSET) -> Path:
+    model = helper.make_model(graph, opset_imports=opsets, producer_name="league-tests")
+    model.ir_version = 8
+    onnx.save(model, str(path))
+    return path
+
+
+def _dense(rng: np.random.Generator, name: str, fan_in: int, fan_out: int) -> list:
+    weight = rng.normal(0, 1 / math.sqrt(fan_in), (fan_in, fan_out)).astype(np.float32)
+    bias = np.zeros(fan_out, dtype=np.float32)
+    return [numpy_helper.from_array(weight, f"{name}_w"), numpy_helper.from_array(bias, f"{name}_b")]
+
+
+def onnx_mlp(path: Path, in_dim: int = 5, out_dim: int = 2, hidden: tuple[int, ...] = (64, 64), seed: int = 0,
+             nan: bool = False) -> Path:
+    """A tanh MLP policy (batch, in_dim) -> (batch, out_dim); with `nan`, its outputs are NaN."""
+    rng = np.random.default_rng(seed)
+    sizes = [in_dim, *hidden, out_dim]
+    nodes, initializers, current = [], [], "obs"
+    for i, (fan_in, fan_out) in enumerate(zip(sizes[:-1], sizes[1:])):
+        initializers += _dense(rng, f"l{i}", fan_in, fan_out)
+        nodes.append(helper.make_node("Gemm", [current, f"l{i}_w", f"l{i}_b"], [f"h{i}"]))
+        activation = "Tanh" if i == len(sizes) - 2 else "Relu"
+        nodes.append(helper.make_node(activation, [f"h{i}"], [f"a{i}"]))
+        current = f"a{i}"
+    if nan:
+        initializers.append(numpy_helper.from_array(np.array(np.nan, dtype=np.float32), "nan"))
+        nodes.append(helper.make_node("Mul", [current, "nan"], ["poisoned"]))
+        current = "poisoned"
+    nodes.append(helper.make_node("Identity", [current], ["actions"]))
+    graph = helper.make_graph(nodes, "mlp",
+                              [helper.make_tensor_value_info("obs", TensorProto.FLOAT, ["batch", in_dim])],
+                              [helper.make_tensor_value_info("actions", TensorProto.FLOAT, ["batch", out_dim])],
+                              initializers)
+    return _save(graph, path)
+
+
+def onnx_heuristic(path: Path) -> Path:
+    """The toolkit's heuristic driver as ONNX: a good agent that completes most laps."""
+    return export_heuristic_onnx(path)
+
+
+def onnx_external_data(path: Path) -> Path:
+    """An MLP whose weights live in a side file (refused: only self-contained files are accepted)."""
+    onnx_mlp(path)
+    model = onnx.load(str(path))
+    onnx.save(model, str(path), save_as_external_data=True, all_tensors_to_one_file=True,
+              location="weights.bin", size_threshold=0)
+    return path
+
+
+def onnx_memory_hog(path: Path, elements: int = 1 << 31) -> Path:
+    """Expands the observation to `elements` floats (8 GB by default) before answering."""
+    nodes = [
+        helper.make_node("Expand", ["one", "huge_shape"], ["huge"]),
+        helper.make_node("ReduceSum", ["huge"], ["total"], keepdims=0),
+        helper.make_node("Slice", ["obs", "starts", "ends", "axes"], ["two"]),
+        helper.make_node("Add", ["two", "total"], ["actions"]),
+    ]
+    initializers = [numpy_helper.from_array(np.ones(1, np.float32), "one"),
+                    numpy_helper.from_array(np.array([elements], np.int64), "huge_shape"),
+                    numpy_helper.from_array(np.array([0], np.int64), "starts"),
+                    numpy_helper.from_array(np.array([2], np.int64), "ends"),
+                    numpy_helper.from_array(np.array([1], np.int64), "axes")]
+    graph = helper.make_graph(nodes, "hog", [helper.make_tensor_value_info("obs", TensorProto.FLOAT, ["batch", 5])],
+                              [helper.make_tensor_value_info("actions", TensorProto.FLOAT, ["batch", 2])], initializers)
+    return _save(graph, path)
+
+
+def onnx_slow(path: Path, width: int = 1024, layers: int = 1500) -> Path:
+    """A chain of `layers` width x width MatMuls sharing one weight (a small file, a slow model)."""
+    rng = np.random.default_rng(1)
+    def weight(name: str, shape: tuple[int, int]):
+        return numpy_helper.from_array(rng.normal(0, 1 / math.sqrt(width), shape).astype(np.float32), name)
+
+    initializers = [weight("w_in", (5, width)), weight("w", (width, width)), weight("w_out", (width, 2))]
+    nodes, current = [helper.make_node("MatMul", ["obs", "w_in"], ["h_in"])], "h_in"
+    for i in range(layers):
+        nodes.append(helper.make_node("MatMul", [current, "w"], [f"h{i}"]))
+        current = f"h{i}"
+    nodes += [helper.make_node("MatMul", [current, "w_out"], ["raw"]), helper.make_node("Tanh", ["raw"], ["actions"])]
+    graph = helper.make_graph(nodes, "slow", [helper.make_tensor_value_info("obs", TensorProto.FLOAT, ["batch", 5])],
+                              [helper.make_tensor_value_info("actions", TensorProto.FLOAT, ["batch", 2])], initializers)
+    return _save(graph, path)
+
+
+def onnx_custom_domain(path: Path) -> Path:
+    """Uses an operator of a non-standard domain (a custom-op library would be needed to run it)."""
+    node = helper.make_node("Evil", ["obs"], ["actions"], domain="com.example")
+    graph = helper.make_graph([node], "custom", [helper.make_tensor_value_info("obs", TensorProto.FLOAT, ["batch", 5])],
+                              [helper.make_tensor_value_info("actions", TensorProto.FLOAT, ["batch", 2])])
+    return _save(graph, path, OPSET + [helper.make_opsetid("com.example", 1)])
+
+
+def random_bytes(path: Path, size: int = 4096, seed: int = 0) -> Path:
+    path.write_bytes(np.random.default_rng(seed).bytes(size))
+    return path
+
+
+def truncated(source: Path, path: Path) -> Path:
+    data = source.read_bytes()
+    path.write_bytes(data[: len(data) // 2])
+    return path
+
+
+def pickle_renamed_pt(path: Path) -> Path:
+    """A pickle (what torch.save writes inside, and what runs code on load) under a .pt name."""
+    path.write_bytes(pickle.dumps({"state_dict": {"weight": [1.0, 2.0]}}, protocol=4))
+    return path
+
+
+# --------------------------------------------------------------------------- TorchScript
+
+
+def _torch():
+    import torch
+
+    return torch
+
+
+def torchscript_heuristic(path: Path) -> Path:
+    """The heuristic driver as a scripted torch module (a good TorchScript agent)."""
+    torch = _torch()
+
+    class HeuristicDriver(torch.nn.Module):
+        def forward(self, obs: torch.Tensor) -> torch.Tensor:
+            direction, speed = obs[:, 0:1], obs[:, 4:5]
+            acc = torch.where(speed < 0.25, torch.full_like(speed, 0.5), torch.full_like(speed, -0.2))
+            turn = torch.clamp(direction / (-math.pi / 6), -1.0, 1.0)
+            return torch.cat([acc, turn], dim=1)
+
+    torch.jit.script(HeuristicDriver()).save(str(path))
+    return path
+
+
+def torchscript_mlp(path: Path, in_dim: int = 5, seed: int = 0) -> Path:
+    torch = _torch()
+    torch.manual_seed(seed)
+    net = torch.nn.Sequential(torch.nn.Linear(in_dim, 64), torch.nn.ReLU(), torch.nn.Linear(64, 2), torch.nn.Tanh())
+    torch.jit.script(net).save(str(path))
+    return path
+
+
+def torchscript_loop(path: Path, iterations: int = 10_000_000) -> Path:
+    """Loops `iterations` times per call: past any deadline with the default count."""
+    torch = _torch()
+
+    class Looper(torch.nn.Module):
+        def __init__(self, n: int):
+            super().__init__()
+            self.n = n
+
+        def forward(self, obs: torch.Tensor) -> torch.Tensor:
+            x = obs[:, 0:2]
+            for _ in range(self.n):
+                x = x * 1.0000001
+            return torch.tanh(x)
+
+    torch.jit.script(Looper(iterations)).save(str(path))
+    return path
+
+
+def torchscript_reads_file(path: Path) -> Path:
+    """Reads /etc/passwd with aten::from_file (refused by the operator allow-list)."""
+    torch = _torch()
+
+    class Reader(torch.nn.Module):
+        def forward(self, obs: torch.Tensor) -> torch.Tensor:
+            data = torch.from_file("/etc/passwd", size=16, dtype=torch.uint8)
+            return obs[:, 0:2] * 0.0 + data.float().sum() * 0.0
+
+    torch.jit.script(Reader()).save(str(path))
+    return path
+
+
+def torchscript_memory_hog(path: Path) -> Path:
+    torch = _torch()
+
+    class Hog(torch.nn.Module):
+        def forward(self, obs: torch.Tensor) -> torch.Tensor:
+            huge = torch.ones(1 << 31)
+            return obs[:, 0:2] * huge[0]
+
+    torch.jit.script(Hog()).save(str(path))
+    return path

@@ -1,0 +1,86 @@
+"""Faults: a worker killed with SIGKILL mid-evaluation, and a league restarted -- on both backends."""
+from __future__ import annotations
+
+import time
+
+import pytest
+
+from league.agents import load_agent
+from league.evaluation import metrics_run
+
+from .conftest import TEST_SETTINGS, create_student, make_server, submission, upload, wait_for, wait_settled
+
+LONG_EPISODES = "40"  # an evaluation of a few seconds: long enough to be killed in the middle
+LEASE_S = float(TEST_SETTINGS["LEAGUE_LEASE_TIMEOUT_S"])
+
+
+def evaluation_status(client, submission_id: int) -> str | None:
+    return (submission(client, submission_id)["evaluation"] or {}).get("status")
+
+
+def jobs_of(server, submission_id: int) -> list[dict]:
+    with server.client(server.instructor_token) as instructor:
+        return [j for j in instructor.get("/api/jobs").json() if j["submission_id"] == submission_id]
+
+
+def test_worker_killed_mid_evaluation_the_evaluation_completes_once(backend, tmp_path, models):
+    _, urls = backend
+    server = make_server(tmp_path, urls, LEAGUE_EVAL_EPISODES=LONG_EPISODES)
+    server.start_api(embedded_worker=False)
+    doomed = server.start_worker()
+    try:
+        student = create_student(server, "kim")
+        submission_id = upload(student, models["onnx"]).json()["id"]
+        wait_for(lambda: evaluation_status(student, submission_id), lambda s: s == "running", timeout=60)
+        time.sleep(0.5)  # into the episodes
+        doomed.kill()  # SIGKILL: no goodbye, the lease is left behind
+        doomed.wait()
+        time.sleep(LEASE_S + 1)
+        assert evaluation_status(student, submission_id) == "running"  # nobody else works on it yet
+
+        elsewhere = tmp_path / "another-machine"
+        server.start_worker(LEAGUE_DATA_DIR=str(elsewhere))  # no shared disk: models come from the database
+        result = wait_settled(student, submission_id, timeout=120)
+        jobs = jobs_of(server, submission_id)
+    finally:
+        server.stop_all()
+    evaluation = result["evaluation"]
+    assert result["status"] == "ready" and evaluation["status"] == "done", evaluation["error"]
+    assert [e["index"] for e in evaluation["episodes"]] == list(range(int(LONG_EPISODES)))
+    evaluate_job = next(j for j in jobs if j["kind"] == "evaluate")
+    assert (evaluate_job["status"], evaluate_job["attempts"]) == ("done", 2)
+    assert "stopped heart-beating" in evaluate_job["error"]
+    assert (elsewhere / "blobs" / result["sha256"][:2] / result["sha256"]).read_bytes() == models["onnx"].read_bytes()
+    local = metrics_run(load_agent(models["onnx"]), episodes=int(LONG_EPISODES), seed=11).to_dict()
+    assert [(e["seed"], e["steps"], e["outcome"]) for e in evaluation["episodes"]] == \
+        [(e["seed"], e["steps"], e["outcome"]) for e in local["episodes"]]
+    assert evaluation["mean_return"] == pytest.approx(local["mean_return"], abs=1e-9)
+
+
+def test_restart_loses_nothing_and_leaves_nothing_stuck(backend, tmp_path, models):
+    _, urls = backend
+    server = make_server(tmp_path, urls, LEAGUE_EVAL_EPISODES=LONG_EPISODES)
+    server.start_api()
+    try:
+        student = create_student(server, "lee")
+        done = [upload(student, models[key]).json()["id"] for key in ("heuristic_onnx", "random_bytes")]
+        before = {i: wait_settled(student, i, timeout=120) for i in done}
+        interrupted = upload(student, models["onnx"]).json()["id"]
+        wait_for(lambda: evaluation_status(student, interrupted), lambda s: s == "running", timeout=60)
+        server.stop(server.api, kill=True)  # API and its embedded worker die mid-evaluation
+
+        server.start_api()
+        after = {i: submission(student, i) for i in done}
+        finished = wait_settled(student, interrupted, timeout=120)
+        with server.client(server.instructor_token) as instructor:
+            unfinished = [j for j in instructor.get("/api/jobs").json() if j["status"] in ("queued", "running")]
+        server.stop(server.api)  # a clean stop (SIGTERM) and a second restart
+        server.start_api()
+        again = {i: submission(student, i) for i in [*done, interrupted]}
+    finally:
+        server.stop_all()
+    assert after == before
+    assert finished["status"] == "ready" and finished["evaluation"]["status"] == "done"
+    assert len(finished["evaluation"]["episodes"]) == int(LONG_EPISODES)
+    assert unfinished == []
+    assert again == {**before, interrupted: finished}

@@ -1,0 +1,173 @@
+"""Job leases on a real database and queue (both backends): claimed once, results written once,
+stale jobs re-queued by the reaper, failed for good after their attempts."""
+from __future__ import annotations
+
+import threading
+from datetime import timedelta
+
+import pytest
+
+from league.server.config import Settings
+from league.server.db import crud
+from league.server.db.models import DONE, FAILED, QUEUED, RUNNING, Job, utcnow
+from league.server.db.session import make_engine, make_sessionmaker, migrate
+from league.server.jobs import WorkerContext, claim, complete, heartbeat, reap, register_handler, run_job
+from league.server.storage import BlobStore
+from league.server.taskqueue import build_queue
+
+
+class Recorder:
+    """A job kind for these tests: records what the lease machinery asks of it."""
+
+    def __init__(self):
+        self.begun, self.finished, self.given_up = [], [], []
+        self.fail_with: Exception | None = None
+
+    def begin(self, session, job):
+        self.begun.append(job.id)
+
+    def run(self, run):
+        if self.fail_with:
+            raise self.fail_with
+        return {"job": run.job.id}
+
+    def finish(self, session, job, outcome):
+        self.finished.append(outcome)
+        return []
+
+    def give_up(self, session, job, reason):
+        self.given_up.append((job.id, reason))
+
+
+@pytest.fixture
+def recorder():
+    handler = Recorder()
+    register_handler("test", handler)
+    return handler
+
+
+@pytest.fixture
+def context(backend, tmp_path):
+    _, (database_url, queue_url, queue_name) = backend
+    settings = Settings(data_dir=tmp_path / "data", database_url=database_url, queue_url=queue_url,
+                        queue_name=queue_name, lease_timeout_s=60, requeue_queued_after_s=600, bootstrap=False)
+    engine = make_engine(database_url)
+    migrate(engine)
+    yield WorkerContext(settings, make_sessionmaker(engine), build_queue(settings), BlobStore(settings.data_dir))
+    engine.dispose()
+
+
+def new_job(context, max_attempts: int = 3) -> int:
+    with context.sessions.begin() as session:
+        return crud.create_job(session, kind="test", max_attempts=max_attempts).id
+
+
+def job(context, job_id: int) -> Job:
+    with context.sessions() as session:
+        return session.get(Job, job_id)
+
+
+def age(context, job_id: int, **columns_ago) -> None:
+    """Pretend time passed: move the job's timestamps into the past."""
+    with context.sessions.begin() as session:
+        row = session.get(Job, job_id)
+        for column, seconds in columns_ago.items():
+            setattr(row, column, utcnow() - timedelta(seconds=seconds))
+
+
+def test_a_job_is_claimed_by_one_attempt_only(context, recorder):
+    job_id = new_job(context)
+    winners = []
+
+    def attempt(name):
+        if claim(context.sessions, job_id=job_id, attempt_id=name) is not None:
+            winners.append(name)
+
+    threads = [threading.Thread(target=attempt, args=(f"w{i}",)) for i in range(4)]
+    for thread in threads:
+        thread.start()
+    for thread in threads:
+        thread.join()
+    assert len(winners) == 1 and recorder.begun == [job_id]
+    row = job(context, job_id)
+    assert (row.status, row.worker_id, row.attempts) == (RUNNING, winners[0], 1)
+
+
+def test_run_job_writes_the_outcome_and_ignores_duplicate_messages(context, recorder):
+    job_id = new_job(context)
+    run_job(context, job_id)
+    run_job(context, job_id)  # the same message delivered twice
+    assert recorder.finished == [{"job": job_id}]
+    assert (job(context, job_id).status, job(context, job_id).attempts) == (DONE, 1)
+
+
+def test_results_of_an_attempt_that_lost_its_lease_are_discarded(context, recorder):
+    job_id = new_job(context)
+    claim(context.sessions, job_id=job_id, attempt_id="slow")
+    age(context, job_id, heartbeat_at=120)
+    assert reap(context) == [job_id]  # re-queued for another worker
+    assert not heartbeat(context.sessions, job_id=job_id, attempt_id="slow")
+
+    assert complete(context.sessions, job_id=job_id, attempt_id="slow", outcome={"late": True}) == []
+
+    assert recorder.finished == []
+    row = job(context, job_id)
+    assert (row.status, row.worker_id) == (QUEUED, None)
+    assert "stopped heart-beating" in row.error
+
+
+def test_reaper_leaves_fresh_leases_alone(context, recorder):
+    job_id = new_job(context)
+    claim(context.sessions, job_id=job_id, attempt_id="alive")
+    assert heartbeat(context.sessions, job_id=job_id, attempt_id="alive")
+    assert reap(context) == []
+    assert job(context, job_id).status == RUNNING
+
+
+def test_a_job_whose_workers_keep_dying_fails_for_good_with_the_reason(context, recorder):
+    job_id = new_job(context, max_attempts=2)
+    for attempt in ("first", "second"):
+        assert claim(context.sessions, job_id=job_id, attempt_id=attempt) is not None
+        age(context, job_id, heartbeat_at=120)
+        reap(context)
+    row = job(context, job_id)
+    assert (row.status, row.attempts) == (FAILED, 2)
+    assert row.error == "gave up after 2 attempts: its worker (second) stopped heart-beating"
+    assert recorder.given_up == [(job_id, row.error)]
+
+
+def test_a_failing_handler_is_retried_then_failed(context, recorder):
+    recorder.fail_with = RuntimeError("disk full")
+    job_id = new_job(context, max_attempts=2)
+    run_job(context, job_id)
+    assert (job(context, job_id).status, job(context, job_id).error) == (QUEUED, "RuntimeError: disk full")
+    run_job(context, job_id)
+    assert job(context, job_id).status == FAILED
+    assert recorder.given_up == [(job_id, "RuntimeError: disk full")]
+
+
+def test_a_long_queued_job_is_sent_again(context, recorder):
+    job_id = new_job(context)
+    age(context, job_id, enqueued_at=3600)
+    pending = context.queue.pending()
+    assert reap(context) == [job_id]
+    assert context.queue.pending() == pending + 1
+    assert reap(context) == []  # sent once per period
+
+
+def test_a_worker_shutting_down_hands_its_jobs_back(context, recorder):
+    from league.server.jobs import JobRun, release_active
+
+    job_id = new_job(context)
+    claimed = claim(context.sessions, job_id=job_id, attempt_id="leaving")
+    run = JobRun(context, claimed, "leaving")
+    context.active[job_id] = run
+    pending = context.queue.pending()
+
+    assert release_active(context) == [job_id]
+
+    assert run.lease_lost.is_set()
+    row = job(context, job_id)
+    assert (row.status, row.worker_id, row.error) == (QUEUED, None, "its worker shut down")
+    assert context.queue.pending() == pending + 1
+    assert complete(context.sessions, job_id=job_id, attempt_id="leaving", outcome={}) == []

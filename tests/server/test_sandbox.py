@@ -1,0 +1,112 @@
+"""The sandbox process on its own: deadlines, restarts, isolation, logs."""
+from __future__ import annotations
+
+import os
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from league.agents import AgentError, dry_run_observations
+from league.server.sandbox import LogBuffer, SandboxedAgent, SandboxLimits, validate_model
+
+from . import model_factory as mf
+
+FAST = SandboxLimits(first_call_allowance_s=0.3, load_timeout_s=20, max_restarts=1)
+
+
+@pytest.fixture(scope="module")
+def files(tmp_path_factory) -> dict[str, Path]:
+    d = tmp_path_factory.mktemp("sandbox-models")
+    return {"good": mf.onnx_mlp(d / "mlp.onnx"), "slow": mf.onnx_slow(d / "slow.onnx"),
+            "quick": mf.onnx_slow(d / "quick.onnx", layers=40)}
+
+
+def obs(batch: int = 1) -> np.ndarray:
+    return dry_run_observations(5, batch)
+
+
+def test_sandboxed_agent_answers_like_the_model(files):
+    from league.agents import load_agent
+
+    with SandboxedAgent(files["good"], "onnx", FAST) as agent:
+        assert (agent.obs_dim, agent.name) == (5, "submission")
+        np.testing.assert_array_equal(agent(obs(3)), load_agent(files["good"])(obs(3)))
+
+
+def test_a_call_past_the_deadline_is_a_dnf_then_the_sandbox_restarts_then_gives_up(files):
+    with SandboxedAgent(files["slow"], "onnx", FAST) as agent:
+        with pytest.raises(AgentError, match=r"did not answer within its 20 ms step deadline"):
+            for _ in range(100):  # the 300 ms allowance is spent, then the deadline bites
+                agent(obs())
+        with pytest.raises(AgentError, match=r"step deadline"):
+            for _ in range(100):
+                agent(obs())  # a fresh sandbox (restart 1 of 1), a fresh allowance
+        assert agent.restarts == 1
+        with pytest.raises(AgentError, match=r"the agent was stopped after 2 failures; last: the model did not"):
+            agent(obs())
+
+
+def test_the_episode_deadline_ends_an_episode_and_new_episode_resets_it(files):
+    limits = SandboxLimits(episode_deadline_s=0.05, first_call_allowance_s=0.3, load_timeout_s=20)
+    with SandboxedAgent(files["quick"], "onnx", limits) as agent:
+        with pytest.raises(AgentError, match=r"more than 0.05 s in this episode"):
+            for _ in range(1000):
+                agent(obs())
+        agent.new_episode()
+        assert agent(obs()).shape == (1, 2)
+
+
+def test_validation_measures_the_model_speed(files):
+    report = validate_model(files["good"], "onnx", FAST)
+    assert report.ok and report.obs_dim == 5 and report.error is None
+    assert 0 < report.ms_per_call < 20
+
+
+def test_the_sandbox_cannot_reach_the_network():
+    probe = ("import socket, sys\n"
+             "from league.server.sandbox_child import isolate_network\n"
+             "mode = isolate_network()\n"
+             "print(mode)\n"
+             "try:\n"
+             "    socket.create_connection(('127.0.0.1', 5432), timeout=2)\n"
+             "    print('connected')\n"
+             "except OSError as error:\n"
+             "    print('refused', error.errno)\n")
+    result = subprocess.run([sys.executable, "-c", probe], capture_output=True, text=True, timeout=60,
+                            env={**os.environ, "PYTHONPATH": str(Path(__file__).resolve().parents[2])})
+    mode, outcome = result.stdout.split("\n", 1)
+    if mode == "unavailable":
+        pytest.skip("no network namespaces here (not root, no user namespaces)")
+    assert outcome.startswith("refused"), result.stdout + result.stderr
+
+
+def test_the_child_holds_nothing_of_the_parent(files, tmp_path):
+    secret = open(tmp_path / "league.db", "w")  # an open file of the worker, as a database would be
+    try:
+        with SandboxedAgent(files["good"], "onnx", FAST) as agent:
+            process = agent._process
+            workdir = process.workdir
+            assert (workdir / "model.onnx").read_bytes() == files["good"].read_bytes()  # a copy, in its own dir
+            assert Path(f"/proc/{process.proc.pid}/cwd").resolve() == workdir
+            targets = [os.readlink(f"/proc/{process.proc.pid}/fd/{fd}")
+                       for fd in os.listdir(f"/proc/{process.proc.pid}/fd")]
+            environment = Path(f"/proc/{process.proc.pid}/environ").read_bytes().split(b"\0")
+        assert not any(str(tmp_path) in target for target in targets)
+        assert not any(name.lower().startswith((b"http_proxy", b"https_proxy", b"league_")) for name in environment)
+        assert not workdir.exists()
+    finally:
+        secret.close()
+
+
+def test_log_buffer_keeps_the_head_and_the_tail():
+    log = LogBuffer(limit=100)
+    log.write(b"H" * 25)
+    log.write(b"x" * 1000)
+    log.write(b"TAIL")
+    text = log.text()
+    assert text.startswith("H" * 25) and text.endswith("TAIL")
+    assert "[... 929 bytes cut ...]" in text
+    assert len(text) < 140

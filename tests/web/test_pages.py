@@ -1,0 +1,439 @@
+"""The web pages in a real browser (Chromium through Playwright) against a real `league serve`.
+
+Every test runs in a fresh browser context; the `web` fixture then checks that the page asked
+nothing of any host but the server and threw no script error. Screenshots: test-artifacts/web/.
+Tests marked `needs_issue6` wait for the races, championships and leaderboard endpoints.
+"""
+from __future__ import annotations
+
+import json
+import re
+import uuid
+
+import pytest
+
+from ..server.conftest import create_student, upload, wait_for, wait_settled
+from .conftest import needs_issue6, require_browser
+
+require_browser()
+
+# Okabe–Ito colours of the first cars and of a finished episode (web/static/js/palette.js).
+CAR_COLORS = [(0xE6, 0x9F, 0x00), (0x56, 0xB4, 0xE9), (0x00, 0x9E, 0x73), (0xF0, 0xE4, 0x42)]
+FINISHED_COLOR = (0x00, 0x9E, 0x73)
+
+CANVAS_PIXELS = """([selector, colors]) => {
+  const canvas = document.querySelector(selector);
+  const data = canvas.getContext("2d").getImageData(0, 0, canvas.width, canvas.height).data;
+  const counts = colors.map(() => 0);
+  const distinct = new Set();
+  let hash = 0;
+  for (let i = 0; i < data.length; i += 4) {
+    const rgb = (data[i] << 16) | (data[i + 1] << 8) | data[i + 2];
+    if (i % 28 === 0) distinct.add(rgb);
+    hash = (Math.imul(hash, 31) + rgb) | 0;
+    colors.forEach(([r, g, b], k) => { if (data[i] === r && data[i + 1] === g && data[i + 2] === b) counts[k]++; });
+  }
+  return {width: canvas.width, height: canvas.height, distinct: distinct.size, counts, hash};
+}"""
+
+# Records every status a submission row shows (the page updates rows in place while polling).
+STATUS_RECORDER = """
+window.seenStatuses = {};
+new MutationObserver(() => {
+  document.querySelectorAll("#submissions tr[data-status]").forEach((row) => {
+    const seen = (window.seenStatuses[row.dataset.id] ||= []);
+    if (seen[seen.length - 1] !== row.dataset.status) seen.push(row.dataset.status);
+  });
+}).observe(document, {subtree: true, childList: true, attributes: true});
+"""
+
+
+def unique(name: str) -> str:
+    return f"{name}-{uuid.uuid4().hex[:6]}"
+
+
+def student_token(server, name: str) -> str:
+    with server.client(server.instructor_token) as instructor:
+        response = instructor.post("/api/users", json={"name": name})
+    assert response.status_code == 201, response.text
+    return response.json()["token"]
+
+
+def canvas_pixels(web, selector: str, colors=()) -> dict:
+    return web.page.evaluate(CANVAS_PIXELS, [selector, [list(c) for c in colors]])
+
+
+def assert_drawn(pixels: dict, colors=()) -> None:
+    """Not blank: a real picture (many colours), with every given colour present."""
+    assert pixels["width"] > 100 and pixels["height"] > 100, pixels
+    assert pixels["distinct"] > 8, f"the canvas looks blank: {pixels}"
+    assert all(count > 0 for count in pixels["counts"]), f"missing colours {colors}: {pixels['counts']}"
+
+
+def viewer_step(web) -> int:
+    return int(web.page.get_attribute("#viewer", "data-step"))
+
+
+# --------------------------------------------------------------------------- login
+
+
+def test_wrong_token_is_refused_with_the_servers_message(web):
+    web.goto("/login")
+    web.page.fill("#token", "not-a-real-token")
+    web.page.click("#login-form button[type=submit]")
+
+    message = web.page.locator("#login-message")
+    message.wait_for()
+    assert message.inner_text() == "This token was not accepted: invalid token."
+    assert web.page.url.endswith("/login")
+    assert web.page.evaluate("localStorage.getItem('league.token')") is None
+
+
+def test_revoked_token_sends_the_user_back_to_login_with_a_message(web, web_server):
+    token = student_token(web_server, unique("leaver"))
+    web.login(token)
+    assert web.page.url.endswith("/submissions")
+    with web_server.client(web_server.instructor_token) as instructor:
+        me = web_server.client(token).get("/api/users/me").json()
+        assert instructor.post(f"/api/users/{me['id']}/revoke").status_code == 200
+
+    web.page.reload()
+
+    web.page.wait_for_url(re.compile(r"/login\?next=%2Fsubmissions$"))
+    assert web.page.inner_text("#login-message") == \
+        "You were logged out: this account was revoked. Log in again with your token."
+    assert web.page.evaluate("localStorage.getItem('league.token')") is None
+    web.screenshot("login-after-revoked-token")
+
+
+def test_a_page_for_logged_in_users_asks_to_log_in_first(web):
+    web.goto("/submissions")
+    web.page.wait_for_url(re.compile(r"/login\?next=%2Fsubmissions$"))
+    assert web.page.inner_text("#login-message") == "Log in with your token to see this page."
+
+
+# --------------------------------------------------------------------------- submissions
+
+
+def test_student_uploads_an_agent_and_sees_it_ready_with_its_chart(web, web_server, agent_files):
+    name = unique("alice")
+    token = student_token(web_server, name)
+    web.page.add_init_script(STATUS_RECORDER)
+    web.login(token)
+    assert web.page.url.endswith("/submissions")
+    assert web.page.inner_text("[data-testid=account-name]") == f"{name} (student)"
+
+    web.drop_file("#drop-zone", agent_files["driver_0.25"])
+    assert "driver_0.25.onnx" in web.page.inner_text("#chosen-file")
+    web.page.fill("#submission-name", "steady driver")
+    web.page.click("#upload-button")
+
+    row = web.page.locator("#submissions tr[data-status]").first
+    web.page.wait_for_selector("#submissions tr[data-status=ready]", timeout=90_000)
+    submission_id = int(row.get_attribute("data-id"))
+    web.page.wait_for_selector("#chart-box:not([hidden])", timeout=90_000)
+
+    seen = web.page.evaluate("window.seenStatuses")[str(submission_id)]
+    assert seen[0] == "pending" and seen[-1] == "ready", seen
+    assert seen == [s for s in ("pending", "validating", "ready") if s in seen], seen  # in order, no reload
+    assert web.page.inner_text("#upload-message") == "driver_0.25.onnx passed validation: it is ready and being evaluated."
+
+    api = wait_settled(web_server.client(token), submission_id)
+    evaluation = api["evaluation"]
+    summary = web.page.inner_text("#evaluation-summary")
+    assert summary.startswith(f"Completed {evaluation['completed']} of {evaluation['episodes_total']} laps")
+    assert f"mean return {evaluation['mean_return']:.2f}" in summary
+    assert_drawn(canvas_pixels(web, "#episode-chart", [FINISHED_COLOR]), [FINISHED_COLOR])
+    assert web.page.get_attribute("#episode-chart", "aria-label").startswith(f"Chart of {evaluation['episodes_total']} episodes")
+    legend = web.page.inner_text("#chart-legend")
+    assert "finished" in legend and "mean speed" in legend
+    assert web.page.locator("#episodes tbody tr").count() == evaluation["episodes_total"]
+    web.screenshot("submissions-ready-with-chart")
+
+
+def test_bad_uploads_show_the_servers_error(web, web_server, agent_files):
+    token = student_token(web_server, unique("bob"))
+    web.login(token)
+
+    # refused at once (4xx): the server's detail, word for word
+    expected = upload(web_server.client(token), agent_files["text"]).json()["detail"]
+    web.page.set_input_files("#model-file", str(agent_files["text"]))
+    web.page.click("#upload-button")
+    web.page.wait_for_selector("#upload-message.error")
+    assert web.page.inner_text("#upload-message") == f"Upload refused: {expected}"
+
+    web.page.set_input_files("#model-file", str(agent_files["empty"]))
+    web.page.click("#upload-button")
+    web.page.wait_for_function("() => document.querySelector('#upload-message').textContent.startsWith('Upload refused: the')")
+    assert web.page.inner_text("#upload-message") == "Upload refused: the file is empty"
+
+    # accepted, then rejected by the sandbox: the stored error, on the upload and in the details
+    web.page.set_input_files("#model-file", str(agent_files["random_bytes"]))
+    web.page.click("#upload-button")
+    web.page.wait_for_selector("#submissions tr[data-status=rejected]", timeout=90_000)
+    submission_id = int(web.page.get_attribute("#submissions tr[data-status=rejected]", "data-id"))
+    error = wait_settled(web_server.client(token), submission_id)["error"]
+    assert error
+    web.page.wait_for_selector("#upload-message.error")
+    assert web.page.inner_text("#upload-message") == f"random.onnx was rejected: {error}"
+    assert web.page.inner_text("#detail-error") == f"Rejected: {error}"
+    web.screenshot("submissions-rejected")
+
+
+# --------------------------------------------------------------------------- race viewer (replay file)
+
+
+@pytest.fixture(scope="module")
+def replay_file(agent_files, tmp_path_factory):
+    """A real 4-car race: the heuristic driver and three ONNX drivers at different speeds."""
+    from league.evaluation import race, save_replay
+
+    agents = ["heuristic", agent_files["driver_0.2"], agent_files["driver_0.25"], agent_files["driver_0.3"]]
+    result = race(agents, seed=1, names=["heuristic", "slow", "steady", "quick"])
+    return save_replay(result, tmp_path_factory.mktemp("replays") / "race.json"), result
+
+
+def test_replay_viewer_draws_and_plays_a_race(web, replay_file):
+    path, result = replay_file
+    web.goto("/replay")
+    web.page.set_input_files("#replay-file", str(path))
+    web.page.wait_for_selector("#viewer:not([hidden])")
+    total = max(len(car["x"]) for car in result.replay["cars"]) - 1
+
+    # it plays at once: the step advances and the picture changes
+    first = canvas_pixels(web, "#race-canvas")
+    web.page.wait_for_function("() => Number(document.querySelector('#viewer').dataset.step) > 40")
+    assert web.page.inner_text("#play-button") == "Pause"
+    web.page.keyboard.press("Space")
+    assert web.page.inner_text("#play-button") == "Play"
+    paused_at = viewer_step(web)
+    later = canvas_pixels(web, "#race-canvas", CAR_COLORS)
+    assert_drawn(later, CAR_COLORS)  # track plus every car's colour
+    assert later["hash"] != first["hash"]
+    web.page.wait_for_timeout(300)
+    assert viewer_step(web) == paused_at  # paused means paused
+    legend = web.page.locator("#car-legend .car-status")
+    assert re.fullmatch(r"(accelerating|braking) \d\.\d\d \| (left \d\.\d\d|right \d\.\d\d|straight) \| speed \d\.\d\d",
+                        legend.nth(0).text_content())
+    web.screenshot("replay-playing")
+
+    # keyboard: one step, one second, start, finish
+    web.page.keyboard.press("ArrowRight")
+    assert viewer_step(web) == paused_at + 1
+    web.page.keyboard.press("Shift+ArrowLeft")
+    assert viewer_step(web) == paused_at + 1 - 25
+    web.page.keyboard.press("Home")
+    assert viewer_step(web) == 0
+    web.page.keyboard.press("End")
+    assert viewer_step(web) == total
+    finals = [legend.nth(i).text_content() for i in range(4)]
+    for row in result.classification:
+        car = int(row["car"][4:])
+        expected = f"{row['position']}{ {1: 'st', 2: 'nd', 3: 'rd'}.get(row['position'], 'th')}  {row['time']:.1f} s" \
+            if row["outcome"] == "finished" else row["reason"]
+        assert finals[car] == expected
+    assert web.page.locator("#classification tbody tr").count() == 4
+    web.screenshot("replay-finish")
+
+    # scrubbing
+    web.page.locator("#scrubber").fill(str(total // 2))
+    assert viewer_step(web) == total // 2
+
+
+def test_replay_viewer_refuses_a_file_that_is_not_a_replay(web, tmp_path):
+    path = tmp_path / "results.json"
+    path.write_text(json.dumps({"episodes": []}))
+    web.goto("/replay")
+    web.page.set_input_files("#replay-file", str(path))
+    web.page.wait_for_selector("#file-message.error")
+    assert web.page.inner_text("#file-message") == \
+        'results.json cannot be played: not a MicroRacer replay (no "format": "microracer-replay")'
+    assert web.page.is_hidden("#viewer")
+
+
+# --------------------------------------------------------------------------- instructor console
+
+
+def test_instructor_creates_students_changes_settings_and_reruns(web, web_server, tmp_path):
+    with web_server.client(web_server.instructor_token) as instructor:
+        original = instructor.get("/api/settings/evaluation").json()
+    web.login(web_server.instructor_token)
+    assert web.page.url.endswith("/instructor")
+
+    # one student: the token shown works
+    name = unique("carol")
+    web.page.fill("#student-name", name)
+    web.page.click("#student-form button[type=submit]")
+    web.page.wait_for_selector("#tokens:not([hidden])")
+    token = web.page.inner_text("#token-table tbody tr .token")
+    assert web_server.client(token).get("/api/users/me").json()["name"] == name
+
+    # a roster
+    roster = tmp_path / "roster.csv"
+    first, second = unique("dan"), unique("eve")
+    roster.write_text(f"name\n{first}\n{second}\n")
+    web.page.set_input_files("#roster-file", str(roster))
+    web.page.click("#roster-form button[type=submit]")
+    web.page.wait_for_function("() => document.querySelector('#students-message').textContent.includes('Created 2 students')")
+    assert web.page.locator("#token-table tbody tr").count() == 2
+    assert {first, second} <= set(web.page.locator("#users tbody td:first-child").all_inner_texts())
+
+    # a roster naming a student twice: the server's reason
+    roster.write_text(f"name\n{first}x\n{first}x\n")
+    web.page.set_input_files("#roster-file", str(roster))
+    web.page.click("#roster-form button[type=submit]")
+    web.page.wait_for_selector("#students-message.error")
+    assert web.page.inner_text("#students-message") == "The roster was not created: the roster names a student twice"
+
+    # evaluation settings
+    try:
+        web.page.fill("#eval-episodes", "2")
+        web.page.uncheck("#eval-obstacles")
+        web.page.click("#settings-form button[type=submit]")
+        web.page.wait_for_selector("#settings-message.success")
+        with web_server.client(web_server.instructor_token) as instructor:
+            saved = instructor.get("/api/settings/evaluation").json()
+        assert saved == {**original, "episodes": 2, "env_options": {"obstacles": False}}
+        web.page.click("#rerun-all")
+        web.page.wait_for_function("() => /Queued \\d+ evaluations/.test(document.querySelector('#settings-message').textContent)")
+        web.page.wait_for_selector("#all-submissions tbody tr")
+        web.screenshot("instructor-console")
+    finally:
+        with web_server.client(web_server.instructor_token) as instructor:
+            instructor.put("/api/settings/evaluation", json=original)
+
+
+def test_a_student_cannot_use_the_instructor_console(web, web_server):
+    web.login(student_token(web_server, unique("frank")))
+    web.goto("/instructor")
+    web.page.wait_for_selector("#page-message.error")
+    assert web.page.inner_text("#page-message").startswith("This page is for instructors")
+
+
+# --------------------------------------------------------------------------- phone and projector
+
+
+@pytest.mark.parametrize("width,height", [(390, 844), (1920, 1080)])
+def test_pages_fit_phones_and_projectors(web, replay_file, width, height):
+    web.page.set_viewport_size({"width": width, "height": height})
+    for path in ("/", "/login", "/replay"):
+        web.goto(path)
+        if path == "/replay":
+            web.page.set_input_files("#replay-file", str(replay_file[0]))
+            web.page.wait_for_selector("#viewer:not([hidden])")
+            web.page.keyboard.press("End")
+        overflow = web.page.evaluate("document.documentElement.scrollWidth - window.innerWidth")
+        assert overflow <= 0, f"{path} is {overflow} px wider than a {width} px screen"
+        web.screenshot(f"{path.strip('/') or 'leaderboard'}-{width}px")
+    canvas = web.page.locator("#race-canvas").bounding_box()
+    assert canvas["width"] <= width and canvas["height"] <= height
+
+
+def test_controls_have_accessible_names(web):
+    web.goto("/replay")
+    unnamed = web.page.evaluate("""() => [...document.querySelectorAll('button, input, select, a[href]')]
+        .filter((el) => !el.hidden && !(el.labels && el.labels.length) && !el.getAttribute('aria-label')
+                        && !el.textContent.trim() && !el.querySelector('img[alt]:not([alt=""])'))
+        .map((el) => el.outerHTML)""")
+    assert unnamed == []
+
+
+# --------------------------------------------------------------------------- issue 6: leaderboard, races, rounds
+
+
+def ready_submission(server, token: str, path) -> int:
+    client = server.client(token)
+    response = upload(client, path)
+    assert response.status_code == 201, response.text
+    result = wait_settled(client, response.json()["id"])
+    assert result["status"] == "ready" and result["evaluation"]["status"] == "done", result
+    return result["id"]
+
+
+@needs_issue6
+def test_student_sees_their_agent_on_the_leaderboard(web, web_server, agent_files):
+    name = unique("gina")
+    token = student_token(web_server, name)
+    ready_submission(web_server, token, agent_files["driver_0.3"])
+    web.login(token)
+
+    web.goto("/")
+    own = web.page.locator("#leaderboard tbody tr.own")
+    own.wait_for()
+    assert name in own.inner_text()
+    # sortable, best first on the first click, and saying which way is better
+    header = web.page.locator("#leaderboard th", has_text="Mean return")
+    assert "higher is better" in header.inner_text()
+    header.locator("button").click()
+    assert header.get_attribute("aria-sort") == "descending"
+    returns = [float(t) for t in web.page.locator("#leaderboard tbody tr td:nth-child(5)").all_inner_texts()]
+    assert returns == sorted(returns, reverse=True)
+    web.screenshot("leaderboard-own-row")
+
+
+@needs_issue6
+def test_instructor_runs_a_round_and_opens_a_replay(web, web_server, agent_files):
+    for speed in ("0.2", "0.25"):
+        ready_submission(web_server, student_token(web_server, unique("racer")), agent_files[f"driver_{speed}"])
+    web.login(web_server.instructor_token)
+
+    web.page.click("#new-championship summary")
+    championship = unique("Cup")
+    web.page.fill("#champ-name", championship)
+    web.page.fill("#champ-heat", "4")
+    web.page.click("#championship-form button[type=submit]")
+    card = web.page.locator("[data-championship]", has_text=championship)
+    card.locator("button", has_text="Run round 1").click()
+    card.locator("[data-round='1'] progress").wait_for()
+    web.screenshot("instructor-round-running")
+    card.locator("[data-round='1'] .badge.done").wait_for(timeout=120_000)
+    web.screenshot("instructor-round-done")
+
+    card.locator("[data-round='1'] a", has_text="Heat 1").click()
+    web.page.wait_for_url(re.compile(r"/races/\d+$"))
+    web.page.wait_for_selector("#viewer:not([hidden])")
+    first = canvas_pixels(web, "#race-canvas")
+    web.page.wait_for_function("() => Number(document.querySelector('#viewer').dataset.step) > 30")
+    web.page.click("#play-button")  # pause
+    assert_drawn(canvas_pixels(web, "#race-canvas", CAR_COLORS[:2]), CAR_COLORS[:2])
+    assert canvas_pixels(web, "#race-canvas")["hash"] != first["hash"]
+    web.screenshot("race-replay")
+
+    # a shareable link opens at its step, paused
+    race_path = web.page.url.split("?")[0].replace(web.base, "")
+    web.goto(f"{race_path}?step=50")
+    web.page.wait_for_selector("#viewer:not([hidden])")
+    assert viewer_step(web) == 50
+    web.page.wait_for_timeout(300)
+    assert viewer_step(web) == 50 and web.page.inner_text("#play-button") == "Play"
+
+
+@needs_issue6
+def test_student_starts_a_friendly_race_against_the_baselines(web, web_server, agent_files):
+    token = student_token(web_server, unique("hank"))
+    ready_submission(web_server, token, agent_files["driver_0.25"])
+    web.login(token)
+
+    baseline = web.page.locator("#opponents label", has_text="(baselines)").first
+    baseline.wait_for()
+    assert baseline.locator("input").is_checked()
+    web.page.click("#race-button")
+    link = web.page.locator("#race-message a", has_text="Watch the race")
+    link.wait_for()
+    link.click()
+    web.page.wait_for_selector("#viewer:not([hidden])", timeout=90_000)
+    assert web.page.locator("#car-legend li").count() >= 2
+    web.screenshot("friendly-race")
+
+
+@needs_issue6
+def test_student_picks_the_active_submission(web, web_server, agent_files):
+    token = student_token(web_server, unique("iris"))
+    older = ready_submission(web_server, token, agent_files["driver_0.2"])
+    ready_submission(web_server, token, agent_files["driver_0.3"])
+    web.login(token)
+
+    web.page.locator(f"#submissions tr[data-id='{older}'] button", has_text="Make active").click()
+    web.page.locator(f"#submissions tr[data-id='{older}'] .badge.active").wait_for()
+    assert wait_for(lambda: web_server.client(token).get(f"/api/submissions/{older}").json(),
+                    lambda s: s.get("active") is True)

@@ -1,0 +1,44 @@
+"""How the server serves the pages (league/server/api/routes/pages.py), over real HTTP."""
+from __future__ import annotations
+
+import httpx
+import pytest
+
+from league.web_geometry import track_geometry
+
+
+@pytest.mark.parametrize("path,marker", [("/", "pages/leaderboard.js"), ("/login", "pages/login.js"),
+                                         ("/submissions", "pages/submissions.js"), ("/races/12", "pages/race.js"),
+                                         ("/replay", "pages/race.js"), ("/instructor", "pages/instructor.js")])
+def test_pages_are_html_that_may_load_from_their_own_server_only(web_server, path, marker):
+    response = httpx.get(web_server.url + path)
+    assert response.status_code == 200
+    assert response.headers["content-type"].startswith("text/html")
+    assert marker in response.text
+    policy = response.headers["content-security-policy"]
+    assert "default-src 'self'" in policy and "unsafe-inline" not in policy
+    assert "http://" not in response.text.replace(web_server.url, "") and "https://" not in response.text
+
+
+def test_assets_are_served_under_static(web_server):
+    script = httpx.get(f"{web_server.url}/static/js/api.js")
+    assert script.status_code == 200 and "javascript" in script.headers["content-type"]
+    assert httpx.get(f"{web_server.url}/static/css/league.css").headers["content-type"].startswith("text/css")
+    assert httpx.get(f"{web_server.url}/static/nothing.js").status_code == 404
+
+
+def test_track_geometry_of_a_replays_track(web_server):
+    from league.evaluation import race
+
+    track = race(["heuristic"], seed=4).replay["track"]
+    response = httpx.post(f"{web_server.url}/api/tracks/geometry", json=track)
+    assert response.status_code == 200, response.text
+    assert response.json() == track_geometry(track)
+
+
+def test_track_geometry_refuses_what_is_not_a_track(web_server):
+    response = httpx.post(f"{web_server.url}/api/tracks/geometry", json={"version": 1})
+    assert response.status_code == 422
+    assert response.json()["detail"].startswith("not a track: ")
+    too_big = httpx.post(f"{web_server.url}/api/tracks/geometry", json={"padding": "x" * 300_000})
+    assert too_big.status_code == 413

@@ -1,0 +1,69 @@
+// Numbers, dates and the race texts, worded as the toolkit words them (league/render.py).
+
+export function number(value, digits = 2) {
+  return value === null || value === undefined || Number.isNaN(value) ? "–" : Number(value).toFixed(digits);
+}
+
+export function percent(part, whole) {
+  return whole ? `${Math.round((100 * part) / whole)} %` : "–";
+}
+
+export function dateTime(iso) {
+  if (!iso) return "–";
+  const date = new Date(iso);
+  return Number.isNaN(date.getTime()) ? iso : date.toLocaleString([], { dateStyle: "medium", timeStyle: "short" });
+}
+
+export function ordinal(n) {
+  const suffix = n % 100 >= 10 && n % 100 <= 20 ? "th" : { 1: "st", 2: "nd", 3: "rd" }[n % 10] || "th";
+  return `${n}${suffix}`;
+}
+
+export const OUTCOME_TEXT = {
+  running: "running",
+  finished: "finished",
+  off_road: "off road",
+  wrong_direction: "wrong direction",
+  too_slow: "too slow",
+  timeout: "out of time",
+  dnf: "agent failed",
+};
+
+export function outcomeText(outcome) {
+  return OUTCOME_TEXT[outcome] || outcome;
+}
+
+/** The thesis' legend line: "accelerating 0.52 | right 0.31 | speed 0.27" (positive turn = right). */
+export function actionText(acc, turn, speed) {
+  const throttle = acc >= 0 ? `accelerating ${acc.toFixed(2)}` : `braking ${(-acc).toFixed(2)}`;
+  const steering = turn === 0 ? "straight" : turn > 0 ? `right ${turn.toFixed(2)}` : `left ${(-turn).toFixed(2)}`;
+  return `${throttle} | ${steering} | speed ${speed.toFixed(2)}`;
+}
+
+/** A car's line once it stopped: "1st 27.3 s", or why it stopped ("off road", "DNF: ..."). */
+export function finalText(row) {
+  if (row.outcome === "finished") return `${ordinal(row.position)}  ${row.time.toFixed(1)} s`;
+  if (row.outcome === "dnf") return `DNF: ${row.reason || "agent failed"}`;
+  return outcomeText(row.outcome);
+}
+
+export function element(tag, { className, text, attrs } = {}, ...children) {
+  const node = document.createElement(tag);
+  if (className) node.className = className;
+  if (text !== undefined && text !== null) node.textContent = text;
+  for (const [name, value] of Object.entries(attrs || {})) {
+    if (value !== undefined && value !== null && value !== false) node.setAttribute(name, value === true ? "" : value);
+  }
+  node.append(...children.filter((child) => child !== null && child !== undefined));
+  return node;
+}
+
+export function badge(status, label = status) {
+  return element("span", { className: `badge ${status}`, text: label });
+}
+
+/** Show a message in a message box (role="alert" boxes are read out by screen readers). */
+export function say(box, text, kind = "error") {
+  box.className = `message ${kind}`;
+  box.textContent = text || "";
+}

@@ -1,0 +1,126 @@
+// Championships: create one, run a round and watch its heats finish, open the races' replays.
+
+import { api, isMissingEndpoint } from "../api.js";
+import { badge, element, say } from "../format.js";
+import { Poller } from "../poller.js";
+import { EnvOptionsFields, describeOptions } from "./env-options.js";
+
+const $ = (id) => document.getElementById(id);
+const ROUND_POLL_MS = 1000;
+const watched = new Map(); // "championship/round" -> Poller
+
+export async function setUpChampionships() {
+  const options = new EnvOptionsFields($("champ-options"), "champ");
+  $("championship-form").addEventListener("submit", async (event) => {
+    event.preventDefault();
+    try {
+      const created = await api("/api/championships", { method: "POST", json: championshipBody(options) });
+      $("championship-form").reset();
+      $("new-championship").open = false;
+      say($("championships-message"), `Created the championship “${created.name}”.`, "success");
+      await refreshChampionships();
+    } catch (error) {
+      say($("championships-message"), `Not created: ${error.message}`, "error");
+    }
+  });
+  try {
+    await refreshChampionships();
+  } catch (error) {
+    if (!isMissingEndpoint(error)) throw error;
+    $("new-championship").hidden = true;
+    $("championships").replaceChildren();
+    say($("championships-message"), "Championships are not available on this server yet.", "info");
+  }
+}
+
+function championshipBody(options) {
+  const points = $("champ-points").value.split(/[,\s]+/).filter(Boolean).map(Number);
+  const body = {
+    name: $("champ-name").value.trim(),
+    heat_size: Number($("champ-heat").value),
+    points,
+    include_baselines: $("champ-baselines").checked,
+    env_options: options.read(),
+  };
+  if ($("champ-seed").value.trim() !== "") body.seed = Number($("champ-seed").value);
+  return body;
+}
+
+async function refreshChampionships() {
+  const list = await api("/api/championships", { auth: false });
+  const championships = Array.isArray(list) ? list : list.items || [];
+  if (!championships.length) {
+    $("championships").replaceChildren(element("p", { className: "muted", text: "No championship yet: create one above." }));
+    return;
+  }
+  const details = await Promise.all(championships.map((c) => api(`/api/championships/${c.id}`, { auth: false })));
+  $("championships").replaceChildren(...details.sort((a, b) => b.id - a.id).map(championshipCard));
+  for (const championship of details) {
+    for (const round of championship.rounds || []) {
+      if (round.status === "pending" || round.status === "running") watchRound(championship.id, round.number);
+    }
+  }
+}
+
+function championshipCard(championship) {
+  const rounds = championship.rounds || [];
+  const run = element("button", { text: `Run round ${rounds.length + 1}`, attrs: { type: "button" } });
+  run.addEventListener("click", () => runRound(championship, run));
+  const facts = [`${championship.heat_size} cars per heat`, `points ${(championship.points || []).join("-")}`,
+    championship.include_baselines ? "baselines take part" : "students only", describeOptions(championship.env_options),
+    championship.seed !== null && championship.seed !== undefined ? `seed ${championship.seed}` : null].filter(Boolean);
+  return element("article", { className: "panel", attrs: { "data-championship": championship.id, "aria-label": championship.name } },
+    element("div", { className: "row" }, element("h3", { text: championship.name }), run,
+      element("a", { text: "Standings", attrs: { href: `/?championship=${championship.id}` } })),
+    element("p", { className: "small muted", text: facts.join(" · ") }),
+    element("ol", { className: "rounds", attrs: { "aria-label": `Rounds of ${championship.name}` } },
+      ...(rounds.length ? rounds.map((round) => roundItem(championship.id, round))
+        : [element("li", { className: "muted", text: "No round yet." })])));
+}
+
+function roundItem(championshipId, round) {
+  const item = element("li", { attrs: { "data-round": round.number } });
+  fillRound(item, round);
+  return item;
+}
+
+function fillRound(item, round) {
+  const total = round.heats_total || 0;
+  const progress = element("progress", { attrs: { max: Math.max(total, 1), value: round.heats_done || 0,
+    "aria-label": `Round ${round.number}: ${round.heats_done} of ${total} heats done` } });
+  const links = (round.race_ids || []).map((raceId, i) => element("a", { text: `Heat ${i + 1}`, attrs: { href: `/races/${raceId}` } }));
+  item.replaceChildren(element("div", { className: "row" }, element("strong", { text: `Round ${round.number}` }), badge(round.status),
+    element("span", { text: `${round.heats_done ?? 0}/${total} heats done` }), ...links.flatMap((link) => [link])), progress);
+}
+
+async function runRound(championship, button) {
+  button.disabled = true;
+  try {
+    const round = await api(`/api/championships/${championship.id}/rounds`, { method: "POST" });
+    say($("championships-message"), `Round ${round.number} of ${championship.name} started.`, "success");
+    await refreshChampionships();
+    watchRound(championship.id, round.number);
+  } catch (error) {
+    say($("championships-message"), `The round did not start: ${error.message}`, "error");
+    button.disabled = false;
+  }
+}
+
+/** Poll a running round until it is done (or failed), updating its line of the card. */
+function watchRound(championshipId, number) {
+  const key = `${championshipId}/${number}`;
+  if (watched.has(key)) return;
+  const poller = new Poller(async () => {
+    const round = await api(`/api/championships/${championshipId}/rounds/${number}`, { auth: false });
+    const item = document.querySelector(`[data-championship="${championshipId}"] [data-round="${number}"]`);
+    if (item) fillRound(item, round);
+    if (round.status === "done" || round.status === "failed") {
+      watched.delete(key);
+      await refreshChampionships();
+      return false;
+    }
+    return true;
+  }, ROUND_POLL_MS);
+  watched.set(key, poller);
+  poller.poll();
+}

@@ -1,0 +1,97 @@
+// Students: create one or a CSV roster (their tokens are shown once), revoke, issue a new token.
+
+import { api } from "../api.js";
+import { badge, dateTime, element, say } from "../format.js";
+
+const $ = (id) => document.getElementById(id);
+
+export function setUpStudents(me) {
+  $("student-form").addEventListener("submit", async (event) => {
+    event.preventDefault();
+    const name = $("student-name").value.trim();
+    if (!name) {
+      say($("students-message"), "Enter the student's name.", "error");
+      return;
+    }
+    try {
+      const created = await api("/api/users", { method: "POST", json: { name } });
+      $("student-name").value = "";
+      showTokens([created]);
+      await refreshUsers(me);
+      say($("students-message"), `Created ${created.name}. Give them the token below.`, "success");
+    } catch (error) {
+      say($("students-message"), `Not created: ${error.message}`, "error");
+    }
+  });
+
+  $("roster-form").addEventListener("submit", async (event) => {
+    event.preventDefault();
+    const file = $("roster-file").files[0];
+    if (!file) {
+      say($("students-message"), "Choose a CSV file first.", "error");
+      return;
+    }
+    const form = new FormData();
+    form.append("file", file, file.name);
+    try {
+      const created = await api("/api/users/roster", { method: "POST", form });
+      $("roster-form").reset();
+      showTokens(created);
+      await refreshUsers(me);
+      say($("students-message"), `Created ${created.length} students from ${file.name}.`, "success");
+    } catch (error) {
+      say($("students-message"), `The roster was not created: ${error.message}`, "error");
+    }
+  });
+  return refreshUsers(me);
+}
+
+function showTokens(users) {
+  $("tokens").hidden = false;
+  $("token-table").tBodies[0].replaceChildren(...users.map((user) => element("tr", {},
+    element("td", { text: user.name }), element("td", {}, element("span", { className: "token", text: user.token })))));
+  const csv = ["name,token", ...users.map((user) => `${csvCell(user.name)},${user.token}`)].join("\n");
+  const link = $("tokens-download");
+  if (link.href.startsWith("blob:")) URL.revokeObjectURL(link.href);
+  link.href = URL.createObjectURL(new Blob([csv + "\n"], { type: "text/csv" }));
+}
+
+function csvCell(text) {
+  return /[",\n]/.test(text) ? `"${text.replaceAll('"', '""')}"` : text;
+}
+
+async function refreshUsers(me) {
+  const users = await api("/api/users");
+  $("users").tBodies[0].replaceChildren(...users.map((user) => {
+    const actions = element("span", { className: "row" });
+    if (user.id !== me.id && user.role === "student") {
+      if (user.active) actions.append(actionButton(`Revoke`, `Revoke ${user.name}'s account`, "danger", async () => {
+        await api(`/api/users/${user.id}/revoke`, { method: "POST" });
+        say($("students-message"), `${user.name}'s token no longer works.`, "success");
+      }, me));
+      actions.append(actionButton(user.active ? "New token" : "Restore with a new token", `New token for ${user.name}`, "secondary", async () => {
+        const created = await api(`/api/users/${user.id}/token`, { method: "POST" });
+        showTokens([created]);
+        say($("students-message"), `New token for ${user.name} below (the old one no longer works).`, "success");
+      }, me));
+    }
+    return element("tr", {}, element("td", { text: user.name }), element("td", { text: user.role }),
+      element("td", { text: dateTime(user.created_at) }),
+      element("td", {}, user.active ? badge("ready", "active") : badge("rejected", "revoked")), element("td", {}, actions));
+  }));
+}
+
+function actionButton(text, label, style, action, me) {
+  const button = element("button", { className: `small ${style}`, text, attrs: { type: "button", "aria-label": label } });
+  button.addEventListener("click", async () => {
+    button.disabled = true;
+    try {
+      await action();
+      await refreshUsers(me);
+    } catch (error) {
+      say($("students-message"), error.message, "error");
+      button.disabled = false;
+    }
+  });
+  return button;
+}

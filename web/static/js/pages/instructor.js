@@ -1,0 +1,42 @@
+// The instructor console (/instructor): students, evaluation settings, championships, jobs.
+
+import { api } from "../api.js";
+import { badge, dateTime, element, say } from "../format.js";
+import { setUpChampionships } from "../instructor/championships.js";
+import { setUpEvaluations } from "../instructor/evaluations.js";
+import { setUpStudents } from "../instructor/students.js";
+import { Poller } from "../poller.js";
+import { requireUser, showAccount } from "../session.js";
+
+const JOBS_POLL_MS = 5000;
+const $ = (id) => document.getElementById(id);
+
+async function refreshJobs() {
+  const jobs = await api("/api/jobs?limit=20");
+  $("jobs").tBodies[0].replaceChildren(...jobs.map((job) => element("tr", {},
+    element("td", { className: "num", text: job.id }),
+    element("td", { text: job.kind + (job.submission_id ? ` #${job.submission_id}` : "") }),
+    element("td", {}, badge(job.status)), element("td", { className: "num", text: job.attempts }),
+    element("td", { text: job.worker_id || "–" }), element("td", { text: dateTime(job.created_at) }),
+    element("td", { text: job.error || "" }))));
+}
+
+async function start() {
+  let me;
+  try {
+    me = await requireUser({ role: "instructor" });
+  } catch (error) {
+    say($("page-message"), error.message, "error");
+    document.querySelectorAll("main section, main .grid-2").forEach((part) => (part.hidden = true));
+    return;
+  }
+  showAccount(me);
+  const jobs = new Poller(refreshJobs, JOBS_POLL_MS);
+  $("refresh-jobs").addEventListener("click", () => jobs.poll());
+  const parts = [setUpStudents(me), setUpEvaluations(), setUpChampionships(), jobs.poll()];
+  const results = await Promise.allSettled(parts);
+  const failures = results.filter((r) => r.status === "rejected").map((r) => r.reason.message);
+  if (failures.length) say($("page-message"), failures.join(" "), "error");
+}
+
+start();

@@ -1,0 +1,190 @@
+// The leaderboard page (/): championship standings, the course leaderboard, rounds and races,
+// refreshed every 15 s. Public: the token, when there is one, only highlights the user's rows.
+
+import { api, isMissingEndpoint } from "../api.js";
+import { badge, dateTime, element, number, ordinal, percent, say } from "../format.js";
+import { Pager } from "../pager.js";
+import { Poller } from "../poller.js";
+import { optionalUser, showAccount } from "../session.js";
+import { SortableTable } from "../sortable-table.js";
+
+const REFRESH_MS = 15000;
+const PAGE_SIZE = 50;
+const $ = (id) => document.getElementById(id);
+
+let me = null;
+const isOwn = (row) => Boolean(me && me.name && row.owner === me.name);
+
+const standings = new SortableTable($("standings"), [
+  { key: "rank", label: "Rank", numeric: true, better: "lower" },
+  { key: "name", label: "Agent", render: (row) => raceableName(row) },
+  { key: "owner", label: "Student" },
+  { key: "points", label: "Points", numeric: true, better: "higher" },
+  { key: "wins", label: "Wins", numeric: true, better: "higher" },
+  { key: "finishes", label: "Best finishes", numeric: true, better: "lower", value: bestFinish, render: finishesText },
+  { key: "rating", label: "Rating", numeric: true, better: "higher", render: ratingCell },
+], { rowKey: (row) => row.submission_id, isOwn, emptyText: "No standings yet: no round has been run." });
+
+const leaderboard = new SortableTable($("leaderboard"), [
+  { key: "rank", label: "Rank", numeric: true, better: "lower" },
+  { key: "owner", label: "Student" },
+  { key: "name", label: "Agent", render: (row) => raceableName(row) },
+  { key: "completed", label: "Laps completed", numeric: true, better: "higher", value: completionRate,
+    render: (row) => `${row.completed ?? "–"}/${row.episodes ?? "–"} (${percent(row.completed, row.episodes)})` },
+  { key: "mean_return", label: "Mean return", numeric: true, better: "higher", render: (row) => number(row.mean_return, 2) },
+  { key: "mean_speed", label: "Mean speed", numeric: true, better: "higher", render: (row) => number(row.mean_speed, 3) },
+  { key: "mean_steps", label: "Mean steps", numeric: true, render: (row) => number(row.mean_steps, 0) },
+  { key: "rating", label: "Rating", numeric: true, better: "higher", render: (row) => number(row.rating, 2) },
+], { rowKey: (row) => row.submission_id, isOwn, emptyText: "No evaluated submissions yet." });
+
+const standingsPager = new Pager($("standings-pager"), { size: PAGE_SIZE, label: "standings", onChange: refreshStandings });
+const leaderboardPager = new Pager($("leaderboard-pager"), { size: PAGE_SIZE, label: "the leaderboard", onChange: refreshLeaderboard });
+
+function raceableName(row) {
+  return element("span", { text: row.name, attrs: { title: `submission ${row.submission_id}` } });
+}
+
+function completionRate(row) {
+  return row.episodes ? row.completed / row.episodes : null;
+}
+
+function finishPositions(row) {
+  return (row.finishes || []).map((f) => (typeof f === "object" && f !== null ? f.position : f)).filter(Number.isFinite);
+}
+
+function bestFinish(row) {
+  const positions = finishPositions(row);
+  return positions.length ? Math.min(...positions) : null;
+}
+
+function finishesText(row) {
+  const positions = finishPositions(row).sort((a, b) => a - b).slice(0, 5);
+  return positions.length ? positions.map(ordinal).join(", ") : "–";
+}
+
+function ratingCell(row) {
+  const text = number(row.rating, 2);
+  if (row.mu === undefined || row.sigma === undefined) return text;
+  return element("span", { text, attrs: { title: `μ ${number(row.mu, 2)}, σ ${number(row.sigma, 2)}` } });
+}
+
+// --------------------------------------------------------------------------- championships
+
+let championshipId = new URLSearchParams(location.search).get("championship");
+
+async function refreshChampionships() {
+  const list = await api("/api/championships", { auth: false });
+  const picker = $("championship");
+  const items = Array.isArray(list) ? list : list.items || [];
+  standings.emptyText = items.length ? "No standings yet: no round has been run." : "No championship yet.";
+  if (!items.length) {
+    standings.update([]);
+    $("rounds").replaceChildren(element("li", { className: "muted", text: "No championship yet." }));
+    return;
+  }
+  if (!items.some((c) => String(c.id) === String(championshipId))) {
+    championshipId = String(Math.max(...items.map((c) => c.id)));
+  }
+  picker.replaceChildren(...items.map((c) => element("option", { text: c.name, attrs: { value: c.id } })));
+  picker.value = championshipId;
+  $("championship-picker").hidden = items.length < 2;
+  $("standings-title").textContent = `Standings: ${items.find((c) => String(c.id) === championshipId).name}`;
+  await Promise.all([refreshStandings(), refreshRounds()]);
+}
+
+async function refreshStandings() {
+  if (!championshipId) return;
+  const page = await api(`/api/championships/${championshipId}/standings?${standingsPager.query()}`, { auth: false });
+  standings.update(page.items);
+  standingsPager.update(page.total);
+}
+
+async function refreshRounds() {
+  const championship = await api(`/api/championships/${championshipId}`, { auth: false });
+  const rounds = championship.rounds || [];
+  if (!rounds.length) {
+    $("rounds").replaceChildren(element("li", { className: "muted", text: "No rounds yet." }));
+    return;
+  }
+  $("rounds").replaceChildren(...[...rounds].reverse().map((round) => {
+    const item = element("li", {}, element("strong", { text: `Round ${round.number}` }), " ", badge(round.status),
+      ` heats ${round.heats_done}/${round.heats_total}`);
+    (round.race_ids || []).forEach((raceId, i) => {
+      item.append(" · ", element("a", { text: `Heat ${i + 1} replay`, attrs: { href: `/races/${raceId}` } }));
+    });
+    return item;
+  }));
+}
+
+$("championship").addEventListener("change", (event) => {
+  championshipId = event.target.value;
+  const url = new URL(location.href);
+  url.searchParams.set("championship", championshipId);
+  history.replaceState(null, "", url);
+  standingsPager.page = 1;
+  refreshChampionships().catch(showProblem("Standings"));
+});
+
+// --------------------------------------------------------------------------- leaderboard and races
+
+async function refreshLeaderboard() {
+  const page = await api(`/api/leaderboard?${leaderboardPager.query()}`, { auth: false });
+  leaderboard.update(page.items);
+  leaderboardPager.update(page.total);
+}
+
+async function refreshRaces() {
+  const page = await api("/api/races?page=1&size=10", { auth: false });
+  const items = page.items || [];
+  if (!items.length) {
+    $("races").replaceChildren(element("li", { className: "muted", text: "No races yet." }));
+    return;
+  }
+  $("races").replaceChildren(...items.map((race) => element("li", {},
+    element("a", { text: `Race ${race.id}`, attrs: { href: `/races/${race.id}` } }), " ", badge(race.status), " ",
+    element("span", { className: "muted", text: raceDescription(race) }))));
+}
+
+function raceDescription(race) {
+  const what = race.championship_id ? `round ${race.round}, heat ${race.heat}` : "friendly race";
+  const who = (race.entrants || []).map((e) => e.name).join(", ");
+  return [what, who, dateTime(race.created_at)].filter(Boolean).join(" · ");
+}
+
+// --------------------------------------------------------------------------- refresh
+
+const problems = new Map();
+
+function showProblem(part) {
+  return (error) => {
+    problems.set(part, isMissingEndpoint(error) ? `${part}: not available on this server yet.` : `${part}: ${error.message}`);
+  };
+}
+
+async function refreshAll() {
+  problems.clear();
+  await Promise.all([
+    refreshChampionships().catch(showProblem("Standings")),
+    refreshLeaderboard().catch(showProblem("Leaderboard")),
+    refreshRaces().catch(showProblem("Races")),
+  ]);
+  say($("notice"), [...problems.values()].join(" "), "info");
+  $("updated").textContent = `Updated ${new Date().toLocaleTimeString()}`;
+  return $("auto-refresh").checked;
+}
+
+const refresher = new Poller(refreshAll, REFRESH_MS);
+$("auto-refresh").addEventListener("change", (event) => (event.target.checked ? refresher.poll() : refresher.stop()));
+$("refresh-now").addEventListener("click", () => refresher.poll());
+
+async function start() {
+  me = await optionalUser().catch(() => null);
+  showAccount(me);
+  if (me && me.expired) {
+    say($("account-notice"), `Your token is no longer valid (${me.reason}); log in again to see your rows highlighted.`, "info");
+    me = null;
+  }
+  refresher.poll();
+}
+
+start();

@@ -1,0 +1,43 @@
+// The login page: check the token with the server, keep it in localStorage, go back where the
+// user came from (or to their home page).
+
+import { api, forgetToken, storeToken, takeLoginMessage } from "../api.js";
+import { say } from "../format.js";
+
+const form = document.getElementById("login-form");
+const input = document.getElementById("token");
+const message = document.getElementById("login-message");
+
+const left = takeLoginMessage();
+if (left) say(message, left, "error");
+input.focus();
+
+document.getElementById("show-token").addEventListener("change", (event) => {
+  input.type = event.target.checked ? "text" : "password";
+});
+
+/** Only paths of this site: "/x" but not "//host/x". */
+function nextPage(user) {
+  const next = new URLSearchParams(location.search).get("next");
+  if (next && next.startsWith("/") && !next.startsWith("//") && !next.startsWith("/login")) return next;
+  return user.role === "instructor" ? "/instructor" : "/submissions";
+}
+
+form.addEventListener("submit", async (event) => {
+  event.preventDefault();
+  const token = input.value.trim();
+  if (!token) {
+    say(message, "Enter your token.", "error");
+    input.focus();
+    return;
+  }
+  storeToken(token);
+  try {
+    const user = await api("/api/users/me", { loginOn401: false });
+    location.assign(nextPage(user));
+  } catch (error) {
+    forgetToken();
+    say(message, error.status === 401 ? `This token was not accepted: ${error.message}.` : error.message, "error");
+    input.select();
+  }
+});

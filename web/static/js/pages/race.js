@@ -1,0 +1,211 @@
+// The race viewer: /races/{id} plays a race stored on the server (waiting while it runs);
+// /replay plays a replay file saved by `league race --replay`. ?step=N opens at step N.
+
+import { api } from "../api.js";
+import { badge, dateTime, element, finalText, number, say } from "../format.js";
+import { markerIcon } from "../palette.js";
+import { Player } from "../player.js";
+import { RacePainter } from "../race-painter.js";
+import { Replay } from "../replay.js";
+import { optionalUser, showAccount } from "../session.js";
+import { dropZone } from "../upload-zone.js";
+
+const RACE_POLL_MS = 1500;
+const DEFAULT_SPEED = 2;
+const $ = (id) => document.getElementById(id);
+const raceId = (location.pathname.match(/^\/races\/([^/]+)$/) || [])[1];
+const requestedStep = new URLSearchParams(location.search).get("step");
+
+let viewer = null; // {replay, painter, player}
+
+// --------------------------------------------------------------------------- loading
+
+async function loadRace() {
+  $("race-heading").textContent = `Race ${raceId}`;
+  document.title = `Race ${raceId} · MicroRacer League`;
+  let race;
+  try {
+    race = await raceWhenOver();
+  } catch (error) {
+    say($("race-message"), `Race ${raceId}: ${error.message}`, "error");
+    return;
+  }
+  if (race.status === "failed") {
+    say($("race-message"), `This race failed: ${race.error || "no reason recorded"}`, "error");
+    return;
+  }
+  const replay = await api(`/api/races/${encodeURIComponent(raceId)}/replay`, { auth: false });
+  await show(replay, race);
+}
+
+/** The race once it is done or failed; meanwhile, say that it is pending or running. */
+async function raceWhenOver() {
+  for (;;) {
+    const race = await api(`/api/races/${encodeURIComponent(raceId)}`, { auth: false });
+    if (race.status !== "pending" && race.status !== "running") return race;
+    const names = (race.entrants || []).map((e) => e.name).join(", ");
+    $("race-message").replaceChildren(badge(race.status), ` The race is ${race.status}; it plays here when it is over.`,
+      names ? ` Cars: ${names}.` : "");
+    await new Promise((resolve) => setTimeout(resolve, RACE_POLL_MS));
+  }
+}
+
+function openReplayFile() {
+  $("race-heading").textContent = "Replay";
+  $("file-box").hidden = false;
+  say($("race-message"), "");
+  dropZone($("replay-drop"), $("replay-file"), async (file) => {
+    try {
+      const data = JSON.parse(await file.text());
+      say($("file-message"), "");
+      await show(data, null);
+      $("race-heading").textContent = `Replay: ${file.name}`;
+    } catch (error) {
+      say($("file-message"), `${file.name} cannot be played: ${error.message}`, "error");
+    }
+  });
+}
+
+// --------------------------------------------------------------------------- the viewer
+
+async function show(data, race) {
+  const replay = new Replay(data);
+  const geometry = data.geometry || await api("/api/tracks/geometry", { method: "POST", json: data.track, auth: false });
+  if (viewer) {
+    viewer.player.pause();
+    viewer.painter.destroy();
+  }
+  $("viewer").hidden = false;
+  say($("race-message"), "");
+  const painter = new RacePainter($("race-canvas"), geometry, replay);
+  const player = new Player({
+    totalSteps: replay.totalSteps,
+    stepsPerSecond: 1 / replay.tstep,
+    onStep: (step) => render(step),
+    onState: (playing) => {
+      $("play-button").textContent = playing ? "Pause" : "Play";
+      $("play-button").setAttribute("aria-pressed", String(playing));
+      if (!playing) rememberStep();
+    },
+  });
+  player.speed = Number($("speed").value) || DEFAULT_SPEED;
+  viewer = { replay, painter, player };
+  $("scrubber").max = String(replay.totalSteps);
+  $("race-canvas").setAttribute("aria-label", canvasLabel(replay));
+  buildLegend(replay);
+  showClassification(replay, race);
+  $("play-button").focus({ preventScroll: true }); // Space and the arrows work at once
+  const step = requestedStep === null ? 0 : Math.min(Math.max(Number(requestedStep) || 0, 0), replay.totalSteps);
+  player.seek(step);
+  const reducedMotion = window.matchMedia("(prefers-reduced-motion: reduce)").matches;
+  if (requestedStep === null && !reducedMotion) player.play();
+}
+
+function render(step) {
+  const { replay, painter } = viewer;
+  painter.draw(step);
+  $("scrubber").value = String(step);
+  $("scrubber").setAttribute("aria-valuetext", `${replay.seconds(step).toFixed(1)} seconds, step ${step} of ${replay.totalSteps}`);
+  $("clock").textContent = `t = ${replay.seconds(step).toFixed(1)} s · step ${step}/${replay.totalSteps}`;
+  $("viewer").dataset.step = String(step);
+  document.querySelectorAll("#car-legend .car-status").forEach((line, i) => {
+    const { text, final } = replay.legend(i, step);
+    line.textContent = text;
+    line.classList.toggle("final", final);
+  });
+}
+
+function buildLegend(replay) {
+  $("car-legend").replaceChildren(...replay.names.map((name, i) => element("li", {},
+    markerIcon(i), element("span", { className: "car-name", text: name }), element("span", { className: "car-status" }))));
+}
+
+function canvasLabel(replay) {
+  const finishers = Object.values(replay.rows).filter((r) => r.outcome === "finished").length;
+  return `Race animation of ${replay.carCount} cars on seed ${replay.data.seed}'s track, ` +
+    `${replay.seconds(replay.totalSteps).toFixed(1)} s long; ${finishers} finished. The legend and the table give each car's result.`;
+}
+
+function showClassification(replay, race) {
+  const rows = race?.classification?.length ? race.classification : replay.data.classification || [];
+  $("classification").tBodies[0].replaceChildren(...rows.map((row) => {
+    const index = Number(String(row.car).replace("car_", ""));
+    return element("tr", {},
+      element("td", { className: "num", text: row.position }),
+      element("td", {}, element("span", { className: "row" }, markerIcon(index), row.name)),
+      element("td", { text: row.owner || "–" }),
+      element("td", { text: row.outcome === "finished" ? "finished" : finalText(row) }),
+      element("td", { className: "num", text: number(row.time, 2) }),
+      element("td", { className: "num", text: number(row.distance, 3) }));
+  }));
+  const facts = [`seed ${replay.data.seed}`, `${replay.carCount} cars`, `${replay.data.observation} observations`];
+  const options = Object.entries(replay.data.env_options || {}).filter(([, v]) => v === false).map(([k]) => `no ${k.replaceAll("_", " ")}`);
+  if (race) {
+    facts.push(race.championship_id ? `championship ${race.championship_id}, round ${race.round}, heat ${race.heat}` : "friendly race");
+    if (race.finished_at) facts.push(`run ${dateTime(race.finished_at)}`);
+  }
+  $("race-facts").textContent = [...facts, ...options].join(" · ");
+}
+
+// --------------------------------------------------------------------------- controls
+
+function rememberStep() {
+  if (!raceId || !viewer) return;
+  const url = new URL(location.href);
+  url.searchParams.set("step", String(viewer.player.step));
+  history.replaceState(null, "", url);
+  $("share-row").hidden = false;
+  $("share-link").value = url.href;
+}
+
+$("play-button").addEventListener("click", () => viewer?.player.toggle());
+$("speed").addEventListener("change", (event) => {
+  if (viewer) viewer.player.speed = Number(event.target.value);
+});
+$("scrubber").addEventListener("input", (event) => {
+  if (!viewer) return;
+  viewer.player.seek(Number(event.target.value));
+  if (!viewer.player.playing) rememberStep();
+});
+$("copy-link").addEventListener("click", async () => {
+  $("share-link").select();
+  try {
+    await navigator.clipboard.writeText($("share-link").value);
+    $("copy-status").textContent = "Copied.";
+  } catch {
+    $("copy-status").textContent = "Press Ctrl+C to copy the selected link.";
+  }
+});
+
+document.addEventListener("keydown", (event) => {
+  if (!viewer || event.altKey || event.ctrlKey || event.metaKey) return;
+  const target = event.target;
+  const typing = target.matches("input[type=text], input[type=password], textarea, select");
+  const onControl = target.matches("button, a, summary, input[type=range], input[type=file]");
+  const { player, replay } = viewer;
+  if (event.key === " " && !typing && !onControl) {
+    event.preventDefault();
+    player.toggle();
+    return;
+  }
+  if (typing || target.matches("input[type=range]")) return; // the scrubber moves itself
+  const second = Math.round(1 / replay.tstep);
+  const moves = { ArrowLeft: -(event.shiftKey ? second : 1), ArrowRight: event.shiftKey ? second : 1 };
+  if (event.key in moves) {
+    event.preventDefault();
+    player.pause();
+    player.seek(player.step + moves[event.key]);
+    rememberStep();
+  } else if (event.key === "Home" || event.key === "End") {
+    event.preventDefault();
+    player.pause();
+    player.seek(event.key === "Home" ? 0 : replay.totalSteps);
+    rememberStep();
+  }
+});
+
+// --------------------------------------------------------------------------- start
+
+optionalUser().then(showAccount).catch(() => showAccount(null));
+if (raceId) loadRace().catch((error) => say($("race-message"), `Race ${raceId} cannot be shown: ${error.message}`, "error"));
+else openReplayFile();

@@ -1,0 +1,281 @@
+// My submissions (/submissions): upload a model, watch its status change live, read why it
+// failed, see its evaluation chart, pick the championship's active submission, start a friendly race.
+
+import { api, isMissingEndpoint } from "../api.js";
+import { showEpisodeChart } from "../episode-chart.js";
+import { badge, dateTime, element, number, outcomeText, say } from "../format.js";
+import { Poller } from "../poller.js";
+import { requireUser, showAccount } from "../session.js";
+import { dropZone } from "../upload-zone.js";
+
+const FAST_POLL_MS = 1000; // while something is being validated or evaluated
+const SLOW_POLL_MS = 10000; // otherwise (e.g. an instructor re-runs evaluations)
+const BASELINES_OWNER = "baselines";
+const $ = (id) => document.getElementById(id);
+
+let me = null;
+let submissions = [];
+let selectedId = Number(new URLSearchParams(location.search).get("id")) || null;
+let shownEvaluation = null; // "id:status" of the evaluation whose chart is drawn
+let chosenFile = null;
+let lastUpload = null; // {id, filename}: its outcome replaces the "uploaded" message
+
+/** Validated and, when ready, evaluated (or the evaluation failed): nothing more will change. */
+function settled(submission) {
+  if (!["ready", "rejected", "failed"].includes(submission.status)) return false;
+  if (submission.status !== "ready") return true;
+  return ["done", "failed"].includes(submission.evaluation?.status);
+}
+
+// --------------------------------------------------------------------------- the list
+
+async function refresh() {
+  submissions = await api("/api/submissions");
+  renderList();
+  reportUpload();
+  fillRaceAgents();
+  if (!selectedId && submissions.length) selectedId = submissions[0].id;
+  if (selectedId) {
+    try {
+      await refreshDetail();
+    } catch (error) {
+      say($("page-message"), `Submission ${selectedId}: ${error.message}`, "error");
+      selectedId = null;
+      $("detail").hidden = true;
+    }
+  }
+  poller.interval = submissions.every(settled) ? SLOW_POLL_MS : FAST_POLL_MS;
+}
+
+function renderList() {
+  const body = $("submissions").tBodies[0];
+  if (!submissions.length) {
+    body.replaceChildren(element("tr", {}, element("td", { className: "muted", text: "No submissions yet: upload your first agent above.", attrs: { colspan: 7 } })));
+    return;
+  }
+  body.replaceChildren(...submissions.map((s) => {
+    const evaluation = s.evaluation;
+    const done = evaluation?.status === "done";
+    const open = element("button", { className: "secondary small", text: s.name,
+      attrs: { type: "button", "aria-label": `Show ${s.name}`, "aria-controls": "detail" } });
+    open.addEventListener("click", () => select(s.id));
+    const row = element("tr", { attrs: { "data-id": s.id, "data-status": s.status } },
+      element("td", {}, open),
+      element("td", {}, statusBadges(s)),
+      element("td", { text: dateTime(s.created_at) }),
+      element("td", { className: "num", text: done ? `${evaluation.completed}/${evaluation.episodes_total}` : "–" }),
+      element("td", { className: "num", text: done ? number(evaluation.mean_return) : "–" }),
+      element("td", { className: "num", text: done ? number(evaluation.mean_speed, 3) : "–" }),
+      element("td", {}, championshipCell(s)));
+    if (s.id === selectedId) row.classList.add("selected");
+    return row;
+  }));
+}
+
+function statusBadges(s) {
+  const cell = element("span", { className: "row" }, badge(s.status));
+  const evaluation = s.evaluation?.status;
+  if (s.status === "ready" && evaluation !== "done") {
+    cell.append(badge(evaluation === "failed" ? "failed" : "running", evaluation === "failed" ? "evaluation failed" : "evaluating"));
+  }
+  return cell;
+}
+
+function championshipCell(s) {
+  const cell = element("span", { className: "row" });
+  if (s.active) cell.append(badge("active"));
+  else if (s.status === "ready") {
+    const use = element("button", { className: "secondary small", text: "Make active",
+      attrs: { type: "button", "aria-label": `Race ${s.name} in championships` } });
+    use.addEventListener("click", () => update(s, { active: true }));
+    cell.append(use);
+  }
+  if ("public" in s && s.status === "ready") {
+    const box = element("input", { attrs: { type: "checkbox", checked: s.public } });
+    box.addEventListener("change", () => update(s, { public: box.checked }));
+    cell.append(element("label", { className: "checks small" }, box, "public opponent"));
+  }
+  return cell;
+}
+
+async function update(s, change) {
+  try {
+    await api(`/api/submissions/${s.id}`, { method: "PATCH", json: change });
+    say($("page-message"), "");
+    await poller.poll();
+  } catch (error) {
+    const what = isMissingEndpoint(error) ? "this server cannot do that yet" : error.message;
+    say($("page-message"), `Could not change ${s.name}: ${what}`, "error");
+  }
+}
+
+function select(id) {
+  selectedId = id;
+  const url = new URL(location.href);
+  url.searchParams.set("id", id);
+  history.replaceState(null, "", url);
+  renderList();
+  refreshDetail().then(() => $("detail").scrollIntoView({ block: "start" }));
+}
+
+// --------------------------------------------------------------------------- one submission
+
+async function refreshDetail() {
+  const s = await api(`/api/submissions/${selectedId}`);
+  $("detail").hidden = false;
+  $("detail-title").replaceChildren(`${s.name} `, badge(s.status));
+  $("detail-facts").textContent = [s.filename, s.kind, `${(s.size / 1024).toFixed(1)} KB`, `sha256 ${s.sha256.slice(0, 12)}…`,
+    s.obs_dim ? `observation size ${s.obs_dim}` : null, `uploaded ${dateTime(s.created_at)}`].filter(Boolean).join(" · ");
+  say($("detail-error"), s.error ? `${s.status === "rejected" ? "Rejected" : "Failed"}: ${s.error}` : "", "error");
+  showLog("validation-log", s.log);
+  renderEvaluation(s);
+}
+
+function showLog(id, text) {
+  $(id).textContent = text || "";
+  $(`${id}-box`).hidden = !text;
+}
+
+function renderEvaluation(s) {
+  const evaluation = s.evaluation;
+  $("evaluation").hidden = s.status !== "ready";
+  showLog("evaluation-log", evaluation?.log);
+  say($("evaluation-error"), evaluation?.status === "failed" ? `The evaluation failed: ${evaluation.error}` : "", "error");
+  if (!evaluation || evaluation.status !== "done") {
+    $("evaluation-summary").replaceChildren(evaluation ? badge(evaluation.status) : badge("queued"),
+      evaluation?.status === "failed" ? "" : " The evaluation runs as soon as a worker is free; this page updates by itself.");
+    $("chart-box").hidden = true;
+    shownEvaluation = null;
+    return;
+  }
+  const settings = evaluation.settings || {};
+  const options = Object.entries(settings.env_options || {}).map(([k, v]) => `${k}=${v}`).join(", ");
+  $("evaluation-summary").textContent = `Completed ${evaluation.completed} of ${evaluation.episodes_total} laps · ` +
+    `mean return ${number(evaluation.mean_return)} · mean speed ${number(evaluation.mean_speed, 3)} · ` +
+    `mean steps ${number(evaluation.mean_steps, 0)} (seed ${settings.seed}${options ? `, ${options}` : ""}).`;
+  const key = `${evaluation.id}:${evaluation.status}`;
+  if (key === shownEvaluation) return; // already drawn: no flicker on every poll
+  shownEvaluation = key;
+  $("chart-box").hidden = false;
+  showEpisodeChart($("episode-chart"), $("chart-legend"), evaluation.episodes);
+  $("episodes").tBodies[0].replaceChildren(...evaluation.episodes.map((e) => element("tr", {},
+    element("td", { className: "num", text: e.index + 1 }), element("td", { className: "num", text: e.seed }),
+    element("td", { className: "num", text: e.steps }), element("td", { className: "num", text: number(e.return) }),
+    element("td", { className: "num", text: number(e.mean_speed, 3) }),
+    element("td", { text: e.reason && e.outcome === "dnf" ? `${outcomeText(e.outcome)}: ${e.reason}` : outcomeText(e.outcome) }))));
+}
+
+// --------------------------------------------------------------------------- upload
+
+function reportUpload() {
+  const s = lastUpload && submissions.find((item) => item.id === lastUpload.id);
+  if (!s || !["ready", "rejected", "failed"].includes(s.status)) return;
+  if (s.status === "ready") say($("upload-message"), `${lastUpload.filename} passed validation: it is ready and being evaluated.`, "success");
+  else say($("upload-message"), `${lastUpload.filename} was ${s.status}: ${s.error}`, "error");
+  lastUpload = null;
+}
+
+dropZone($("drop-zone"), $("model-file"), (file) => {
+  chosenFile = file;
+  $("chosen-file").textContent = `Chosen: ${file.name} (${(file.size / 1024).toFixed(1)} KB)`;
+});
+
+$("upload-form").addEventListener("submit", async (event) => {
+  event.preventDefault();
+  const message = $("upload-message");
+  if (!chosenFile) {
+    say(message, "Choose a model file first (drop it on the box or click the box).", "error");
+    return;
+  }
+  const form = new FormData();
+  form.append("file", chosenFile, chosenFile.name);
+  const name = $("submission-name").value.trim();
+  if (name) form.append("name", name);
+  $("upload-button").disabled = true;
+  say(message, `Uploading ${chosenFile.name}…`, "info");
+  try {
+    const created = await api("/api/submissions", { method: "POST", form });
+    say(message, `Uploaded ${chosenFile.name}: it is ${created.status}; it will be validated, then evaluated.`, "success");
+    selectedId = created.id;
+    lastUpload = { id: created.id, filename: chosenFile.name };
+    shownEvaluation = null;
+    chosenFile = null;
+    $("upload-form").reset();
+    $("chosen-file").textContent = "";
+    await poller.poll();
+  } catch (error) {
+    say(message, `Upload refused: ${error.message}`, "error");
+  } finally {
+    $("upload-button").disabled = false;
+  }
+});
+
+// --------------------------------------------------------------------------- friendly race
+
+function fillRaceAgents() {
+  const select = $("race-agent");
+  const ready = submissions.filter((s) => s.status === "ready");
+  const previous = select.value;
+  select.replaceChildren(...ready.map((s) => element("option", { text: `${s.name} (#${s.id})`, attrs: { value: s.id } })));
+  if (ready.some((s) => String(s.id) === previous)) select.value = previous;
+  $("race-button").disabled = !ready.length;
+}
+
+async function loadOpponents() {
+  const box = $("opponents");
+  try {
+    const page = await api("/api/leaderboard?page=1&size=100", { auth: false });
+    const others = page.items.filter((row) => row.owner !== me.name);
+    if (!others.length) {
+      box.replaceChildren(element("span", { className: "muted", text: "No opponents yet." }));
+      return;
+    }
+    box.replaceChildren(...others.map((row) => element("label", {},
+      element("input", { attrs: { type: "checkbox", name: "opponent", value: row.submission_id, checked: row.owner === BASELINES_OWNER } }),
+      `${row.name} (${row.owner})`)));
+  } catch (error) {
+    if (isMissingEndpoint(error)) {
+      $("race-form").hidden = true;
+      say($("race-message"), "Friendly races are not available on this server yet.", "info");
+    } else {
+      box.replaceChildren(element("span", { className: "muted", text: `Opponents could not be loaded: ${error.message}` }));
+    }
+  }
+}
+
+$("race-form").addEventListener("submit", async (event) => {
+  event.preventDefault();
+  const message = $("race-message");
+  const mine = Number($("race-agent").value);
+  const opponents = [...document.querySelectorAll("input[name=opponent]:checked")].map((box) => Number(box.value));
+  if (!mine) {
+    say(message, "You need a ready submission to race.", "error");
+    return;
+  }
+  try {
+    const race = await api("/api/races", { method: "POST", json: { submission_ids: [mine, ...opponents] } });
+    message.className = "message success";
+    message.replaceChildren(`Race ${race.id} started (${race.status}). `,
+      element("a", { text: "Watch the race", attrs: { href: `/races/${race.id}` } }));
+  } catch (error) {
+    say(message, `The race could not start: ${error.message}`, "error");
+  }
+});
+
+// --------------------------------------------------------------------------- start
+
+const poller = new Poller(refresh, FAST_POLL_MS);
+
+async function start() {
+  try {
+    me = await requireUser();
+  } catch (error) {
+    say($("page-message"), error.message, "error");
+    return;
+  }
+  showAccount(me);
+  await poller.poll();
+  loadOpponents();
+}
+
+start();

@@ -1,0 +1,66 @@
+// Colours from the Okabe–Ito palette, told apart by people with any common colour-vision
+// deficiency; cars also differ by marker shape, so ten cars stay distinguishable.
+
+export const CAR_COLORS = ["#E69F00", "#56B4E9", "#009E73", "#F0E442", "#0072B2", "#D55E00", "#CC79A7", "#000000"];
+export const CAR_SHAPES = ["circle", "square", "triangle", "diamond", "pentagon"];
+
+export function carStyle(index) {
+  return { color: CAR_COLORS[index % CAR_COLORS.length], shape: CAR_SHAPES[index % CAR_SHAPES.length] };
+}
+
+export const OUTCOME_COLORS = {
+  finished: "#009E73",
+  off_road: "#D55E00",
+  wrong_direction: "#CC79A7",
+  too_slow: "#E69F00",
+  timeout: "#56B4E9",
+  dnf: "#000000",
+};
+export const SPEED_COLOR = "#0072B2";
+
+/** Trace a marker shape of radius r centred on (x, y) into ctx's current path. */
+export function traceShape(ctx, shape, x, y, r) {
+  ctx.beginPath();
+  if (shape === "circle") {
+    ctx.arc(x, y, r, 0, 2 * Math.PI);
+  } else if (shape === "square") {
+    ctx.rect(x - r * 0.85, y - r * 0.85, r * 1.7, r * 1.7);
+  } else {
+    const corners = { triangle: 3, diamond: 4, pentagon: 5 }[shape];
+    for (let k = 0; k < corners; k++) {
+      const angle = -Math.PI / 2 + (2 * Math.PI * k) / corners;
+      const radius = shape === "triangle" ? r * 1.2 : r * 1.1;
+      ctx.lineTo(x + radius * Math.cos(angle), y + radius * Math.sin(angle));
+    }
+  }
+  ctx.closePath();
+}
+
+/** A small SVG of a car's marker, for legends (the same shape and colour as on the canvas). */
+export function markerIcon(index) {
+  const { color, shape } = carStyle(index);
+  const svg = document.createElementNS("http://www.w3.org/2000/svg", "svg");
+  svg.setAttribute("viewBox", "-10 -10 20 20");
+  svg.setAttribute("aria-hidden", "true");
+  svg.setAttribute("class", "marker-icon");
+  const path = document.createElementNS("http://www.w3.org/2000/svg", "path");
+  path.setAttribute("d", shapePath(shape, 7));
+  path.setAttribute("fill", color);
+  path.setAttribute("stroke", "#000");
+  path.setAttribute("stroke-width", "1.5");
+  svg.append(path);
+  return svg;
+}
+
+function shapePath(shape, r) {
+  if (shape === "circle") return `M ${-r} 0 A ${r} ${r} 0 1 0 ${r} 0 A ${r} ${r} 0 1 0 ${-r} 0 Z`;
+  if (shape === "square") return `M ${-r * 0.85} ${-r * 0.85} h ${r * 1.7} v ${r * 1.7} h ${-r * 1.7} Z`;
+  const corners = { triangle: 3, diamond: 4, pentagon: 5 }[shape];
+  const radius = shape === "triangle" ? r * 1.2 : r * 1.1;
+  const points = [];
+  for (let k = 0; k < corners; k++) {
+    const angle = -Math.PI / 2 + (2 * Math.PI * k) / corners;
+    points.push(`${(radius * Math.cos(angle)).toFixed(2)} ${(radius * Math.sin(angle)).toFixed(2)}`);
+  }
+  return `M ${points.join(" L ")} Z`;
+}
