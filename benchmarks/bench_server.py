@@ -13,36 +13,22 @@ Everything runs on this machine: a server on 127.0.0.1, a bounded number of requ
 from __future__ import annotations
 
 import argparse
-import os
-import socket
-import subprocess
-import sys
 import tempfile
 import threading
 import time
 from pathlib import Path
 
-ROOT = Path(__file__).resolve().parents[1]
-sys.path.insert(0, str(ROOT))
+from _league import League, measure_latency, one_core, thesis_actor
 
 EVALUATION_TARGET_S = 15.0
 P99_TARGET_MS = 50.0
-
-
-def thesis_actor(folder: Path) -> Path:
-    from league.agents import export_onnx
-    from tests.toolkit_models import thesis_driver
-
-    return export_onnx(thesis_driver(), folder / "thesis_actor.onnx")
 
 
 def bench_evaluation(model: Path, episodes: int) -> float:
     from league.evaluation import metrics_run
     from league.server.sandbox import SandboxedAgent, SandboxLimits
 
-    affinity = os.sched_getaffinity(0)
-    os.sched_setaffinity(0, {min(affinity)})  # one core, for this process and the sandbox it starts
-    try:
+    with one_core():  # one core, for this process and the sandbox it starts
         start = time.perf_counter()
         with SandboxedAgent(model, "onnx", SandboxLimits()) as agent:
             result = metrics_run(agent, episodes=episodes, seed=0, on_episode=lambda i, e: agent.new_episode())
@@ -50,8 +36,6 @@ def bench_evaluation(model: Path, episodes: int) -> float:
         start_local = time.perf_counter()
         metrics_run(model, episodes=episodes, seed=0)
         local = time.perf_counter() - start_local
-    finally:
-        os.sched_setaffinity(0, affinity)
     steps = sum(e.steps for e in result.episodes)
     verdict = "ok" if seconds <= EVALUATION_TARGET_S else "OVER TARGET"
     print(f"(a) {episodes}-episode evaluation in a sandbox, one core: {seconds:.2f} s "
@@ -62,53 +46,6 @@ def bench_evaluation(model: Path, episodes: int) -> float:
 
 
 # --------------------------------------------------------------------------- (b) status latency
-
-
-def free_port() -> int:
-    with socket.socket() as sock:
-        sock.bind(("127.0.0.1", 0))
-        return sock.getsockname()[1]
-
-
-class League:
-    """`league serve` (+ `league worker`) on loopback, in a temporary data directory."""
-
-    def __init__(self, folder: Path, embedded: bool):
-        self.folder, self.port = folder, free_port()
-        self.url = f"http://127.0.0.1:{self.port}"
-        self.env = {**os.environ, "LEAGUE_DATA_DIR": str(folder), "PYTHONPATH": str(ROOT),
-                    "LEAGUE_EVAL_EPISODES": "20"}
-        self.token = self._run("users", "add", "bench", "--role", "instructor").strip()
-        serve = ["serve", "--port", str(self.port)] + ([] if embedded else ["--no-worker"])
-        self.processes = [self._spawn(*serve, log="api.log")]
-        if not embedded:
-            self.processes.append(self._spawn("worker", log="worker.log"))
-        self._wait_healthy()
-
-    def _run(self, *args: str) -> str:
-        return subprocess.run([sys.executable, "-m", "league.server", *args], env=self.env, check=True,
-                              capture_output=True, text=True).stdout
-
-    def _spawn(self, *args: str, log: str) -> subprocess.Popen:
-        return subprocess.Popen([sys.executable, "-m", "league.server", *args], env=self.env,
-                                stdout=open(self.folder / log, "wb"), stderr=subprocess.STDOUT)
-
-    def _wait_healthy(self) -> None:
-        import httpx
-
-        for _ in range(300):
-            try:
-                if httpx.get(f"{self.url}/api/health", timeout=1).status_code == 200:
-                    return
-            except httpx.HTTPError:
-                time.sleep(0.1)
-        raise RuntimeError("the server did not start")
-
-    def stop(self) -> None:
-        for process in self.processes:
-            process.terminate()
-        for process in self.processes:
-            process.wait(timeout=30)
 
 
 def keep_evaluating(client, stop: threading.Event, busy: list[int]) -> None:
@@ -122,53 +59,25 @@ def keep_evaluating(client, stop: threading.Event, busy: list[int]) -> None:
         stop.wait(0.5)
 
 
-def measure_status_latency(url: str, token: str, submission_id: int, rate: float, seconds: float) -> list[float]:
-    """Open-loop load: request i is due at i/rate; 8 sender threads so one slow answer delays no other."""
-    import httpx
-
-    total, latencies, lock = int(rate * seconds), [], threading.Lock()
-    start = time.perf_counter() + 0.2
-
-    def sender(offset: int, threads: int) -> None:
-        with httpx.Client(base_url=url, headers={"Authorization": f"Bearer {token}"}, timeout=10) as client:
-            for i in range(offset, total, threads):
-                delay = start + i / rate - time.perf_counter()
-                if delay > 0:
-                    time.sleep(delay)
-                sent = time.perf_counter()
-                response = client.get(f"/api/submissions/{submission_id}")
-                elapsed = time.perf_counter() - sent
-                assert response.status_code == 200
-                with lock:
-                    latencies.append(elapsed)
-
-    threads = [threading.Thread(target=sender, args=(k, 8)) for k in range(8)]
-    for thread in threads:
-        thread.start()
-    for thread in threads:
-        thread.join()
-    return latencies
-
-
 def bench_status(model: Path, rate: float, seconds: float, embedded: bool) -> float:
-    import httpx
     import numpy as np
 
     with tempfile.TemporaryDirectory(prefix="league-bench-") as tmp:
-        league = League(Path(tmp), embedded)
-        try:
-            client = httpx.Client(base_url=league.url, headers={"Authorization": f"Bearer {league.token}"}, timeout=30)
+        with League(Path(tmp), embedded=embedded, workers=0 if embedded else 1,
+                    settings={"LEAGUE_EVAL_EPISODES": "20"}) as league:
+            client = league.client()
             with open(model, "rb") as handle:
                 submission_id = client.post("/api/submissions", files={"file": (model.name, handle)}).json()["id"]
             stop, busy = threading.Event(), []
             loader = threading.Thread(target=keep_evaluating, args=(client, stop, busy))
             loader.start()
             time.sleep(2)  # evaluations under way
-            latencies = np.array(measure_status_latency(league.url, league.token, submission_id, rate, seconds)) * 1000
-            stop.set()
-            loader.join()
-        finally:
-            league.stop()
+            try:
+                latencies = np.array(measure_latency(league.url, league.token, f"/api/submissions/{submission_id}",
+                                                     rate, seconds)) * 1000
+            finally:
+                stop.set()
+                loader.join()
     p50, p95, p99 = np.percentile(latencies, [50, 95, 99])
     where = "embedded in `league serve`" if embedded else "in a `league worker` process"
     verdict = "ok" if p99 <= P99_TARGET_MS else "OVER TARGET"

@@ -11,6 +11,7 @@ torch and onnxruntime are optional: they are imported only when a file of their 
 """
 from __future__ import annotations
 
+import functools
 import math
 import os
 import sys
@@ -89,6 +90,14 @@ class Agent:
 
     def _act(self, obs: np.ndarray) -> Any:
         raise NotImplementedError
+
+    def request(self, obs: np.ndarray) -> Callable[[], np.ndarray]:
+        """Ask for the actions of `obs` now, get them (or the AgentError) by calling the result.
+
+        In-process agents compute when the result is called; an agent in another process sends
+        the request at once, so a race asks every car before it waits for any answer.
+        """
+        return functools.partial(self, obs)
 
     def reset(self) -> None:
         """Called before every episode and race: a hook for stateful policies or per-episode budgets."""

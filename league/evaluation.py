@@ -6,6 +6,7 @@ returns the classification and a compact, versioned replay.
 """
 from __future__ import annotations
 
+import functools
 import json
 import os
 from dataclasses import dataclass, field
@@ -360,14 +361,16 @@ def _drive(penv: Any, agents: list[Agent], cars: list[CarLog], obs: dict, infos:
         if car.outcome == "dnf":
             penv.retire(f"car_{i}")
     while penv.agents:
+        # every car is asked before any answer is awaited: agents in sandboxes think in parallel
+        pending = {car_id: _request(agents[int(car_id[4:])], obs[car_id]) for car_id in penv.agents}
         actions = {}
-        for car_id in list(penv.agents):
+        for car_id, answer in pending.items():
             i = int(car_id[4:])
-            action = _car_action(agents[i], cars[i], obs[car_id])
-            if action is None:
+            try:
+                actions[car_id] = answer()[0]
+            except AgentError as error:
+                cars[i].outcome, cars[i].reason = "dnf", error.reason
                 penv.retire(car_id)
-            else:
-                actions[car_id] = action
         if not actions:
             break
         obs, _, terminations, truncations, infos = penv.step(actions)
@@ -381,16 +384,13 @@ def _drive(penv: Any, agents: list[Agent], cars: list[CarLog], obs: dict, infos:
                 cars[i].outcome = infos[car_id]["outcome"] if terminations[car_id] else "timeout"
 
 
-def _car_action(agent: Agent, car: CarLog, observation: np.ndarray) -> np.ndarray | None:
-    """The agent's action for one car, or None when the agent failed (the car is then a DNF)."""
+def _request(agent: Agent, observation: np.ndarray) -> Callable[[], np.ndarray]:
+    """The agent's pending answer for one car (a compact agent gets its view of a lidar observation)."""
     obs = observation[None, :]
     if agent.obs_dim == COMPACT_DIM and obs.shape[1] == LIDAR_DIM:
         obs = compact_from_lidar(obs)
-    try:
-        return agent(obs)[0]
-    except AgentError as error:
-        car.outcome, car.reason = "dnf", error.reason
-        return None
+    request = getattr(agent, "request", None)  # duck-typed agents may have only __call__
+    return request(obs) if request is not None else functools.partial(agent, obs)
 
 
 def _classify(cars: list[CarLog], tstep: float) -> list[dict]:

@@ -13,6 +13,7 @@ from sqlalchemy.orm import Session, sessionmaker
 from starlette.exceptions import HTTPException as StarletteHTTPException
 
 import league
+from league.server.api.cache import ResponseCache
 from league.server.api.main import api_router, upload_router
 from league.server.bootstrap import bootstrap
 from league.server.config import MB, Settings
@@ -61,6 +62,7 @@ def create_app(settings: Settings | None = None, league_: League | None = None) 
                               "evaluated on the course's tracks.")
     app.state.league, app.state.settings, app.state.sessions = league_, settings, league_.sessions
     app.state.queue, app.state.store = league_.queue, league_.store
+    app.state.cache = ResponseCache(settings.public_cache_s)
     app.include_router(api_router, prefix="/api")
     app.include_router(upload_router, prefix="/api", max_body_size=settings.max_upload_bytes + MULTIPART_SLACK)
     app.add_exception_handler(StarletteHTTPException, _http_error)

@@ -34,6 +34,11 @@ class Settings(BaseSettings):
     max_upload_mb: float = Field(10.0, description="largest model file accepted")
     quota_per_day: int = Field(10, description="submissions per student per rolling 24 h (rejected ones are free)")
 
+    # races and championships
+    max_race_cars: int = Field(10, description="cars in one race or championship heat")
+    race_quota_per_day: int = Field(20, description="friendly races a student may start per rolling 24 h")
+    public_cache_s: float = Field(2.0, description="seconds the leaderboard and standings are served from memory")
+
     # sandbox limits
     sandbox_memory_mb: int = Field(512, description="address space a model may use on top of its runtime")
     sandbox_cpu_seconds: int = Field(600, description="CPU time of one sandbox process")
@@ -52,6 +57,8 @@ class Settings(BaseSettings):
 
     # jobs: leases as in fishtest, a job whose worker stops heart-beating is given to another
     worker_threads: int = Field(1, description="jobs one worker process runs at once")
+    job_nice: int = Field(10, ge=0, le=19, description="CPU priority (nice) of job threads and their sandboxes: "
+                                                       "the API stays responsive while they race")
     heartbeat_interval_s: float = 5.0
     lease_timeout_s: float = Field(60.0, description="a running job without heartbeat for this long is re-queued")
     reaper_interval_s: float = 10.0

@@ -85,6 +85,7 @@ def new_attempt_id() -> str:
 
 def run_job(context: WorkerContext, job_id: int) -> None:
     """Execute one queue message: claim the job, run it with heartbeats, record the outcome."""
+    lower_thread_priority(context.settings.job_nice)
     attempt_id = new_attempt_id()
     job = claim(context.sessions, job_id=job_id, attempt_id=attempt_id)
     if job is None:
@@ -95,6 +96,15 @@ def run_job(context: WorkerContext, job_id: int) -> None:
         _work(run)
     finally:
         context.active.pop(job.id, None)
+
+
+def lower_thread_priority(nice: int) -> None:
+    """Give this thread (Linux keeps a nice value per thread) and the sandboxes it starts a lower
+    CPU priority than the API's, so that status and leaderboard requests stay fast under load."""
+    try:
+        os.setpriority(os.PRIO_PROCESS, threading.get_native_id(), nice)
+    except OSError:  # not allowed to lower it back (not root, nice already higher): keep what we have
+        pass
 
 
 def _work(run: JobRun) -> None:

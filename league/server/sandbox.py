@@ -16,6 +16,8 @@ the `sandbox_user` instead of root. See sandbox_child.py.
 """
 from __future__ import annotations
 
+import contextlib
+import functools
 import json
 import os
 import pwd
@@ -30,16 +32,18 @@ import threading
 import time
 from dataclasses import dataclass
 from pathlib import Path
+from typing import Callable
 
 import numpy as np
 
-from league.agents import Agent, AgentError, dry_run_observations
+from league.agents import Agent, AgentError, check_actions, dry_run_observations
 from league.server import sandbox_child
 from league.server.config import Settings
 
 CHILD_SCRIPT = Path(sandbox_child.__file__).resolve()
 HEADER, LENGTH = sandbox_child.HEADER, sandbox_child.LENGTH
 MAX_MESSAGE = 65536
+READ_CHUNK = 65536
 DRY_RUN_CALLS = 24  # parent-side dry run: enough calls to see a model's steady speed
 DRY_RUN_WARMUP = 4  # calls not counted in that speed (first calls are slower)
 
@@ -116,6 +120,10 @@ class SandboxProcess:
                                      stdin=subprocess.PIPE, stdout=subprocess.PIPE, stderr=subprocess.PIPE,
                                      close_fds=True, start_new_session=True)
         self._out = self.proc.stdout.fileno()
+        os.set_blocking(self._out, False)
+        self._poller = select.poll()
+        self._poller.register(self._out, select.POLLIN)
+        self._unread = bytearray()
         self._log_thread = threading.Thread(target=self._copy_log, daemon=True)
         self._log_thread.start()
         self.ready = self._await_ready()
@@ -138,10 +146,11 @@ class SandboxProcess:
             raise SandboxFailure(payload.decode("utf-8", errors="replace"), fatal=True)
         return json.loads(payload)
 
-    def infer(self, obs: np.ndarray, timeout_s: float) -> np.ndarray:
+    def send_observations(self, obs: np.ndarray) -> None:
         obs = np.ascontiguousarray(obs, dtype="<f4")
-        deadline = time.monotonic() + timeout_s
         self._send(HEADER.pack(b"I", obs.shape[0], obs.shape[1]) + obs.tobytes())
+
+    def receive_actions(self, deadline: float) -> np.ndarray:
         tag, payload = self._read_message(deadline, expected=(b"A", b"E"))
         if tag == b"E":
             raise SandboxFailure(payload.decode("utf-8", errors="replace"), fatal=False)
@@ -172,17 +181,23 @@ class SandboxProcess:
         return tag, self._read_exact(length, deadline)
 
     def _read_exact(self, size: int, deadline: float) -> bytes:
-        data = bytearray()
-        while len(data) < size:
-            remaining = deadline - time.monotonic()
-            if remaining <= 0 or not select.select([self._out], [], [], remaining)[0]:
-                self.kill()
-                raise SandboxFailure("deadline exceeded", fatal=True, timed_out=True)
-            chunk = os.read(self._out, size - len(data))
+        """`size` bytes of the child's answers, within the deadline. Reads are buffered and
+        non-blocking: an answer that is already in the pipe costs one read, no poll."""
+        while len(self._unread) < size:
+            try:
+                chunk = os.read(self._out, max(READ_CHUNK, size - len(self._unread)))
+            except BlockingIOError:
+                remaining = deadline - time.monotonic()
+                if remaining <= 0 or not self._poller.poll(remaining * 1000):
+                    self.kill()
+                    raise SandboxFailure("deadline exceeded", fatal=True, timed_out=True) from None
+                continue
             if not chunk:
                 raise SandboxFailure(self._death_reason(), fatal=True)
-            data += chunk
-        return bytes(data)
+            self._unread += chunk
+        data = bytes(self._unread[:size])
+        del self._unread[:size]
+        return data
 
     def _death_reason(self) -> str:
         try:
@@ -202,12 +217,9 @@ class SandboxProcess:
         self.proc.wait()
 
     def close(self) -> None:
-        try:
-            self.proc.stdin.close()  # end of input: the child exits by itself
-            self.proc.wait(timeout=1)
-        except (OSError, subprocess.TimeoutExpired):
-            pass
-        self.kill()
+        with contextlib.suppress(OSError):
+            self.proc.stdin.close()
+        self.kill()  # nothing in the child is worth its slow interpreter shutdown
         self._log_thread.join(timeout=2)
         self.proc.stdout.close()
         self.proc.stderr.close()
@@ -282,6 +294,19 @@ class SandboxedAgent(Agent):
         self.episode_time = 0.0
 
     def _act(self, obs: np.ndarray) -> np.ndarray:
+        return self._send(obs)()
+
+    def request(self, obs: np.ndarray) -> Callable[[], np.ndarray]:
+        """Send the observations now; the result reads the answer (a race asks all its cars first)."""
+        obs = self._check_observations(obs)
+        try:
+            receive = self._send(obs)
+        except AgentError as error:
+            return functools.partial(_raise, error)
+        return lambda: check_actions(receive(), batch=obs.shape[0])
+
+    def _send(self, obs: np.ndarray) -> Callable[[], np.ndarray]:
+        """Send a batch; return the function that waits for its answer within the call's budget."""
         if self.cancel.is_set():
             raise AgentError("the evaluation was cancelled")
         process = self._live_process()
@@ -291,11 +316,20 @@ class SandboxedAgent(Agent):
         budget = min(self.limits.step_deadline_s + self.bank, episode_left)
         started = time.monotonic()
         try:
-            return process.infer(obs, budget)
+            process.send_observations(obs)
         except SandboxFailure as failure:
-            raise AgentError(self._failure_reason(failure, budget, episode_left)) from failure
-        finally:
             self._account(time.monotonic() - started)
+            raise AgentError(self._failure_reason(failure, budget, episode_left)) from failure
+
+        def receive() -> np.ndarray:
+            try:
+                return process.receive_actions(started + budget)
+            except SandboxFailure as failure:
+                raise AgentError(self._failure_reason(failure, budget, episode_left)) from failure
+            finally:
+                self._account(time.monotonic() - started)
+
+        return receive
 
     def _account(self, elapsed: float) -> None:
         self.call_times.append(elapsed)
@@ -330,6 +364,10 @@ class SandboxedAgent(Agent):
         if self._process is not None:
             self._process.close()
             self._process = None
+
+
+def _raise(error: Exception):
+    raise error
 
 
 # --------------------------------------------------------------------------- validation

@@ -158,15 +158,22 @@ def failure_reason(error: BaseException, memory_mb: int) -> str:
 # --------------------------------------------------------------------------- protocol
 
 
-def read_exact(fd: int, size: int) -> bytes:
-    chunks, remaining = [], size
-    while remaining:
-        chunk = os.read(fd, remaining)
-        if not chunk:
-            return b""
-        chunks.append(chunk)
-        remaining -= len(chunk)
-    return b"".join(chunks)
+class Reader:
+    """Buffered reads of the parent's requests: a request written at once is read at once."""
+
+    def __init__(self, fd: int):
+        self.fd, self.unread = fd, bytearray()
+
+    def read_exact(self, size: int) -> bytes:
+        """`size` bytes, or b"" at the end of input."""
+        while len(self.unread) < size:
+            chunk = os.read(self.fd, max(65536, size - len(self.unread)))
+            if not chunk:
+                return b""
+            self.unread += chunk
+        data = bytes(self.unread[:size])
+        del self.unread[:size]
+        return data
 
 
 def send(fd: int, data: bytes) -> None:
@@ -183,15 +190,16 @@ def send_text(fd: int, tag: bytes, text: str) -> None:
 def serve(agent, proto_in: int, proto_out: int, memory_mb: int) -> None:
     import numpy as np
 
+    requests = Reader(proto_in)
     while True:
-        header = read_exact(proto_in, HEADER.size)
+        header = requests.read_exact(HEADER.size)
         if not header:
             return
         tag, n, d = HEADER.unpack(header)
         if tag != b"I" or n > MAX_BATCH or d != agent.obs_dim:
             send_text(proto_out, b"E", f"sandbox protocol error: request {tag!r} {n}x{d}")
             return
-        obs = np.frombuffer(bytearray(read_exact(proto_in, n * d * 4)), dtype="<f4").reshape(n, d)  # writable
+        obs = np.frombuffer(bytearray(requests.read_exact(n * d * 4)), dtype="<f4").reshape(n, d)  # writable
         try:
             actions = np.ascontiguousarray(agent(obs), dtype="<f4")
         except Exception as error:  # the model's failure is an answer, not the sandbox's end

@@ -85,6 +85,8 @@ class SubmissionOut(BaseModel):
     obs_dim: int | None
     created_at: datetime
     updated_at: datetime
+    public: bool = Field(description="other students may race against it")
+    active: bool = Field(False, description="it races in championship rounds (your pick, else your latest ready one)")
     evaluation: EvaluationOut | None = None
 
 
@@ -115,6 +117,7 @@ class JobOut(BaseModel):
     kind: str
     submission_id: int | None
     evaluation_id: int | None
+    race_id: int | None
     status: str
     attempts: int
     worker_id: str | None
@@ -130,3 +133,130 @@ class Health(BaseModel):
     database: str
     queue: str
     queued_jobs: int
+
+
+class SubmissionUpdate(BaseModel):
+    active: bool | None = Field(None, description="true: race this one in championships; false: back to the latest")
+    public: bool | None = Field(None, description="let other students race against it")
+
+
+# --------------------------------------------------------------------------- races and championships
+
+
+class Page(BaseModel):
+    total: int
+
+
+class RaceCreate(BaseModel):
+    submission_ids: list[int] = Field(min_length=2, description="one car each, in this order (car_0 first)")
+    seed: int | None = Field(None, ge=0, lt=2**63, description="the track and start; default: drawn and stored")
+    env_options: dict[str, Any] = Field(default_factory=dict, description="options of league.MicroRacerEnv")
+
+
+class RaceCreated(BaseModel):
+    id: int
+    status: str
+
+
+class Entrant(BaseModel):
+    submission_id: int
+    name: str
+    owner: str
+
+
+class ClassificationRow(Entrant):
+    position: int
+    car: str
+    outcome: str = Field(description="finished, off_road, wrong_direction, too_slow, timeout or dnf")
+    time: float = Field(description="seconds: the finish time, else when the car stopped")
+    distance: float
+    reason: str | None = Field(description="why the car stopped (for a DNF: what its agent did wrong)")
+
+
+class RaceOut(BaseModel):
+    id: int
+    status: str = Field(description="pending, running, done or failed")
+    error: str | None
+    seed: int
+    env_options: dict[str, Any]
+    created_at: datetime
+    finished_at: datetime | None
+    championship_id: int | None
+    round: int | None
+    heat: int | None
+    entrants: list[Entrant]
+    classification: list[ClassificationRow] | None
+
+
+class RacePage(Page):
+    items: list[RaceOut]
+
+
+class ChampionshipCreate(BaseModel):
+    name: str = Field(min_length=1, max_length=100)
+    env_options: dict[str, Any] = Field(default_factory=dict)
+    heat_size: int = Field(10, ge=2, description="cars per heat; a larger field is split into balanced heats")
+    points: list[int] = Field(default_factory=lambda: [25, 18, 15, 12, 10, 8, 6, 4, 2, 1], min_length=1,
+                              max_length=100, description="points by finishing position in a heat")
+    include_baselines: bool = True
+    seed: int | None = Field(None, ge=0, lt=2**63, description="the rounds' tracks and heats; default: drawn")
+
+
+class RoundOut(BaseModel):
+    number: int
+    status: str = Field(description="pending, running, done or failed")
+    heats_done: int
+    heats_total: int
+    race_ids: list[int]
+    track_seed: int
+    heats: list[list[int]] = Field(description="submission ids of each heat")
+    created_at: datetime
+
+
+class ChampionshipOut(BaseModel):
+    id: int
+    name: str
+    env_options: dict[str, Any]
+    heat_size: int
+    points: list[int]
+    include_baselines: bool
+    seed: int
+    created_at: datetime
+    rounds: list[RoundOut]
+
+
+class StandingRow(BaseModel):
+    rank: int
+    submission_id: int
+    name: str
+    owner: str
+    points: int
+    wins: int
+    finishes: list[int] = Field(description="positions, one per heat raced")
+    rating: float = Field(description="OpenSkill mu - 3 sigma")
+    mu: float
+    sigma: float
+
+
+class StandingsPage(Page):
+    items: list[StandingRow]
+
+
+class LeaderboardRow(BaseModel):
+    rank: int
+    owner: str
+    submission_id: int
+    name: str
+    public: bool
+    completed: int
+    episodes: int
+    mean_return: float
+    mean_steps: float
+    mean_speed: float
+    rating: float | None = Field(description="course-wide OpenSkill mu - 3 sigma from championship heats")
+    mu: float | None
+    sigma: float | None
+
+
+class LeaderboardPage(Page):
+    items: list[LeaderboardRow]

@@ -10,7 +10,7 @@ import threading
 
 from huey.consumer import Consumer
 
-from league.server import tasks  # noqa: F401  (registers the job handlers)
+from league.server import racing, tasks  # noqa: F401  (they register the job handlers)
 from league.server.config import Settings
 from league.server.db.session import make_engine, make_sessionmaker, migrate
 from league.server.jobs import WorkerContext, reap, release_active, run_job

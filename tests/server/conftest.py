@@ -269,3 +269,81 @@ def models(tmp_path_factory) -> dict[str, Path]:
         "custom_domain": mf.onnx_custom_domain(d / "custom.onnx"),
         "reads_file": mf.torchscript_reads_file(d / "reads_file.pt"),
     }
+
+
+# --------------------------------------------------------------------------- races and championships
+
+
+def upload_ready(client: httpx.Client, path: Path, name: str | None = None, timeout: float = 90) -> dict:
+    """Upload a good model and wait until it is ready and evaluated; return the submission."""
+    response = upload(client, path, name)
+    assert response.status_code == 201, response.text
+    result = wait_settled(client, response.json()["id"], timeout)
+    assert result["status"] == "ready", result["error"]
+    return result
+
+
+def baseline_submission(server: LeagueServer) -> dict:
+    """The bundled `heuristic` agent of the `baselines` user, once ready and evaluated."""
+    with server.client(server.instructor_token) as instructor:
+        listing = instructor.get("/api/submissions", params={"all": True}).json()
+        baseline = next(s for s in listing if s["owner"] == "baselines" and s["name"] == "heuristic")
+        return wait_settled(instructor, baseline["id"])
+
+
+def wait_race(client: httpx.Client, race_id: int, timeout: float = 120) -> dict:
+    """GET /api/races/{id} until the race is done or failed."""
+    def fetch() -> dict:
+        response = client.get(f"/api/races/{race_id}")
+        assert response.status_code == 200, response.text
+        return response.json()
+
+    return wait_for(fetch, lambda race: race["status"] in ("done", "failed"), timeout, interval=0.2)
+
+
+def stored_model(server: LeagueServer, submission_: dict, directory: Path) -> Path:
+    """A copy of the bytes the server keeps for a submission (what its races ran), named by kind."""
+    digest = submission_["sha256"]
+    suffix = ".onnx" if submission_["kind"] == "onnx" else ".pt"
+    path = directory / f"submission-{submission_['id']}{suffix}"
+    path.write_bytes((server.data_dir / "blobs" / digest[:2] / digest).read_bytes())
+    return path
+
+
+def race_locally(served_race: dict, files: dict[int, Path]):
+    """The served race raced again in this process with the toolkit: same model files (by submission
+    id), the stored seed and env options, the server's car names."""
+    from league.agents import load_agent
+    from league.evaluation import race
+
+    entrants = served_race["entrants"]
+    agents = [load_agent(files[e["submission_id"]]) for e in entrants]
+    names = [f"{e['name']} ({e['owner']})" for e in entrants]
+    return race(agents, seed=served_race["seed"], names=names, **served_race["env_options"])
+
+
+def assert_same_classification(served: list[dict], local: list[dict]) -> None:
+    """Same order, cars, outcomes and reasons; times and distances to 1e-9."""
+    assert [(r["position"], r["car"], r["outcome"], r["reason"]) for r in served] == \
+        [(r["position"], r["car"], r["outcome"], r["reason"]) for r in local]
+    for mine, theirs in zip(served, local):
+        assert mine["time"] == pytest.approx(theirs["time"], abs=1e-9), (mine, theirs)
+        assert mine["distance"] == pytest.approx(theirs["distance"], abs=1e-9), (mine, theirs)
+
+
+def add_user_in_new_course(server: LeagueServer, name: str, course_name: str, role: str = "student") -> str:
+    """A user of another course, written straight into the server's database (the API has no
+    way to create a second course); returns the user's token."""
+    from league.server.db import crud
+    from league.server.db.session import make_engine, make_sessionmaker
+
+    engine = make_engine(server.env["LEAGUE_DATABASE_URL"])
+    try:
+        with make_sessionmaker(engine)() as session:
+            course = crud.get_or_create_course(session, name=course_name,
+                                               evaluation={"seed": 0, "episodes": 3, "env_options": {}})
+            _, token = crud.create_user(session, name=name, role=role, course=course)
+            session.commit()
+    finally:
+        engine.dispose()
+    return token

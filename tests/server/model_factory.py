@@ -203,3 +203,35 @@ def torchscript_memory_hog(path: Path) -> Path:
 
     torch.jit.script(Hog()).save(str(path))
     return path
+
+
+def onnx_nan_when_straight(path: Path, threshold: float = 0.001) -> Path:
+    """The heuristic driver, poisoned: it returns NaN once the best direction (observation[0])
+    is <= `threshold`, i.e. straight ahead or to the right.
+
+    actions = heuristic(obs) + sqrt(obs[:, 0:1] - threshold) * 0: validation's dry runs look a
+    little to the left (direction 0.025-0.075) and see good actions, so the model is accepted;
+    in a race the road soon runs straight or turns right and the car is out (a DNF).
+    """
+    export_heuristic_onnx(path)
+    model = onnx.load(str(path))
+    graph = model.graph
+    for node in graph.node:  # the heuristic's last node now writes "good_actions"
+        node.output[:] = ["good_actions" if name == "actions" else name for name in node.output]
+    graph.node.extend([
+        helper.make_node("Slice", ["obs", "nan_starts", "nan_ends", "nan_axes"], ["nan_direction"]),
+        helper.make_node("Sub", ["nan_direction", "nan_threshold"], ["nan_shifted"]),
+        helper.make_node("Sqrt", ["nan_shifted"], ["nan_root"]),  # NaN when direction < threshold
+        helper.make_node("Mul", ["nan_root", "nan_zero"], ["nan_poison"]),  # 0 or NaN
+        helper.make_node("Add", ["good_actions", "nan_poison"], ["actions"]),
+    ])
+    graph.initializer.extend([
+        numpy_helper.from_array(np.array([0], np.int64), "nan_starts"),
+        numpy_helper.from_array(np.array([1], np.int64), "nan_ends"),
+        numpy_helper.from_array(np.array([1], np.int64), "nan_axes"),
+        numpy_helper.from_array(np.array(threshold, np.float32), "nan_threshold"),
+        numpy_helper.from_array(np.array(0.0, np.float32), "nan_zero"),
+    ])
+    onnx.checker.check_model(model)
+    onnx.save(model, str(path))
+    return path

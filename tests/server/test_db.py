@@ -20,7 +20,8 @@ def test_migrations_match_the_models_and_run_twice(backend):
         tables = set(inspect(connection).get_table_names())
     engine.dispose()
     assert diff == []
-    assert {"courses", "users", "submissions", "evaluations", "episode_results", "jobs", "alembic_version"} <= tables
+    assert {"courses", "users", "submissions", "evaluations", "episode_results", "jobs", "races", "race_replays",
+            "championships", "championship_rounds", "alembic_version"} <= tables
 
 
 def test_downgrade_to_nothing_and_back(backend):

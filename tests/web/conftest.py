@@ -10,7 +10,6 @@ from __future__ import annotations
 import base64
 import os
 import shutil
-import tempfile
 from pathlib import Path
 from urllib.parse import urlsplit
 
@@ -31,30 +30,6 @@ def require_browser() -> None:
     pytest.importorskip("playwright.sync_api", reason="browser tests need `pip install playwright`")
     if not Path(CHROMIUM).exists():
         pytest.skip(f"browser tests need Chromium at {CHROMIUM} (apt-get install chromium)", allow_module_level=True)
-
-
-# --------------------------------------------------------------------------- issue-6 endpoints
-
-ISSUE6_PATHS = ("/api/leaderboard", "/api/races", "/api/championships")
-
-
-def missing_issue6_paths() -> list[str]:
-    """Issue-6 paths absent from the app's OpenAPI document (what /openapi.json serves)."""
-    from league.server.app import create_app
-    from league.server.config import Settings
-
-    with tempfile.TemporaryDirectory() as directory:
-        app = create_app(Settings(data_dir=Path(directory), database_url=f"sqlite:///{directory}/probe.db",
-                                  queue_url=f"sqlite:///{directory}/queue.db", bootstrap=False))
-        paths = app.openapi()["paths"]
-        app.state.league.engine.dispose()
-    return [path for path in ISSUE6_PATHS if path not in paths]
-
-
-# TEMPORARY: remove this mark once the issue-6 endpoints (races, championships, leaderboard) land.
-MISSING_ISSUE6 = missing_issue6_paths()
-needs_issue6 = pytest.mark.skipif(bool(MISSING_ISSUE6),
-                                  reason=f"issue-6 endpoints not in /openapi.json yet: {', '.join(MISSING_ISSUE6)}")
 
 
 # --------------------------------------------------------------------------- server and browser

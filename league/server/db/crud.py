@@ -151,9 +151,9 @@ def create_submission(session: Session, *, owner: User, name: str, filename: str
 
 
 def create_job(session: Session, *, kind: str, submission_id: int | None = None, evaluation_id: int | None = None,
-               payload: dict[str, Any] | None = None, max_attempts: int = 3) -> Job:
-    job = Job(kind=kind, submission_id=submission_id, evaluation_id=evaluation_id, payload=payload or {},
-              status=QUEUED, max_attempts=max_attempts)
+               race_id: int | None = None, payload: dict[str, Any] | None = None, max_attempts: int = 3) -> Job:
+    job = Job(kind=kind, submission_id=submission_id, evaluation_id=evaluation_id, race_id=race_id,
+              payload=payload or {}, status=QUEUED, max_attempts=max_attempts)
     session.add(job)
     session.flush()
     return job
@@ -175,11 +175,15 @@ def latest_evaluation(session: Session, *, submission_id: int) -> Evaluation | N
                           .order_by(Evaluation.id.desc()).limit(1))
 
 
-def latest_evaluations(session: Session, *, submission_ids: list[int]) -> dict[int, Evaluation]:
+def latest_evaluations(session: Session, *, submission_ids: list[int],
+                       status: str | None = None) -> dict[int, Evaluation]:
+    """Each submission's newest evaluation, or its newest one in `status`."""
     if not submission_ids:
         return {}
-    newest = (select(func.max(Evaluation.id)).where(Evaluation.submission_id.in_(submission_ids))
-              .group_by(Evaluation.submission_id))
+    newest = select(func.max(Evaluation.id)).where(Evaluation.submission_id.in_(submission_ids))
+    if status:
+        newest = newest.where(Evaluation.status == status)
+    newest = newest.group_by(Evaluation.submission_id)
     rows = session.scalars(select(Evaluation).where(Evaluation.id.in_(newest)))
     return {evaluation.submission_id: evaluation for evaluation in rows}
 

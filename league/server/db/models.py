@@ -23,7 +23,7 @@ PENDING, VALIDATING, READY, REJECTED, FAILED = "pending", "validating", "ready",
 QUEUED, RUNNING, DONE = "queued", "running", "done"
 
 # job kinds
-VALIDATE, EVALUATE = "validate", "evaluate"
+VALIDATE, EVALUATE, RACE = "validate", "evaluate", "race"
 
 
 def utcnow() -> datetime:
@@ -81,6 +81,8 @@ class User(Base):
     created_at: Mapped[datetime] = mapped_column(default=utcnow)
     created_by_id: Mapped[int | None] = mapped_column(ForeignKey("users.id"))
     revoked_at: Mapped[datetime | None] = mapped_column(default=None)
+    # the submission that races in championships; None: the latest ready one
+    active_submission_id: Mapped[int | None] = mapped_column(Integer, default=None)  # no FK: users <-> submissions
 
     course: Mapped[Course | None] = relationship(lazy="joined")
 
@@ -180,6 +182,7 @@ class Job(Base):
     kind: Mapped[str] = mapped_column(String(20))
     submission_id: Mapped[int | None] = mapped_column(ForeignKey("submissions.id"), index=True)
     evaluation_id: Mapped[int | None] = mapped_column(ForeignKey("evaluations.id"))
+    race_id: Mapped[int | None] = mapped_column(ForeignKey("races.id"), index=True, default=None)
     payload: Mapped[dict[str, Any]] = mapped_column(default=dict)
     status: Mapped[str] = mapped_column(String(20), default=QUEUED)
     attempts: Mapped[int] = mapped_column(Integer, default=0)
@@ -191,3 +194,74 @@ class Job(Base):
     started_at: Mapped[datetime | None] = mapped_column(default=None)
     heartbeat_at: Mapped[datetime | None] = mapped_column(default=None)
     finished_at: Mapped[datetime | None] = mapped_column(default=None)
+
+
+class Championship(Base):
+    """A term's competition: rounds of heats on new tracks, points by a table, OpenSkill ratings."""
+
+    __tablename__ = "championships"
+
+    id: Mapped[int] = mapped_column(primary_key=True)
+    course_id: Mapped[int | None] = mapped_column(ForeignKey("courses.id"), index=True)
+    name: Mapped[str] = mapped_column(String(100))
+    env_options: Mapped[dict[str, Any]] = mapped_column(default=dict)
+    heat_size: Mapped[int] = mapped_column(Integer)
+    points: Mapped[list[Any]] = mapped_column()
+    include_baselines: Mapped[bool] = mapped_column(default=True)
+    seed: Mapped[int] = mapped_column(BigInteger)  # the rounds' tracks and heat draws come from it
+    created_by_id: Mapped[int | None] = mapped_column(ForeignKey("users.id"))
+    created_at: Mapped[datetime] = mapped_column(default=utcnow)
+
+    rounds: Mapped[list[ChampionshipRound]] = relationship(order_by="ChampionshipRound.number", lazy="selectin")
+
+
+class ChampionshipRound(Base):
+    """One round: its track seed and its heats (lists of submission ids), fixed when it is created,
+    so the round can be raced again from what is stored. Its status follows from its heats' races."""
+
+    __tablename__ = "championship_rounds"
+    __table_args__ = (UniqueConstraint("championship_id", "number"),)
+
+    id: Mapped[int] = mapped_column(primary_key=True)
+    championship_id: Mapped[int] = mapped_column(ForeignKey("championships.id"))
+    number: Mapped[int] = mapped_column(Integer)
+    track_seed: Mapped[int] = mapped_column(BigInteger)
+    heats: Mapped[list[Any]] = mapped_column()  # [[submission_id, ...], ...]
+    created_at: Mapped[datetime] = mapped_column(default=utcnow)
+
+    races: Mapped[list[Race]] = relationship(order_by="Race.heat", lazy="selectin")
+
+
+class Race(Base):
+    """A race (friendly, or a championship heat): entrants, seed and options in; classification out.
+
+    `entrants` keeps each car's submission id, name and owner as they were when the race was
+    created; the replay (the toolkit's JSON, gzip-compressed) is in RaceReplay.
+    """
+
+    __tablename__ = "races"
+    __table_args__ = (Index("ix_races_creator_created", "created_by_id", "created_at"),)
+
+    id: Mapped[int] = mapped_column(primary_key=True)
+    course_id: Mapped[int | None] = mapped_column(ForeignKey("courses.id"))
+    created_by_id: Mapped[int | None] = mapped_column(ForeignKey("users.id"))
+    championship_id: Mapped[int | None] = mapped_column(ForeignKey("championships.id"), index=True)
+    round_id: Mapped[int | None] = mapped_column(ForeignKey("championship_rounds.id"), index=True)
+    heat: Mapped[int | None] = mapped_column(Integer)  # 1-based, within its round
+    seed: Mapped[int] = mapped_column(BigInteger)
+    env_options: Mapped[dict[str, Any]] = mapped_column(default=dict)
+    entrants: Mapped[list[Any]] = mapped_column()  # [{"submission_id", "name", "owner"}], car i = entrant i
+    status: Mapped[str] = mapped_column(String(20), default=PENDING, index=True)
+    error: Mapped[str | None] = mapped_column(Text, default=None)
+    log: Mapped[str | None] = mapped_column(Text, default=None)  # what the cars' sandboxes printed, truncated
+    classification: Mapped[list[Any] | None] = mapped_column(JSON, default=None)
+    created_at: Mapped[datetime] = mapped_column(default=utcnow)
+    started_at: Mapped[datetime | None] = mapped_column(default=None)
+    finished_at: Mapped[datetime | None] = mapped_column(default=None)
+
+
+class RaceReplay(Base):
+    __tablename__ = "race_replays"
+
+    race_id: Mapped[int] = mapped_column(ForeignKey("races.id"), primary_key=True)
+    data: Mapped[bytes] = mapped_column(LargeBinary)  # gzip of the replay JSON (a 10-car race: ~60 KB)

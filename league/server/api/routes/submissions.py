@@ -9,8 +9,11 @@ from sqlalchemy.exc import IntegrityError
 
 from league.server.api.deps import CurrentUser, QueueDep, SessionDep, SettingsDep, StoreDep
 from league.server.db import crud
-from league.server.db.models import INSTRUCTOR, STUDENT, Submission, User
-from league.server.schemas import EvaluationDetail, EvaluationOut, SubmissionCreated, SubmissionDetail, SubmissionOut
+from league.server.db.models import INSTRUCTOR, READY, STUDENT, Submission, User
+from league.server.racing import active_submission_ids
+from league.server.schemas import (
+    EvaluationDetail, EvaluationOut, SubmissionCreated, SubmissionDetail, SubmissionOut, SubmissionUpdate,
+)
 from league.server.storage import EmptyFile, FileTooLarge, model_kind_of
 
 router = APIRouter(prefix="/submissions", tags=["submissions"])
@@ -76,7 +79,8 @@ def read_submissions(user: CurrentUser, session: SessionDep, all: bool = False) 
     else:
         submissions = crud.submissions_of(session, owner_ids=[user.id])
     evaluations = crud.latest_evaluations(session, submission_ids=[s.id for s in submissions])
-    return [submission_out(s, evaluations.get(s.id)) for s in submissions]
+    active = active_submission_ids(session, owners=list({s.owner_id: s.owner for s in submissions}.values()))
+    return [submission_out(s, evaluations.get(s.id), s.id in active) for s in submissions]
 
 
 @router.get("/{submission_id}", response_model=SubmissionDetail)
@@ -87,7 +91,30 @@ def read_submission(submission_id: int, user: CurrentUser, session: SessionDep) 
         raise HTTPException(status.HTTP_404_NOT_FOUND, "no such submission")
     evaluation = crud.latest_evaluation(session, submission_id=submission.id)
     detail = EvaluationDetail.model_validate(evaluation) if evaluation else None
-    return SubmissionDetail(**submission_fields(submission), log=submission.log, evaluation=detail)
+    return SubmissionDetail(**submission_fields(submission), log=submission.log, evaluation=detail,
+                            active=submission.status == READY  # only a ready one can be: no query while polling
+                            and submission.id in active_submission_ids(session, owners=[submission.owner]))
+
+
+@router.patch("/{submission_id}", response_model=SubmissionOut)
+def update_submission(submission_id: int, body: SubmissionUpdate, user: CurrentUser,
+                      session: SessionDep) -> SubmissionOut:
+    """Pick the submission that races in championships, or let other students race against it."""
+    submission = session.get(Submission, submission_id)
+    if submission is None or submission.owner_id != user.id:
+        raise HTTPException(status.HTTP_404_NOT_FOUND, "no such submission of yours")
+    if body.active is True:
+        if submission.status != READY:
+            raise HTTPException(status.HTTP_409_CONFLICT, f"submission {submission_id} is {submission.status}: "
+                                                          "only a ready submission can race in championships")
+        user.active_submission_id = submission.id
+    elif body.active is False and user.active_submission_id == submission.id:
+        user.active_submission_id = None  # back to the default: the latest ready one
+    if body.public is not None:
+        submission.public = body.public
+    session.commit()
+    evaluation = crud.latest_evaluation(session, submission_id=submission.id)
+    return submission_out(submission, evaluation, submission.id in active_submission_ids(session, owners=[user]))
 
 
 def may_read(user: User, submission: Submission) -> bool:
@@ -98,13 +125,13 @@ def may_read(user: User, submission: Submission) -> bool:
     return user.role == INSTRUCTOR and (owner_course == user.course_id or owner_course is None)
 
 
-COLUMNS = [name for name in SubmissionOut.model_fields if name not in ("owner", "evaluation")]
+COLUMNS = [name for name in SubmissionOut.model_fields if name not in ("owner", "evaluation", "active")]
 
 
 def submission_fields(submission: Submission) -> dict:
     return {**{name: getattr(submission, name) for name in COLUMNS}, "owner": submission.owner.name}
 
 
-def submission_out(submission: Submission, evaluation) -> SubmissionOut:
-    return SubmissionOut(**submission_fields(submission),
+def submission_out(submission: Submission, evaluation, active: bool) -> SubmissionOut:
+    return SubmissionOut(**submission_fields(submission), active=active,
                          evaluation=EvaluationOut.model_validate(evaluation) if evaluation else None)

@@ -11,11 +11,17 @@ import { requireUser, showAccount } from "../session.js";
 const JOBS_POLL_MS = 5000;
 const $ = (id) => document.getElementById(id);
 
+/** What a job works on: a race (linked to its replay) or a submission. */
+function jobSubject(job) {
+  if (job.race_id) return element("a", { text: `race #${job.race_id}`, attrs: { href: `/races/${job.race_id}` } });
+  return job.kind + (job.submission_id ? ` #${job.submission_id}` : "");
+}
+
 async function refreshJobs() {
   const jobs = await api("/api/jobs?limit=20");
   $("jobs").tBodies[0].replaceChildren(...jobs.map((job) => element("tr", {},
     element("td", { className: "num", text: job.id }),
-    element("td", { text: job.kind + (job.submission_id ? ` #${job.submission_id}` : "") }),
+    element("td", {}, jobSubject(job)),
     element("td", {}, badge(job.status)), element("td", { className: "num", text: job.attempts }),
     element("td", { text: job.worker_id || "–" }), element("td", { text: dateTime(job.created_at) }),
     element("td", { text: job.error || "" }))));

@@ -225,7 +225,8 @@ async function loadOpponents() {
   const box = $("opponents");
   try {
     const page = await api("/api/leaderboard?page=1&size=100", { auth: false });
-    const others = page.items.filter((row) => row.owner !== me.name);
+    // other students' agents can be raced once their owners make them public; the baselines always
+    const others = page.items.filter((row) => row.owner !== me.name && (row.public || row.owner === BASELINES_OWNER));
     if (!others.length) {
       box.replaceChildren(element("span", { className: "muted", text: "No opponents yet." }));
       return;

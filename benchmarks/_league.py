@@ -1,0 +1,219 @@
+"""Helpers shared by the server benchmarks (bench_server.py, bench_league.py).
+
+Everything runs on this machine: servers started as `python -m league.server serve|worker`
+subprocesses on 127.0.0.1, in a temporary data directory, with bounded request loops.
+"""
+from __future__ import annotations
+
+import contextlib
+import os
+import signal
+import socket
+import subprocess
+import sys
+import threading
+import time
+import uuid
+from collections.abc import Iterator
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parents[1]
+if str(ROOT) not in sys.path:
+    sys.path.insert(0, str(ROOT))
+
+PG_ADMIN_URL = os.environ.get("LEAGUE_BENCH_PG", "postgresql://postgres@127.0.0.1:5432/test")
+REDIS_URL = os.environ.get("LEAGUE_BENCH_REDIS", "redis://127.0.0.1:6379/0")
+
+
+def thesis_actor(folder: Path, name: str = "thesis_actor.onnx", **driver_options) -> Path:
+    """A thesis-size ONNX actor (5 -> 64 -> 64 -> 2); options: tests.toolkit_models.thesis_driver's."""
+    from league.agents import export_onnx
+    from tests.toolkit_models import thesis_driver
+
+    return export_onnx(thesis_driver(**driver_options), folder / name)
+
+
+@contextlib.contextmanager
+def one_core() -> Iterator[int]:
+    """Pin this process (and the processes it starts meanwhile) to one CPU; yields that CPU."""
+    affinity = os.sched_getaffinity(0)
+    cpu = min(affinity)
+    os.sched_setaffinity(0, {cpu})
+    try:
+        yield cpu
+    finally:
+        os.sched_setaffinity(0, affinity)
+
+
+def free_port() -> int:
+    with socket.socket() as sock:
+        sock.bind(("127.0.0.1", 0))
+        return sock.getsockname()[1]
+
+
+@contextlib.contextmanager
+def backend(kind: str, folder: Path) -> Iterator[dict[str, str]]:
+    """LEAGUE_* settings of a new, empty database and queue, removed afterwards.
+
+    "sqlite": the embedded defaults (SQLite database and SQLite queue in the data directory);
+    "postgres": a database of its own on the local PostgreSQL and a queue on the local Redis.
+    """
+    if kind == "sqlite":
+        yield {"LEAGUE_DATABASE_URL": f"sqlite:///{folder / 'league.db'}",
+               "LEAGUE_QUEUE_URL": f"sqlite:///{folder / 'queue.db'}"}
+        return
+    if kind != "postgres":
+        raise ValueError(f"unknown backend {kind!r}")
+    import psycopg
+    import redis
+
+    name = f"league_bench_{uuid.uuid4().hex[:10]}"
+    with psycopg.connect(PG_ADMIN_URL, autocommit=True, connect_timeout=5) as admin:
+        admin.execute(f'CREATE DATABASE "{name}"')
+    try:
+        yield {"LEAGUE_DATABASE_URL": f"postgresql+psycopg://postgres@127.0.0.1:5432/{name}",
+               "LEAGUE_QUEUE_URL": REDIS_URL, "LEAGUE_QUEUE_NAME": name}
+    finally:
+        with psycopg.connect(PG_ADMIN_URL, autocommit=True, connect_timeout=5) as admin:
+            admin.execute(f'DROP DATABASE IF EXISTS "{name}" WITH (FORCE)')
+        client = redis.Redis.from_url(REDIS_URL, socket_connect_timeout=5)
+        keys = list(client.scan_iter(match=f"*{name}*", count=1000))
+        if keys:
+            client.delete(*keys)
+
+
+class League:
+    """`league serve` (API + embedded worker, or API only) and `league worker`s on loopback, in
+    `folder` (the data directory); `settings` are LEAGUE_* variables. Use it as a context manager
+    (or call stop()): every process it started is stopped."""
+
+    def __init__(self, folder: Path, *, embedded: bool, workers: int = 0, settings: dict[str, str] | None = None):
+        self.folder, self.port = folder, free_port()
+        self.url = f"http://127.0.0.1:{self.port}"
+        self.env = {**os.environ, "LEAGUE_DATA_DIR": str(folder), "PYTHONPATH": str(ROOT), **(settings or {})}
+        self.token = self._run("users", "add", "bench", "--role", "instructor").strip()
+        self.workers: list[subprocess.Popen] = []  # running (started and not stopped yet)
+        self.workers_started = 0
+        serve = ["serve", "--port", str(self.port)] + ([] if embedded else ["--no-worker"])
+        self.api = self._spawn(*serve, log="api.log")
+        try:
+            for _ in range(workers):
+                self.start_worker()
+            self._wait_healthy()
+        except BaseException:
+            self.stop()
+            raise
+
+    def __enter__(self) -> League:
+        return self
+
+    def __exit__(self, *exc) -> None:
+        self.stop()
+
+    def _run(self, *args: str) -> str:
+        return subprocess.run([sys.executable, "-m", "league.server", *args], env=self.env, check=True,
+                              capture_output=True, text=True, timeout=120).stdout
+
+    def _spawn(self, *args: str, log: str) -> subprocess.Popen:
+        with open(self.folder / log, "ab") as output:
+            return subprocess.Popen([sys.executable, "-m", "league.server", *args], env=self.env,
+                                    stdout=output, stderr=subprocess.STDOUT)
+
+    def _wait_healthy(self, timeout: float = 60) -> None:
+        import httpx
+
+        deadline = time.monotonic() + timeout
+        while time.monotonic() < deadline:
+            if self.api.poll() is not None:
+                raise RuntimeError(f"the server exited ({self.api.returncode}):\n{self.log('api.log')}")
+            with contextlib.suppress(httpx.HTTPError):
+                if httpx.get(f"{self.url}/api/health", timeout=1).status_code == 200:
+                    return
+            time.sleep(0.1)
+        raise RuntimeError(f"the server did not start in {timeout:g} s:\n{self.log('api.log')}")
+
+    def start_worker(self, wait: bool = False, timeout: float = 60) -> subprocess.Popen:
+        """A `league worker` process; with `wait`, return once its consumer runs."""
+        log = f"worker-{self.workers_started}.log"  # a log of its own: "consumer started" is this one's
+        self.workers_started += 1
+        worker = self._spawn("worker", log=log)
+        self.workers.append(worker)
+        deadline = time.monotonic() + timeout
+        while wait and "consumer started" not in self.log(log).lower():
+            if worker.poll() is not None:
+                raise RuntimeError(f"the worker exited ({worker.returncode}):\n{self.log(log)}")
+            if time.monotonic() > deadline:
+                raise RuntimeError(f"the worker did not start in {timeout:g} s:\n{self.log(log)}")
+            time.sleep(0.1)
+        return worker
+
+    def log(self, name: str) -> str:
+        path = self.folder / name
+        return path.read_text(errors="replace")[-4000:] if path.exists() else ""
+
+    @staticmethod
+    def stop_process(process: subprocess.Popen, timeout: float = 30) -> None:
+        if process.poll() is None:
+            process.send_signal(signal.SIGTERM)
+        try:
+            process.wait(timeout=timeout)
+        except subprocess.TimeoutExpired:
+            process.kill()
+            process.wait()
+
+    def stop_workers(self) -> None:
+        while self.workers:
+            self.stop_process(self.workers.pop())
+
+    def stop(self) -> None:
+        self.stop_workers()
+        self.stop_process(self.api)
+
+    def client(self, token: str | None = None, timeout: float = 30):
+        import httpx
+
+        token = self.token if token is None else token
+        return httpx.Client(base_url=self.url, headers={"Authorization": f"Bearer {token}"} if token else {},
+                            timeout=timeout)
+
+
+def measure_latency(url: str, token: str | None, path: str, rate: float, seconds: float,
+                    senders: int = 8, sent: list[float] | None = None) -> list[float]:
+    """Open-loop load of GET `path`: request i is due at i/rate, sent by one of `senders` threads
+    (so one slow answer delays no other); returns each request's latency in seconds, and appends
+    to `sent` when each was sent (seconds from the start), in the same order. Raises if any
+    answer was not 200."""
+    import httpx
+
+    total, latencies, failures, lock = int(rate * seconds), [], [], threading.Lock()
+    headers = {"Authorization": f"Bearer {token}"} if token else {}
+    start = time.perf_counter() + 0.2
+
+    def sender(offset: int) -> None:
+        with httpx.Client(base_url=url, headers=headers, timeout=10) as client:
+            for i in range(offset, total, senders):
+                delay = start + i / rate - time.perf_counter()
+                if delay > 0:
+                    time.sleep(delay)
+                sent_at = time.perf_counter()
+                try:
+                    status = client.get(path).status_code
+                except httpx.HTTPError as error:
+                    status = repr(error)
+                elapsed = time.perf_counter() - sent_at
+                with lock:
+                    if status != 200:
+                        failures.append(status)
+                        continue
+                    latencies.append(elapsed)
+                    if sent is not None:
+                        sent.append(sent_at - start)
+
+    threads = [threading.Thread(target=sender, args=(k,)) for k in range(senders)]
+    for thread in threads:
+        thread.start()
+    for thread in threads:
+        thread.join()
+    if failures:
+        raise RuntimeError(f"{len(failures)} of {total} GET {path} failed, e.g. {failures[:3]}")
+    return latencies

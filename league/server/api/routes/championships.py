@@ -1,0 +1,111 @@
+"""Championships: instructors create them and run rounds; standings are public."""
+from __future__ import annotations
+
+import secrets
+
+from fastapi import APIRouter, HTTPException, Request, Response, status
+from sqlalchemy import select
+from sqlalchemy.exc import IntegrityError
+from sqlalchemy.orm import Session
+
+from league.server.api.cache import cached_json
+from league.server.api.deps import InstructorUser, QueueDep, SessionDep, SettingsDep
+from league.server.api.routes.evaluations import check_env_options, user_course
+from league.server.api.routes.races import PageNumber, PageSize
+from league.server.db import crud
+from league.server.db.models import Championship, ChampionshipRound
+from league.server.racing import RoundRefused, round_summary, standings_rows, start_round
+from league.server.schemas import ChampionshipCreate, ChampionshipOut, RoundOut, StandingsPage
+
+router = APIRouter(prefix="/championships", tags=["championships"])
+
+
+@router.post("", response_model=ChampionshipOut, status_code=status.HTTP_201_CREATED)
+def create_championship(body: ChampionshipCreate, instructor: InstructorUser, session: SessionDep,
+                        settings: SettingsDep) -> ChampionshipOut:
+    """A new championship of your course (its rounds are run with POST .../rounds)."""
+    check_env_options(body.env_options)
+    if body.heat_size > settings.max_race_cars:
+        raise HTTPException(status.HTTP_422_UNPROCESSABLE_CONTENT,
+                            f"heat_size {body.heat_size} is too large: a race takes at most {settings.max_race_cars} cars")
+    if any(p < 0 for p in body.points):
+        raise HTTPException(status.HTTP_422_UNPROCESSABLE_CONTENT, "points must not be negative")
+    championship = Championship(course_id=user_course(session, instructor).id, name=body.name.strip(),
+                                env_options=body.env_options, heat_size=body.heat_size, points=body.points,
+                                include_baselines=body.include_baselines, created_by_id=instructor.id,
+                                seed=body.seed if body.seed is not None else secrets.randbelow(2**31))
+    session.add(championship)
+    session.commit()
+    return championship_out(championship)
+
+
+@router.get("", response_model=list[ChampionshipOut])
+def read_championships(session: SessionDep) -> list[ChampionshipOut]:
+    """The course's championships, oldest first (public)."""
+    course = crud.first_course(session)
+    championships = session.scalars(select(Championship).where(Championship.course_id == (course and course.id))
+                                    .order_by(Championship.id))
+    return [championship_out(c) for c in championships]
+
+
+@router.get("/{championship_id}", response_model=ChampionshipOut)
+def read_championship(championship_id: int, session: SessionDep) -> ChampionshipOut:
+    """A championship and its rounds (public)."""
+    return championship_out(existing_championship(session, championship_id))
+
+
+@router.post("/{championship_id}/rounds", response_model=RoundOut, status_code=status.HTTP_202_ACCEPTED)
+def create_round(championship_id: int, instructor: InstructorUser, session: SessionDep, settings: SettingsDep,
+                 queue: QueueDep) -> RoundOut:
+    """Run the next round: every student's active submission, in heats on a new track."""
+    championship = existing_championship(session, championship_id)
+    if championship.course_id != user_course(session, instructor).id:
+        raise HTTPException(status.HTTP_403_FORBIDDEN, "this championship belongs to another course")
+    try:
+        championship_round, job_ids = start_round(session, championship=championship, created_by=instructor,
+                                                  max_attempts=settings.max_job_attempts)
+        session.commit()
+    except RoundRefused as refusal:
+        raise HTTPException(status.HTTP_409_CONFLICT, str(refusal)) from refusal
+    except IntegrityError as error:  # two instructors clicked at once: the other round was created
+        raise HTTPException(status.HTTP_409_CONFLICT, "another round of this championship was just started") from error
+    for job_id in job_ids:
+        queue.enqueue(job_id)
+    return RoundOut(**round_summary(championship_round))
+
+
+@router.get("/{championship_id}/rounds/{number}", response_model=RoundOut)
+def read_round(championship_id: int, number: int, session: SessionDep) -> RoundOut:
+    """A round's progress: heats done out of the total, and its races (public)."""
+    championship_round = session.scalar(select(ChampionshipRound).where(
+        ChampionshipRound.championship_id == championship_id, ChampionshipRound.number == number))
+    if championship_round is None:
+        raise HTTPException(status.HTTP_404_NOT_FOUND, f"championship {championship_id} has no round {number}")
+    return RoundOut(**round_summary(championship_round))
+
+
+@router.get("/{championship_id}/standings", response_model=StandingsPage)
+async def read_standings(championship_id: int, request: Request, page: PageNumber = 1, size: PageSize = 50) -> Response:
+    """Points (ties: wins, then best finishes) and OpenSkill ratings after the finished rounds (public)."""
+
+    def compute() -> bytes:
+        with request.app.state.sessions() as session:
+            rows = standings_rows(session, existing_championship(session, championship_id))
+        return StandingsPage(items=rows[(page - 1) * size: page * size], total=len(rows)).model_dump_json().encode()
+
+    return await cached_json(request, ("standings", championship_id, page, size), compute)
+
+
+def existing_championship(session: Session, championship_id: int) -> Championship:
+    championship = session.get(Championship, championship_id)
+    if championship is None:
+        raise HTTPException(status.HTTP_404_NOT_FOUND, f"championship {championship_id} does not exist")
+    return championship
+
+
+def championship_out(championship: Championship) -> ChampionshipOut:
+    return ChampionshipOut(id=championship.id, name=championship.name, env_options=championship.env_options,
+                           heat_size=championship.heat_size, points=championship.points,
+                           include_baselines=championship.include_baselines, seed=championship.seed,
+                           created_at=championship.created_at,
+                           rounds=[round_summary(r) for r in championship.rounds])

@@ -1,0 +1,25 @@
+"""The course leaderboard: each student's best evaluated submission, and the baselines (public)."""
+from __future__ import annotations
+
+from fastapi import APIRouter, Request, Response
+
+from league.server.api.cache import cached_json
+from league.server.api.routes.races import PageNumber, PageSize
+from league.server.db import crud
+from league.server.racing import leaderboard_rows
+from league.server.schemas import LeaderboardPage
+
+router = APIRouter(tags=["leaderboard"])
+
+
+@router.get("/leaderboard", response_model=LeaderboardPage)
+async def read_leaderboard(request: Request, page: PageNumber = 1, size: PageSize = 50) -> Response:
+    """Best first: completion rate, then mean return; with each agent's course-wide rating."""
+
+    def compute() -> bytes:
+        with request.app.state.sessions() as session:
+            course = crud.first_course(session)
+            rows = leaderboard_rows(session, course_id=course.id if course else None)
+        return LeaderboardPage(items=rows[(page - 1) * size: page * size], total=len(rows)).model_dump_json().encode()
+
+    return await cached_json(request, ("leaderboard", page, size), compute)

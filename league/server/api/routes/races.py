@@ -1,0 +1,122 @@
+"""Races: friendly races between ready submissions, and the championship heats; their replays."""
+from __future__ import annotations
+
+import secrets
+from typing import Annotated
+
+from fastapi import APIRouter, HTTPException, Query, Request, Response, status
+from sqlalchemy import func, select
+from sqlalchemy.orm import Session
+
+from league.server.api.deps import CurrentUser, QueueDep, SessionDep, SettingsDep
+from league.server.api.routes.evaluations import check_env_options
+from league.server.db import crud
+from league.server.db.models import (
+    BASELINE, FAILED, READY, STUDENT, ChampionshipRound, Race, RaceReplay, Submission, User, utcnow,
+)
+from league.server.racing import create_race, races_started_since, replay_json
+from league.server.schemas import RaceCreate, RaceCreated, RaceOut, RacePage
+
+router = APIRouter(prefix="/races", tags=["races"])
+
+PageNumber = Annotated[int, Query(ge=1, description="1-based")]
+PageSize = Annotated[int, Query(ge=1, le=100)]
+
+
+@router.post("", response_model=RaceCreated, status_code=status.HTTP_201_CREATED)
+def create_friendly_race(body: RaceCreate, user: CurrentUser, session: SessionDep, settings: SettingsDep,
+                         queue: QueueDep) -> RaceCreated:
+    """Race ready submissions on one track (students: their own against baselines and public agents)."""
+    check_env_options(body.env_options)
+    if len(body.submission_ids) > settings.max_race_cars:
+        raise HTTPException(status.HTTP_422_UNPROCESSABLE_CONTENT,
+                            f"too many cars: {len(body.submission_ids)}; a race takes at most {settings.max_race_cars}")
+    repeated = sorted({i for i in body.submission_ids if body.submission_ids.count(i) > 1})
+    if repeated:
+        raise HTTPException(status.HTTP_422_UNPROCESSABLE_CONTENT,
+                            f"submission {repeated[0]} is listed twice: each car races a different submission")
+    entrants = [raceable(session, user, submission_id) for submission_id in body.submission_ids]
+    if user.role == STUDENT:
+        check_friendly_race(session, user, entrants, settings.race_quota_per_day)
+    seed = body.seed if body.seed is not None else secrets.randbelow(2**31)
+    race, job = create_race(session, entrants=entrants, seed=seed, env_options=body.env_options, created_by=user,
+                            course_id=user.course_id, max_attempts=settings.max_job_attempts)
+    session.commit()
+    queue.enqueue(job.id)
+    return RaceCreated(id=race.id, status=race.status)
+
+
+def raceable(session: Session, user: User, submission_id: int) -> Submission:
+    """A submission `user` may put on the grid, or the 4xx that says why not."""
+    submission = session.get(Submission, submission_id)
+    if submission is None:
+        raise HTTPException(status.HTTP_404_NOT_FOUND, f"submission {submission_id} does not exist")
+    owner = submission.owner
+    if owner.role != BASELINE and owner.course_id != user.course_id:
+        raise HTTPException(status.HTTP_403_FORBIDDEN, f"submission {submission_id} belongs to another course")
+    if user.role == STUDENT and owner.id != user.id and owner.role != BASELINE and not submission.public:
+        raise HTTPException(status.HTTP_403_FORBIDDEN,
+                            f"submission {submission_id} is another student's private agent: you may race it "
+                            "once its owner makes it public")
+    if submission.status != READY:
+        raise HTTPException(status.HTTP_409_CONFLICT,
+                            f"submission {submission_id} is not ready (status: {submission.status}); "
+                            "only submissions that passed validation can race")
+    return submission
+
+
+def check_friendly_race(session: Session, user: User, entrants: list[Submission], quota: int) -> None:
+    if not any(s.owner_id == user.id for s in entrants):
+        raise HTTPException(status.HTTP_403_FORBIDDEN, "a friendly race needs one of your own submissions")
+    used = races_started_since(session, user=user, since=utcnow() - crud.QUOTA_WINDOW)
+    if used >= quota:
+        raise HTTPException(status.HTTP_429_TOO_MANY_REQUESTS,
+                            f"race quota reached: {quota} friendly races per 24 hours; try again later")
+
+
+@router.get("", response_model=RacePage)
+def read_races(session: SessionDep, page: PageNumber = 1, size: PageSize = 50,
+               championship_id: int | None = None) -> RacePage:
+    """Races, newest first (public)."""
+    query = select(Race)
+    if championship_id is not None:
+        query = query.where(Race.championship_id == championship_id)
+    total = session.scalar(select(func.count()).select_from(query.subquery()))
+    races = session.scalars(query.order_by(Race.id.desc()).offset((page - 1) * size).limit(size))
+    return RacePage(items=[race_out(session, race) for race in races], total=total)
+
+
+@router.get("/{race_id}", response_model=RaceOut)
+def read_race(race_id: int, session: SessionDep) -> RaceOut:
+    """A race: status, entrants and, once done, its classification (public)."""
+    return race_out(session, existing_race(session, race_id))
+
+
+@router.get("/{race_id}/replay", responses={200: {"content": {"application/json": {}},
+                                                   "description": "the toolkit's replay (microracer-replay v1)"}})
+def read_replay(race_id: int, request: Request, session: SessionDep) -> Response:
+    """The race's replay, as `league race --replay` writes it: what the race viewer plays (public)."""
+    race = existing_race(session, race_id)
+    replay = session.get(RaceReplay, race.id)
+    if replay is None and race.status == FAILED:
+        raise HTTPException(status.HTTP_409_CONFLICT, f"race {race_id} failed, so it has no replay: {race.error}")
+    if replay is None:
+        raise HTTPException(status.HTTP_409_CONFLICT, f"race {race_id} is {race.status}: its replay exists once it is done")
+    if "gzip" in request.headers.get("accept-encoding", ""):  # stored compressed: sent as it is
+        return Response(replay.data, media_type="application/json", headers={"Content-Encoding": "gzip"})
+    return Response(replay_json(session, race.id), media_type="application/json")
+
+
+def existing_race(session: Session, race_id: int) -> Race:
+    race = session.get(Race, race_id)
+    if race is None:
+        raise HTTPException(status.HTTP_404_NOT_FOUND, f"race {race_id} does not exist")
+    return race
+
+
+def race_out(session: Session, race: Race) -> RaceOut:
+    championship_round = session.get(ChampionshipRound, race.round_id) if race.round_id else None
+    return RaceOut(id=race.id, status=race.status, error=race.error, seed=race.seed, env_options=race.env_options,
+                   created_at=race.created_at, finished_at=race.finished_at, championship_id=race.championship_id,
+                   round=championship_round.number if championship_round else None, heat=race.heat,
+                   entrants=race.entrants, classification=race.classification)

@@ -1,0 +1,106 @@
+"""The public course leaderboard over real HTTP (ratings before and after a round: see
+test_championships.py, whose league has no response cache)."""
+from __future__ import annotations
+
+import time
+import uuid
+
+from ... import model_factory as mf
+from ...conftest import (
+    add_user_in_new_course, baseline_submission, create_student, fresh_backend, make_server, upload_ready, wait_for,
+)
+
+CACHE_S = 2.0  # the default LEAGUE_PUBLIC_CACHE_S
+
+
+def unique(name: str) -> str:
+    return f"{name}-{uuid.uuid4().hex[:6]}"
+
+
+def score(row: dict) -> tuple[float, float]:
+    return (row["completed"] / row["episodes"], row["mean_return"])
+
+
+def test_the_leaderboard_shows_each_students_best_agent_and_the_baselines(league_server, models, tmp_path):
+    name = unique("lena")
+    student = create_student(league_server, name)
+    better = upload_ready(student, models["onnx"], name="better")
+    worse = upload_ready(student, mf.onnx_nan_when_straight(tmp_path / "nan.onnx"), name="worse")  # the latest
+    with league_server.client(add_user_in_new_course(league_server, unique("elsewhere"), unique("course"))) as other:
+        outsider = upload_ready(other, models["heuristic_onnx"])
+    baseline = baseline_submission(league_server)
+    time.sleep(CACHE_S + 0.2)  # whatever was cached before these evaluations has expired
+
+    with league_server.client() as anonymous:  # public
+        response = anonymous.get("/api/leaderboard", params={"size": 100})
+    assert response.status_code == 200, response.text
+    assert response.headers["cache-control"] == "public, max-age=2"
+    board = response.json()
+    rows = board["items"]
+    assert board["total"] == len(rows)
+    assert [row["rank"] for row in rows] == list(range(1, len(rows) + 1))
+    assert [score(row) for row in rows] == sorted((score(row) for row in rows), reverse=True)
+
+    assert better["evaluation"]["completed"] > worse["evaluation"]["completed"] == 0
+    mine = [row for row in rows if row["owner"] == name]
+    assert len(mine) == 1
+    evaluation = better["evaluation"]
+    assert {k: mine[0][k] for k in ("submission_id", "name", "public", "completed", "episodes", "mean_return",
+                                     "mean_steps", "mean_speed")} == {
+        "submission_id": better["id"], "name": "better", "public": False, "completed": evaluation["completed"],
+        "episodes": evaluation["episodes_total"], "mean_return": evaluation["mean_return"],
+        "mean_steps": evaluation["mean_steps"], "mean_speed": evaluation["mean_speed"]}
+    students = [row["owner"] for row in rows if row["owner"] != "baselines"]
+    assert len(students) == len(set(students))  # one row per student
+    assert [(row["submission_id"], row["name"], row["public"]) for row in rows if row["owner"] == "baselines"] == \
+        [(baseline["id"], "heuristic", True)]
+    assert outsider["id"] not in [row["submission_id"] for row in rows]  # another course's student
+    for row in rows:
+        assert (row["rating"] is None) == (row["mu"] is None) == (row["sigma"] is None)
+
+
+def test_the_leaderboard_is_paginated(league_server):
+    baseline_submission(league_server)  # at least one row
+
+    def pages():
+        with league_server.client() as anonymous:
+            full = anonymous.get("/api/leaderboard", params={"size": 100}).json()
+            first = anonymous.get("/api/leaderboard", params={"size": 1}).json()
+            second = anonymous.get("/api/leaderboard", params={"size": 1, "page": 2}).json()
+            again = anonymous.get("/api/leaderboard", params={"size": 100}).json()
+        return full, first, second, again
+
+    def consistent(p) -> bool:  # every page seen in the same state (a job may change it, the cache lags)
+        full, first, second, again = p
+        return full == again and first["items"] == full["items"][:1] and second["items"] == full["items"][1:2]
+
+    full, first, second, _ = wait_for(pages, consistent, timeout=10, interval=0.5)
+    assert first["total"] == second["total"] == full["total"] >= 1
+    assert first["items"] == full["items"][:1]
+    assert second["items"] == full["items"][1:2]
+    with league_server.client() as anonymous:
+        assert anonymous.get("/api/leaderboard", params={"size": 101}).status_code == 422
+        assert anonymous.get("/api/leaderboard", params={"page": 0}).status_code == 422
+
+
+def test_an_agent_stays_on_the_leaderboard_while_it_is_evaluated_again(tmp_path, models):
+    """Re-running evaluations (new settings) must not empty the board until a worker gets to them."""
+    with fresh_backend("sqlite", tmp_path) as urls:
+        server = make_server(tmp_path, urls)
+        server.start_api()
+        try:
+            student = create_student(server, "mia")
+            ready = upload_ready(student, models["onnx"])
+            server.stop(server.api)
+            server.start_api(embedded_worker=False)  # nobody will run the re-evaluation
+            with server.client(server.instructor_token) as instructor:
+                rerun = instructor.post("/api/evaluations/rerun", json={"submission_id": ready["id"]})
+            assert rerun.status_code == 202, rerun.text
+            assert student.get(f"/api/submissions/{ready['id']}").json()["evaluation"]["status"] == "queued"
+            with server.client() as anonymous:
+                rows = anonymous.get("/api/leaderboard", params={"size": 100}).json()["items"]
+        finally:
+            server.stop_all()
+    mine = [row for row in rows if row["owner"] == "mia"]
+    assert [(row["submission_id"], row["mean_return"]) for row in mine] == \
+        [(ready["id"], ready["evaluation"]["mean_return"])]

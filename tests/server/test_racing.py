@@ -1,0 +1,48 @@
+"""The race job's pieces without a server: a car whose agent cannot start, and cleaning up."""
+from __future__ import annotations
+
+import pytest
+
+from league.agents import heuristic_agent
+from league.server.racing import FailedAgent, InvalidRaceSettings, race_in_sandboxes
+
+
+class Tracked:
+    """A heuristic driver that records whether it was closed."""
+
+    def __init__(self):
+        self.agent, self.closed = heuristic_agent(), False
+        self.obs_dim, self.name = self.agent.obs_dim, "tracked"
+
+    def __call__(self, obs):
+        return self.agent(obs)
+
+    def close(self):
+        self.closed = True
+
+
+def test_a_car_whose_agent_could_not_start_is_a_dnf_with_the_reason():
+    cars = [lambda: FailedAgent(5, "broken", "the model did not load: truncated file"), heuristic_agent]
+    result = race_in_sandboxes(cars, ["broken", "driver"], seed=3, env_options={})
+    by_name = {row["name"]: row for row in result.classification}
+    assert (by_name["broken"]["outcome"], by_name["broken"]["reason"]) == ("dnf", "the model did not load: truncated file")
+    assert by_name["broken"]["distance"] == 0.0 and by_name["driver"]["outcome"] != "dnf"
+    assert [row["position"] for row in result.classification] == [1, 2] and by_name["driver"]["position"] == 1
+
+
+def test_started_agents_are_closed_when_a_later_start_fails():
+    first = Tracked()
+
+    def fails():
+        raise OSError("no space left on device")
+
+    with pytest.raises(OSError, match="no space"):  # an infrastructure failure: the job is retried
+        race_in_sandboxes([lambda: first, fails], ["a", "b"], seed=0, env_options={})
+    assert first.closed
+
+
+def test_options_the_simulator_refuses_are_invalid_race_settings_and_agents_are_closed():
+    first = Tracked()
+    with pytest.raises(InvalidRaceSettings, match="invalid race settings"):
+        race_in_sandboxes([lambda: first], ["a"], seed=0, env_options={"curves": -1})
+    assert first.closed

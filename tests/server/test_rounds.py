@@ -1,0 +1,234 @@
+"""Championship rounds on real workers: a worker killed mid-round, and two workers sharing a round's heats.
+
+Every heat of a round is a race job of its own; whatever happens to the workers, each heat is
+raced to the end exactly once and counted once in the standings (issue 6, "How it must behave").
+"""
+from __future__ import annotations
+
+import time
+from collections import Counter
+from pathlib import Path
+
+import pytest
+
+from league.agents import load_agent
+from league.evaluation import race
+
+from .conftest import (
+    TEST_SETTINGS, LeagueServer, create_student, fresh_backend, make_server, upload, wait_for, wait_settled,
+)
+
+LEASE_S = float(TEST_SETTINGS["LEAGUE_LEASE_TIMEOUT_S"])
+POINTS = [25, 18, 15, 12, 10, 8, 6, 4, 2, 1]
+# standings read right after the round are fresh; one-episode evaluations: entering the agents is not the subject
+ROUND_SETTINGS = {"LEAGUE_PUBLIC_CACHE_S": "0", "LEAGUE_EVAL_EPISODES": "1"}
+ONE_AT_A_TIME = {"LEAGUE_WORKER_THREADS": "1"}
+
+
+@pytest.fixture(scope="module")
+def drivers(tmp_path_factory) -> list[Path]:
+    """Eight thesis-size ONNX drivers that all lap the track, each at a speed of its own."""
+    from league.agents import export_onnx
+
+    from ..toolkit_models import thesis_driver
+
+    d = tmp_path_factory.mktemp("round-drivers")
+    speeds = [0.20, 0.22, 0.24, 0.26, 0.28, 0.21, 0.23, 0.25]
+    return [export_onnx(thesis_driver(target_speed=speed, seed=k), d / f"driver_{k}.onnx")
+            for k, speed in enumerate(speeds)]
+
+
+# --------------------------------------------------------------------------- helpers
+
+
+def enter_students(server: LeagueServer, files: list[Path]) -> list[int]:
+    """One student per file, each with that agent uploaded and ready (validated and evaluated)."""
+    ids = []
+    for k, path in enumerate(files):
+        student = create_student(server, f"student{k}")
+        response = upload(student, path, name=f"driver{k}")
+        assert response.status_code == 201, response.text
+        ids.append(response.json()["id"])
+        student.close()
+    with server.client(server.instructor_token) as instructor:
+        for submission_id in ids:
+            settled = wait_settled(instructor, submission_id, timeout=120)
+            assert settled["status"] == "ready", settled
+            assert settled["evaluation"]["status"] == "done", settled["evaluation"]
+    return ids
+
+
+def wait_idle(server: LeagueServer, timeout: float = 120) -> None:
+    """Until no job is queued or running (the baselines' evaluations included)."""
+    with server.client(server.instructor_token) as instructor:
+        wait_for(lambda: [j for j in instructor.get("/api/jobs").json() if j["status"] in ("queued", "running")],
+                 lambda busy: not busy, timeout=timeout, interval=0.2)
+
+
+def baseline_ids(server: LeagueServer) -> list[int]:
+    with server.client(server.instructor_token) as instructor:
+        listed = instructor.get("/api/submissions", params={"all": "true"}).json()
+    return [s["id"] for s in listed if s["owner"] == "baselines" and s["status"] == "ready"]
+
+
+def start_round(server: LeagueServer, **championship) -> tuple[int, dict]:
+    with server.client(server.instructor_token) as instructor:
+        created = instructor.post("/api/championships", json={"name": "Spring cup", "points": POINTS, "seed": 5,
+                                                               **championship})
+        assert created.status_code == 201, created.text
+        championship_id = created.json()["id"]
+        started = instructor.post(f"/api/championships/{championship_id}/rounds")
+        assert started.status_code == 202, started.text
+    return championship_id, started.json()
+
+
+def read_round(server: LeagueServer, championship_id: int, number: int = 1) -> dict:
+    with server.client() as public:
+        response = public.get(f"/api/championships/{championship_id}/rounds/{number}")
+    assert response.status_code == 200, response.text
+    return response.json()
+
+
+def wait_round_over(server: LeagueServer, championship_id: int, timeout: float = 120) -> dict:
+    return wait_for(lambda: read_round(server, championship_id), lambda r: r["status"] in ("done", "failed"),
+                    timeout=timeout, interval=0.2)
+
+
+def race_jobs(server: LeagueServer, race_ids: list[int]) -> list[dict]:
+    with server.client(server.instructor_token) as instructor:
+        jobs = instructor.get("/api/jobs", params={"limit": 1000}).json()
+    return [j for j in jobs if j["kind"] == "race" and j["race_id"] in race_ids]
+
+
+def races_of(server: LeagueServer, race_ids: list[int]) -> dict[int, dict]:
+    with server.client() as public:
+        responses = {race_id: public.get(f"/api/races/{race_id}") for race_id in race_ids}
+    assert all(r.status_code == 200 for r in responses.values()), [r.text for r in responses.values()]
+    return {race_id: r.json() for race_id, r in responses.items()}
+
+
+def standings(server: LeagueServer, championship_id: int) -> dict:
+    with server.client() as public:
+        response = public.get(f"/api/championships/{championship_id}/standings", params={"size": 100})
+    assert response.status_code == 200, response.text
+    return response.json()
+
+
+def heat_points(classification: list[dict]) -> dict[int, int]:
+    """What the points table gives each car of one heat: by position, nothing for a DNF."""
+    return {row["submission_id"]: POINTS[row["position"] - 1] if row["outcome"] != "dnf" else 0
+            for row in classification}
+
+
+def worker_pid(job: dict) -> int:
+    """The pid part of a job's worker id ("hostname/pid/uuid8")."""
+    return int(job["worker_id"].split("/")[-2])
+
+
+def check_round_counted_once(server: LeagueServer, championship_id: int, finished: dict,
+                             entrants: list[int]) -> tuple[dict[int, dict], list[dict]]:
+    """The finished round: each heat one race, each race done once, each entrant in one heat and
+    scored once in the standings. Returns the races and their jobs."""
+    race_ids = finished["race_ids"]
+    assert finished["status"] == "done", finished
+    assert finished["heats_done"] == finished["heats_total"] == len(finished["heats"]) == len(race_ids)
+    assert len(set(race_ids)) == len(race_ids), f"a race appears twice: {race_ids}"
+    assert sorted(i for heat in finished["heats"] for i in heat) == sorted(entrants)
+
+    races = races_of(server, race_ids)
+    with server.client() as public:
+        listed = public.get("/api/races", params={"championship_id": championship_id, "size": 100}).json()
+    assert sorted(r["id"] for r in listed["items"]) == sorted(race_ids) and listed["total"] == len(race_ids)
+    for heat_number, (race_id, heat) in enumerate(zip(race_ids, finished["heats"]), start=1):
+        race = races[race_id]
+        assert race["status"] == "done", race
+        assert (race["championship_id"], race["round"], race["heat"]) == (championship_id, 1, heat_number)
+        assert sorted(row["submission_id"] for row in race["classification"]) == sorted(heat)
+        assert [row["position"] for row in race["classification"]] == list(range(1, len(heat) + 1))
+
+    jobs = race_jobs(server, race_ids)
+    per_race = Counter(j["race_id"] for j in jobs)
+    assert per_race == Counter(race_ids), f"not one job per race: {per_race}"
+    assert all(j["status"] == "done" for j in jobs), jobs
+
+    expected = Counter()
+    for race in races.values():
+        expected.update(heat_points(race["classification"]))
+    table = standings(server, championship_id)
+    assert table["total"] == len(entrants)
+    assert {row["submission_id"]: row["points"] for row in table["items"]} == dict(expected)
+    assert sum(row["points"] for row in table["items"]) == sum(expected.values())
+    assert all(len(row["finishes"]) == 1 for row in table["items"]), table["items"]  # one heat each
+    return races, jobs
+
+
+# --------------------------------------------------------------------------- tests
+
+
+def test_worker_killed_mid_round_every_heat_counted_once(backend, tmp_path, drivers):
+    _, urls = backend
+    server = make_server(tmp_path, urls, **ROUND_SETTINGS)
+    server.start_api(embedded_worker=False)
+    doomed = server.start_worker(**ONE_AT_A_TIME)
+    try:
+        students = enter_students(server, drivers[:5])
+        wait_idle(server)
+        entrants = students + baseline_ids(server)
+        assert len(entrants) == 6
+        championship_id, started = start_round(server, heat_size=2, include_baselines=True)
+        assert (started["number"], started["heats_total"], started["heats_done"]) == (1, 3, 0)
+        race_ids = started["race_ids"]
+        wait_for(lambda: race_jobs(server, race_ids), lambda jobs: any(j["status"] == "running" for j in jobs),
+                 timeout=60, interval=0.05)
+        time.sleep(0.3)  # into the heat
+        doomed.kill()  # SIGKILL: the heat's lease is left behind
+        doomed.wait()
+        killed = [j for j in race_jobs(server, race_ids) if j["status"] == "running"]
+        assert len(killed) == 1, killed  # one thread: one heat at a time
+        killed_job = killed[0]
+        time.sleep(LEASE_S + 1)
+        in_between = read_round(server, championship_id)
+        assert in_between["status"] == "running" and in_between["heats_done"] < 3, in_between
+        assert races_of(server, [killed_job["race_id"]])[killed_job["race_id"]]["status"] == "running"
+
+        server.start_worker(LEAGUE_DATA_DIR=str(tmp_path / "another-machine"), **ONE_AT_A_TIME)
+        finished = wait_round_over(server, championship_id)
+        races, jobs = check_round_counted_once(server, championship_id, finished, entrants)
+    finally:
+        server.stop_all()
+    by_race = {j["race_id"]: j for j in jobs}
+    again = by_race[killed_job["race_id"]]
+    assert again["attempts"] == 2, again
+    assert "stopped heart-beating" in again["error"] and f"/{doomed.pid}/" in again["error"], again["error"]
+    assert worker_pid(again) == server.workers[1].pid  # raced again, from the start, by the other worker
+    assert all(j["attempts"] == 1 and j["error"] is None for j in jobs if j is not again), jobs
+    # the re-raced heat is the race its cars drive uninterrupted: same track, same order, same times
+    files = {**dict(zip(students, drivers)), **{i: server.data_dir / "baselines" / "heuristic.onnx"
+                                                for i in entrants if i not in students}}
+    heat = races[killed_job["race_id"]]
+    local = race([load_agent(files[e["submission_id"]]) for e in heat["entrants"]], seed=finished["track_seed"],
+                 names=[f"{e['name']} ({e['owner']})" for e in heat["entrants"]])
+    assert [(r["position"], r["car"], r["outcome"]) for r in heat["classification"]] == \
+        [(r["position"], r["car"], r["outcome"]) for r in local.classification]
+    assert [r["time"] for r in heat["classification"]] == pytest.approx([r["time"] for r in local.classification])
+
+
+def test_two_workers_share_the_heats_of_a_round(tmp_path, drivers):
+    with fresh_backend("postgres", tmp_path) as urls:
+        server = make_server(tmp_path, urls, LEAGUE_BOOTSTRAP="false", **ROUND_SETTINGS)
+        try:
+            server.start_api(embedded_worker=False)
+            for k in range(2):  # two machines, each with its own disk: the models come from the database
+                server.start_worker(LEAGUE_DATA_DIR=str(tmp_path / f"machine-{k}"), **ONE_AT_A_TIME)
+            entrants = enter_students(server, drivers)
+            wait_idle(server)
+            championship_id, started = start_round(server, heat_size=2, include_baselines=False)
+            assert started["heats_total"] == 4
+            finished = wait_round_over(server, championship_id)
+            _, jobs = check_round_counted_once(server, championship_id, finished, entrants)
+        finally:
+            server.stop_all()
+    assert all(j["attempts"] == 1 and j["error"] is None for j in jobs), jobs
+    pids = {worker.pid for worker in server.workers}  # both took part: heats were shared, none raced twice
+    by_worker = Counter(worker_pid(j) for j in jobs)
+    assert set(by_worker) == pids, f"heats per worker pid {dict(by_worker)}; workers {pids}"
