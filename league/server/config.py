@@ -57,6 +57,9 @@ class Settings(BaseSettings):
 
     # jobs: leases as in fishtest, a job whose worker stops heart-beating is given to another
     worker_threads: int = Field(1, description="jobs one worker process runs at once")
+    worker_cpus: str = Field("", description="CPUs a `league worker` and its sandboxes run on, as taskset "
+                                             "lists them ('1', '0-3,6'); empty: all (a race then uses more "
+                                             "than one CPU)")
     job_nice: int = Field(10, ge=0, le=19, description="CPU priority (nice) of job threads and their sandboxes: "
                                                        "the API stays responsive while they race")
     heartbeat_interval_s: float = 5.0

@@ -6,6 +6,7 @@ one in background threads of the API process, for the one-command embedded leagu
 from __future__ import annotations
 
 import logging
+import os
 import threading
 
 from huey.consumer import Consumer
@@ -93,3 +94,23 @@ def worker_context(settings: Settings, queue: JobQueue | None = None) -> WorkerC
     store = BlobStore(settings.data_dir)
     store.ensure()
     return WorkerContext(settings, make_sessionmaker(engine), queue or build_queue(settings), store)
+
+
+def pin_to_cpus(spec: str) -> set[int]:
+    """Run this process, its threads and the sandboxes they start on the CPUs of a taskset-style
+    list ("1", "0-3,6"). A race's sandboxes run in parallel on every CPU they may use, so an
+    unpinned worker takes more than one CPU; pinning gives each worker a fixed share (leave CPUs
+    to the API and the database, or run one worker per CPU)."""
+    cpus: set[int] = set()
+    for part in spec.replace(" ", "").split(","):
+        first, _, last = part.partition("-")
+        if not first.isdigit() or (last and not last.isdigit()) or int(last or first) < int(first):
+            raise ValueError(f"{part!r} is not a CPU number or range such as 2 or 0-3")
+        cpus.update(range(int(first), int(last or first) + 1))
+    available = os.sched_getaffinity(0)
+    if not cpus <= available:
+        raise ValueError(f"CPU {min(cpus - available)} is not available here "
+                         f"(this process may run on {','.join(map(str, sorted(available)))})")
+    for thread in os.listdir("/proc/self/task"):  # the threads imports started too (OpenBLAS)
+        os.sched_setaffinity(int(thread), cpus)
+    return cpus
