@@ -13,6 +13,11 @@ working directory; no path to the data directory or the database is ever given t
 inherited file descriptors but its pipes, a clean environment (no proxies, one thread), then,
 done by the child itself: rlimits (CPU, address space, files), a new network namespace, and
 the `sandbox_user` instead of root. See sandbox_child.py.
+
+Starting: each thread that starts sandboxes has a `ForkServer`, a sandbox_child.py process that
+has imported numpy and onnx once and forks a sandbox per model (one start is a fork and a model
+load, ~0.03 s, instead of a new interpreter, ~0.25 s). The server dies with its thread and takes
+its sandboxes with it (the kernel's parent-death signal, which follows the starting thread).
 """
 from __future__ import annotations
 
@@ -24,6 +29,7 @@ import pwd
 import select
 import shutil
 import signal
+import socket
 import stat
 import subprocess
 import sys
@@ -44,6 +50,7 @@ CHILD_SCRIPT = Path(sandbox_child.__file__).resolve()
 HEADER, LENGTH = sandbox_child.HEADER, sandbox_child.LENGTH
 MAX_MESSAGE = 65536
 READ_CHUNK = 65536
+FORK_SERVER_TIMEOUT_S = 60.0  # its imports on a busy machine
 DRY_RUN_CALLS = 24  # parent-side dry run: enough calls to see a model's steady speed
 DRY_RUN_WARMUP = 4  # calls not counted in that speed (first calls are slower)
 
@@ -114,11 +121,8 @@ class SandboxProcess:
         shutil.copyfile(model_file, self.workdir / model_name)
         user = _usable_sandbox_user(limits.user)
         _hand_over(self.workdir, user)
-        command = [sys.executable, "-s", "-B", "-P", str(CHILD_SCRIPT), model_name, str(limits.memory_mb),
-                   str(limits.cpu_seconds), user or ""]
-        self.proc = subprocess.Popen(command, cwd=self.workdir, env=_child_environment(self.workdir),
-                                     stdin=subprocess.PIPE, stdout=subprocess.PIPE, stderr=subprocess.PIPE,
-                                     close_fds=True, start_new_session=True)
+        args = [model_name, str(limits.memory_mb), str(limits.cpu_seconds), user or ""]
+        self.proc = ForkServer.of_this_thread().spawn(args, self.workdir, _child_environment(self.workdir))
         self._out = self.proc.stdout.fileno()
         os.set_blocking(self._out, False)
         self._poller = select.poll()
@@ -217,13 +221,107 @@ class SandboxProcess:
         self.proc.wait()
 
     def close(self) -> None:
-        with contextlib.suppress(OSError):
+        with contextlib.suppress(OSError, ValueError):
             self.proc.stdin.close()
         self.kill()  # nothing in the child is worth its slow interpreter shutdown
         self._log_thread.join(timeout=2)
         self.proc.stdout.close()
         self.proc.stderr.close()
         shutil.rmtree(self.workdir, ignore_errors=True)
+
+
+class ForkServer:
+    """sandbox_child.py's fork server: one per thread that starts sandboxes, since the kernel's
+    parent-death signal follows the thread that started a process; it ends with that thread."""
+
+    _threads = threading.local()
+
+    @classmethod
+    def of_this_thread(cls) -> ForkServer:
+        server = getattr(cls._threads, "server", None)
+        if server is None or server.proc.poll() is not None:
+            server = cls._threads.server = cls()
+        return server
+
+    def __init__(self):
+        ours, theirs = socket.socketpair(socket.AF_UNIX, socket.SOCK_SEQPACKET)
+        home = Path(tempfile.gettempdir())
+        with theirs:
+            self.proc = subprocess.Popen(
+                [sys.executable, "-s", "-B", "-P", str(CHILD_SCRIPT), "--fork-server", str(theirs.fileno())],
+                cwd="/", env=_child_environment(home), stdin=subprocess.DEVNULL, stdout=subprocess.DEVNULL,
+                pass_fds=[theirs.fileno()], start_new_session=True)
+        self.control = ours
+        self.control.settimeout(FORK_SERVER_TIMEOUT_S)
+        self._lock = threading.Lock()
+
+    def spawn(self, args: list[str], workdir: Path, env: dict[str, str]) -> ForkedProcess:
+        """A sandbox process running sandbox_child.py `args` in `workdir`, with pipes to its stdio."""
+        pipes = [os.pipe() for _ in range(3)]
+        theirs = [pipes[0][0], pipes[1][1], pipes[2][1]]
+        try:
+            reply = self._ask({"args": args, "workdir": str(workdir), "env": env}, theirs)
+        except BaseException:
+            for read, write in pipes:
+                os.close(read)
+                os.close(write)
+            raise
+        finally:
+            for fd in theirs:
+                with contextlib.suppress(OSError):
+                    os.close(fd)
+        return ForkedProcess(reply["pid"], self, stdin=open(pipes[0][1], "wb"),
+                             stdout=open(pipes[1][0], "rb", buffering=0), stderr=open(pipes[2][0], "rb"))
+
+    def exit_status(self, pid: int) -> int | None:
+        try:
+            return self._ask({"wait": pid})["status"]
+        except SandboxFailure:
+            return -signal.SIGKILL  # the server is gone, and its children with it
+
+    def _ask(self, request: dict, fds: list[int] = ()) -> dict:
+        with self._lock:
+            try:
+                socket.send_fds(self.control, [json.dumps(request).encode()], list(fds))
+                reply = self.control.recv(65536)
+            except OSError as error:  # timeouts included
+                self.proc.kill()
+                raise SandboxFailure(f"the sandbox launcher failed: {error}", fatal=True) from error
+        if not reply:
+            raise SandboxFailure("the sandbox launcher exited", fatal=True)
+        return json.loads(reply)
+
+
+class ForkedProcess:
+    """What SandboxProcess needs of a Popen, for a child of the fork server (a pidfd to signal it
+    and to see it end; its exit status from the server)."""
+
+    def __init__(self, pid: int, server: ForkServer, *, stdin, stdout, stderr):
+        self.pid, self.server = pid, server
+        self.stdin, self.stdout, self.stderr = stdin, stdout, stderr
+        self.returncode: int | None = None
+        self._pidfd = os.pidfd_open(pid)  # safe: the server keeps the pid until asked for its status
+
+    def poll(self) -> int | None:
+        return self.wait(timeout=0) if self.returncode is None and self._ended(0) else self.returncode
+
+    def wait(self, timeout: float | None = None) -> int:
+        if self.returncode is None:
+            if not self._ended(timeout):
+                raise subprocess.TimeoutExpired(f"sandbox {self.pid}", timeout)
+            self.returncode = self.server.exit_status(self.pid)
+            if self.returncode is None:  # ended as the pidfd says, not yet as the server sees it
+                self.returncode = -signal.SIGKILL
+            os.close(self._pidfd)
+        return self.returncode
+
+    def kill(self) -> None:
+        if self.returncode is None:
+            with contextlib.suppress(ProcessLookupError):
+                signal.pidfd_send_signal(self._pidfd, signal.SIGKILL)
+
+    def _ended(self, timeout: float | None) -> bool:
+        return bool(select.select([self._pidfd], [], [], timeout)[0])
 
 
 def _usable_sandbox_user(user: str | None) -> str | None:

@@ -2,15 +2,18 @@
 from __future__ import annotations
 
 import os
+import signal
 import subprocess
 import sys
+import threading
+import time
 from pathlib import Path
 
 import numpy as np
 import pytest
 
 from league.agents import AgentError, dry_run_observations
-from league.server.sandbox import LogBuffer, SandboxedAgent, SandboxLimits, validate_model
+from league.server.sandbox import ForkServer, LogBuffer, SandboxedAgent, SandboxLimits, validate_model
 
 from . import model_factory as mf
 
@@ -95,6 +98,8 @@ def test_the_child_holds_nothing_of_the_parent(files, tmp_path):
                        for fd in os.listdir(f"/proc/{process.proc.pid}/fd")]
             environment = Path(f"/proc/{process.proc.pid}/environ").read_bytes().split(b"\0")
         assert not any(str(tmp_path) in target for target in targets)
+        assert not any(target.startswith("socket:") for target in targets)  # not the fork server's control socket
+        assert all(t == os.devnull or t.startswith("pipe:") or t.startswith(str(workdir)) for t in targets), targets
         assert not any(name.lower().startswith((b"http_proxy", b"https_proxy", b"league_")) for name in environment)
         assert not workdir.exists()
     finally:
@@ -110,3 +115,82 @@ def test_log_buffer_keeps_the_head_and_the_tail():
     assert text.startswith("H" * 25) and text.endswith("TAIL")
     assert "[... 929 bytes cut ...]" in text
     assert len(text) < 140
+
+
+# --------------------------------------------------------------------------- the fork server
+
+
+def alive(pid: int) -> bool:
+    """Running, not a zombie."""
+    try:
+        return Path(f"/proc/{pid}/stat").read_text().rsplit(")", 1)[1].split()[0] != "Z"
+    except FileNotFoundError:
+        return False
+
+
+def wait_gone(pids: list[int], timeout: float = 10) -> list[int]:
+    deadline = time.monotonic() + timeout
+    while any(alive(pid) for pid in pids) and time.monotonic() < deadline:
+        time.sleep(0.05)
+    return [pid for pid in pids if alive(pid)]
+
+
+def test_sandboxes_are_forked_from_a_single_threaded_server_that_reaps_them(files):
+    agents = [SandboxedAgent(files["good"], "onnx", FAST) for _ in range(3)]
+    server = ForkServer.of_this_thread()
+    try:
+        assert len(os.listdir(f"/proc/{server.proc.pid}/task")) == 1  # forking a threaded process is unsafe
+        assert [a._process.proc.pid in children(server.proc.pid) for a in agents] == [True] * 3
+        assert all(a(obs()).shape == (1, 2) for a in agents)
+    finally:
+        for agent in agents:
+            agent.close()
+    assert children(server.proc.pid) == []  # closed sandboxes were waited for: no zombies left
+
+
+def children(pid: int) -> list[int]:
+    return [int(child) for child in Path(f"/proc/{pid}/task/{pid}/children").read_text().split()]
+
+
+def test_a_crash_is_reported_with_its_signal_and_the_agent_restarts(files):
+    with SandboxedAgent(files["good"], "onnx", FAST) as agent:
+        first = agent._process.proc.pid
+        os.kill(first, signal.SIGSEGV)
+        with pytest.raises(AgentError, match=r"the sandbox process crashed \(SIGSEGV\); see the log"):
+            agent(obs())
+        assert agent(obs()).shape == (1, 2) and agent._process.proc.pid != first and agent.restarts == 1
+
+
+def test_sandboxes_end_with_the_thread_that_started_them(files):
+    """The fork server is tied to its thread (a worker's job thread): when it ends, so do the
+    server and its sandboxes; an agent used afterwards fails once, then starts a new sandbox."""
+    started = {}
+
+    def start():
+        started["agent"] = SandboxedAgent(files["good"], "onnx", FAST)
+        started["server"] = ForkServer.of_this_thread().proc.pid
+
+    thread = threading.Thread(target=start)
+    thread.start()
+    thread.join()
+    agent = started["agent"]
+    try:
+        assert wait_gone([started["server"], agent._process.proc.pid]) == []
+        with pytest.raises(AgentError, match=r"crashed \(SIGKILL\)"):
+            agent(obs())
+        assert agent(obs()).shape == (1, 2) and agent.restarts == 1  # in this thread's server
+    finally:
+        agent.close()
+
+
+def test_nothing_outlives_a_killed_worker(files, tmp_path):
+    script = ("import os, signal, sys\n"
+              "from league.server.sandbox import ForkServer, SandboxedAgent, SandboxLimits\n"
+              "agent = SandboxedAgent(sys.argv[1], 'onnx', SandboxLimits(load_timeout_s=20))\n"
+              "print(ForkServer.of_this_thread().proc.pid, agent._process.proc.pid, flush=True)\n"
+              "os.kill(os.getpid(), signal.SIGKILL)\n")
+    result = subprocess.run([sys.executable, "-c", script, str(files["good"])], capture_output=True, text=True,
+                            timeout=60, env={**os.environ, "PYTHONPATH": str(Path(__file__).resolve().parents[2])})
+    assert result.returncode == -signal.SIGKILL, result.stderr
+    pids = [int(pid) for pid in result.stdout.split()]
+    assert len(pids) == 2 and wait_gone(pids) == []
