@@ -5,14 +5,15 @@ import secrets
 from typing import Annotated
 
 from fastapi import APIRouter, HTTPException, Query, Request, Response, status
+from fastapi.responses import PlainTextResponse
 from sqlalchemy import func, select
 from sqlalchemy.orm import Session
 
-from league.server.api.deps import CurrentUser, QueueDep, SessionDep, SettingsDep
+from league.server.api.deps import CurrentUser, InstructorUser, QueueDep, SessionDep, SettingsDep
 from league.server.api.routes.evaluations import check_env_options
 from league.server.db import crud
 from league.server.db.models import (
-    BASELINE, FAILED, READY, STUDENT, ChampionshipRound, Race, RaceReplay, Submission, User, utcnow,
+    BASELINE, DONE, FAILED, READY, STUDENT, ChampionshipRound, Race, RaceReplay, Submission, User, utcnow,
 )
 from league.server.racing import create_race, races_started_since, replay_json
 from league.server.schemas import RaceCreate, RaceCreated, RaceOut, RacePage
@@ -105,6 +106,18 @@ def read_replay(race_id: int, request: Request, session: SessionDep) -> Response
     if "gzip" in request.headers.get("accept-encoding", ""):  # stored compressed: sent as it is
         return Response(replay.data, media_type="application/json", headers={"Content-Encoding": "gzip"})
     return Response(replay_json(session, race.id), media_type="application/json")
+
+
+@router.get("/{race_id}/log", response_class=PlainTextResponse)
+def read_race_log(race_id: int, instructor: InstructorUser, session: SessionDep) -> str:
+    """What the cars' sandboxes printed, car by car (instructors only: it holds every student's
+    model output; a student reads their own in their submission's log)."""
+    race = existing_race(session, race_id)
+    if race.course_id != instructor.course_id:
+        raise HTTPException(status.HTTP_403_FORBIDDEN, "this race belongs to another course")
+    if race.status not in (DONE, FAILED):
+        raise HTTPException(status.HTTP_409_CONFLICT, f"race {race_id} is {race.status}: its log exists once it is over")
+    return race.log or ""
 
 
 def existing_race(session: Session, race_id: int) -> Race:

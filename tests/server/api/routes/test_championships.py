@@ -3,7 +3,9 @@ races for a student, and a whole season -- two rounds in heats with students, th
 broken agent -- checked against the points table and raced again locally from what is stored."""
 from __future__ import annotations
 
+import threading
 import uuid
+from concurrent.futures import ThreadPoolExecutor
 from types import SimpleNamespace
 
 import numpy as np
@@ -122,6 +124,30 @@ def test_an_instructor_of_another_course_cannot_start_a_round(league_server):
         response = stranger.post(f"/api/championships/{championship['id']}/rounds")
     assert response.status_code == 403
     assert response.json() == {"detail": "this championship belongs to another course"}
+
+
+def test_instructors_starting_a_round_at_once_start_one(league_server):
+    baseline_submission(league_server)  # the baselines race in every course: a ready entrant
+    token = add_user_in_new_course(league_server, unique("prof"), unique("course"), role="instructor")
+    with league_server.client(token) as instructor:
+        championship = create(instructor, heat_size=2).json()
+    clicks = threading.Barrier(6)
+
+    def start_round(_):
+        with league_server.client(token) as instructor:
+            clicks.wait()
+            return instructor.post(f"/api/championships/{championship['id']}/rounds")
+
+    with ThreadPoolExecutor(6) as pool:
+        responses = list(pool.map(start_round, range(6)))
+    assert sorted(r.status_code for r in responses) == [202] + [409] * 5, [r.text for r in responses]
+    assert {r.json()["detail"] for r in responses if r.status_code == 409} <= {
+        "another round of this championship was just started", "round 1 is still pending: wait for it to finish",
+        "round 1 is still running: wait for it to finish"}
+    with league_server.client(token) as instructor:
+        rounds = wait_for(lambda: instructor.get(f"/api/championships/{championship['id']}").json()["rounds"],
+                          lambda rounds: rounds[-1]["status"] in ("done", "failed"), timeout=120)
+    assert [(r["number"], r["status"]) for r in rounds] == [(1, "done")]
 
 
 def test_a_student_picks_the_submission_that_races_in_championships(league_server, models):
@@ -265,6 +291,12 @@ def run_season(server, drivers, models) -> SimpleNamespace:
     s.standings_page = get_json(public, f"/api/championships/{cid}/standings", size=2, page=3)
     s.leaderboard_after = get_json(public, "/api/leaderboard")
     s.replay = get_json(public, f"/api/races/{s.races[0][0]['id']}/replay")
+    s.dnf_heat = next(race for race in s.races[0]
+                      if s.students["dnf"]["id"] in [e["submission_id"] for e in race["entrants"]])
+    log_path = f"/api/races/{s.dnf_heat['id']}/log"
+    s.heat_log, s.student_reads_log = instructor.get(log_path), ann.get(log_path)
+    with server.client(add_user_in_new_course(server, "prof2", "another course", role="instructor")) as other:
+        s.other_course_reads_log = other.get(log_path)
     instructor.close()
     public.close()
     return s
@@ -366,6 +398,19 @@ def test_every_heat_raced_again_locally_classifies_the_same(season):
         for race in races:
             local = race_locally(race, season.files)
             assert_same_classification(race["classification"], local.classification)
+
+
+def test_instructors_read_what_the_cars_sandboxes_printed(season):
+    response = season.heat_log
+    assert response.status_code == 200 and response.headers["content-type"].startswith("text/plain")
+    sections = response.text.split("== ")[1:]
+    assert sorted(section.split(" ==\n")[0] for section in sections) == \
+        sorted(f"{e['name']} ({e['owner']})" for e in season.dnf_heat["entrants"])
+    assert all("started: network" in section for section in sections)
+    assert season.student_reads_log.status_code == 403
+    assert season.student_reads_log.json() == {"detail": "only instructors may do this"}
+    assert season.other_course_reads_log.status_code == 403
+    assert season.other_course_reads_log.json() == {"detail": "this race belongs to another course"}
 
 
 def test_heats_are_seeded_then_balanced_by_standing(season):
