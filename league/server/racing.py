@@ -197,13 +197,14 @@ class RoundRefused(Exception):
 
 
 def round_status(championship_round: ChampionshipRound) -> str:
-    """pending, running, done or failed: what its heats' races are."""
+    """pending, running, done or failed (once no heat is left to race and one failed): what its
+    heats' races are."""
     statuses = [r.status for r in championship_round.races]
-    if FAILED in statuses:
-        return FAILED
     if statuses and all(s == DONE for s in statuses):
         return DONE
-    if any(s in (RUNNING, DONE) for s in statuses):
+    if not any(s in (PENDING, RUNNING) for s in statuses):
+        return FAILED
+    if any(s in (RUNNING, DONE, FAILED) for s in statuses):
         return RUNNING
     return PENDING
 
@@ -281,6 +282,25 @@ def start_round(session: Session, *, championship: Championship, created_by: Use
             for k, heat in enumerate(heats)]
     session.expire(championship, ["rounds"])
     return championship_round, jobs
+
+
+def retry_round(session: Session, *, championship: Championship, championship_round: ChampionshipRound,
+                max_attempts: int) -> list[int]:
+    """Queue the failed heats of a championship's latest round again (the heats that were raced
+    keep their results); returns the new jobs (callers commit, then enqueue them)."""
+    latest = max(r.number for r in championship.rounds)
+    if championship_round.number != latest:
+        raise RoundRefused(f"only the latest round can be raced again: round {latest} came after round "
+                           f"{championship_round.number}")
+    current = round_status(championship_round)
+    if current != FAILED:
+        raise RoundRefused(f"round {championship_round.number} is {current}: only a failed round is raced again")
+    jobs = []
+    for race_row in championship_round.races:
+        if race_row.status == FAILED:
+            race_row.status, race_row.error, race_row.started_at, race_row.finished_at = PENDING, None, None, None
+            jobs.append(crud.create_job(session, kind=RACE, race_id=race_row.id, max_attempts=max_attempts).id)
+    return jobs
 
 
 def finished_heats(rounds: list[ChampionshipRound]) -> list[list[dict]]:

@@ -125,10 +125,11 @@ def worker_pid(job: dict) -> int:
     return int(job["worker_id"].split("/")[-2])
 
 
-def check_round_counted_once(server: LeagueServer, championship_id: int, finished: dict,
-                             entrants: list[int]) -> tuple[dict[int, dict], list[dict]]:
-    """The finished round: each heat one race, each race done once, each entrant in one heat and
-    scored once in the standings. Returns the races and their jobs."""
+def check_round_counted_once(server: LeagueServer, championship_id: int, finished: dict, entrants: list[int],
+                             retried: tuple[int, ...] = ()) -> tuple[dict[int, dict], list[dict]]:
+    """The finished round: each heat one race, each race done once (the `retried` races after one
+    job that failed for good), each entrant in one heat and scored once in the standings. Returns
+    the races and their jobs that did them."""
     race_ids = finished["race_ids"]
     assert finished["status"] == "done", finished
     assert finished["heats_done"] == finished["heats_total"] == len(finished["heats"]) == len(race_ids)
@@ -147,6 +148,8 @@ def check_round_counted_once(server: LeagueServer, championship_id: int, finishe
         assert [row["position"] for row in race["classification"]] == list(range(1, len(heat) + 1))
 
     jobs = race_jobs(server, race_ids)
+    assert sorted(j["race_id"] for j in jobs if j["status"] == "failed") == sorted(retried), jobs
+    jobs = [j for j in jobs if j["status"] != "failed"]
     per_race = Counter(j["race_id"] for j in jobs)
     assert per_race == Counter(race_ids), f"not one job per race: {per_race}"
     assert all(j["status"] == "done" for j in jobs), jobs
@@ -232,3 +235,50 @@ def test_two_workers_share_the_heats_of_a_round(tmp_path, drivers):
     pids = {worker.pid for worker in server.workers}  # both took part: heats were shared, none raced twice
     by_worker = Counter(worker_pid(j) for j in jobs)
     assert set(by_worker) == pids, f"heats per worker pid {dict(by_worker)}; workers {pids}"
+
+
+def test_a_failed_round_races_its_failed_heats_again(tmp_path, drivers):
+    """A heat whose job fails for good (here: its worker is killed and no attempt is left) fails
+    the round, which counts for nothing until an instructor races its failed heats again."""
+    with fresh_backend("sqlite", tmp_path) as urls:
+        server = make_server(tmp_path, urls, LEAGUE_MAX_JOB_ATTEMPTS="1", LEAGUE_BOOTSTRAP="false", **ROUND_SETTINGS)
+        server.start_api(embedded_worker=False)
+        doomed = server.start_worker(**ONE_AT_A_TIME)
+        instructor, student = server.client(server.instructor_token), create_student(server, "sam")
+        try:
+            entrants = enter_students(server, drivers[:4])
+            wait_idle(server)
+            championship_id, started = start_round(server, heat_size=2, include_baselines=False)
+            rounds = f"/api/championships/{championship_id}/rounds"
+            running = wait_for(lambda: race_jobs(server, started["race_ids"]),
+                               lambda jobs: any(j["status"] == "running" for j in jobs), timeout=60, interval=0.05)
+            failing = next(j["race_id"] for j in running if j["status"] == "running")
+            doomed.kill()
+            doomed.wait()
+            time.sleep(LEASE_S + 1)
+            server.start_worker(**ONE_AT_A_TIME)  # its reaper gives the heat up: no attempt left
+            failed = wait_round_over(server, championship_id)
+            failed_race = races_of(server, [failing])[failing]
+            nothing_counted = standings(server, championship_id)
+            refusals = {"student": student.post(f"{rounds}/1/retry"), "unknown": instructor.post(f"{rounds}/2/retry")}
+
+            retried = instructor.post(f"{rounds}/1/retry")
+            finished = wait_round_over(server, championship_id)
+            _, jobs = check_round_counted_once(server, championship_id, finished, entrants, retried=(failing,))
+            refusals["done"] = instructor.post(f"{rounds}/1/retry")
+        finally:
+            instructor.close()
+            student.close()
+            server.stop_all()
+    assert failed["status"] == "failed" and failed["heats_done"] == 1, failed
+    assert failed_race["status"] == "failed"
+    assert failed_race["error"].startswith("the race could not be completed: ") and \
+        "stopped heart-beating" in failed_race["error"], failed_race["error"]
+    assert nothing_counted == {"items": [], "total": 0}
+    assert retried.status_code == 202, retried.text
+    assert (retried.json()["status"], retried.json()["heats_done"]) == ("running", 1)  # a heat done, one to race
+    assert [j["attempts"] for j in jobs] == [1, 1] and all(j["error"] is None for j in jobs)
+    assert {name: (r.status_code, r.json()["detail"]) for name, r in refusals.items()} == {
+        "student": (403, "only instructors may do this"),
+        "unknown": (404, f"championship {championship_id} has no round 2"),
+        "done": (409, "round 1 is done: only a failed round is raced again")}

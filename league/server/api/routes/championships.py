@@ -14,7 +14,7 @@ from league.server.api.routes.evaluations import check_env_options, user_course
 from league.server.api.routes.races import PageNumber, PageSize
 from league.server.db import crud
 from league.server.db.models import Championship, ChampionshipRound
-from league.server.racing import RoundRefused, round_summary, standings_rows, start_round
+from league.server.racing import RoundRefused, retry_round, round_summary, standings_rows, start_round
 from league.server.schemas import ChampionshipCreate, ChampionshipOut, RoundOut, StandingsPage
 
 router = APIRouter(prefix="/championships", tags=["championships"])
@@ -77,11 +77,35 @@ def create_round(championship_id: int, instructor: InstructorUser, session: Sess
 @router.get("/{championship_id}/rounds/{number}", response_model=RoundOut)
 def read_round(championship_id: int, number: int, session: SessionDep) -> RoundOut:
     """A round's progress: heats done out of the total, and its races (public)."""
+    return RoundOut(**round_summary(existing_round(session, championship_id, number)))
+
+
+@router.post("/{championship_id}/rounds/{number}/retry", response_model=RoundOut,
+             status_code=status.HTTP_202_ACCEPTED)
+def retry_failed_round(championship_id: int, number: int, instructor: InstructorUser, session: SessionDep,
+                       settings: SettingsDep, queue: QueueDep) -> RoundOut:
+    """Race the failed heats of the latest round again (e.g. after its workers failed for good)."""
+    championship = existing_championship(session, championship_id)
+    if championship.course_id != user_course(session, instructor).id:
+        raise HTTPException(status.HTTP_403_FORBIDDEN, "this championship belongs to another course")
+    championship_round = existing_round(session, championship_id, number)
+    try:
+        job_ids = retry_round(session, championship=championship, championship_round=championship_round,
+                              max_attempts=settings.max_job_attempts)
+        session.commit()
+    except RoundRefused as refusal:
+        raise HTTPException(status.HTTP_409_CONFLICT, str(refusal)) from refusal
+    for job_id in job_ids:
+        queue.enqueue(job_id)
+    return RoundOut(**round_summary(championship_round))
+
+
+def existing_round(session: SessionDep, championship_id: int, number: int) -> ChampionshipRound:
     championship_round = session.scalar(select(ChampionshipRound).where(
         ChampionshipRound.championship_id == championship_id, ChampionshipRound.number == number))
     if championship_round is None:
         raise HTTPException(status.HTTP_404_NOT_FOUND, f"championship {championship_id} has no round {number}")
-    return RoundOut(**round_summary(championship_round))
+    return championship_round
 
 
 @router.get("/{championship_id}/standings", response_model=StandingsPage)
