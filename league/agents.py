@@ -7,7 +7,8 @@ compact observation ``[direction, left, max, right, speed]`` and 20 for the lida
 (``torch.jit.load``, never ``torch.load`` or any pickle), Python callables and the built-in
 heuristic driver of the reference implementation.
 
-torch and onnxruntime are optional: they are imported only when a file of their kind is loaded.
+torch and onnxruntime are optional: they are imported only when a file of their kind is loaded
+(onnxruntime with its telemetry off: see `import_onnxruntime`).
 """
 from __future__ import annotations
 
@@ -339,7 +340,7 @@ ONNX_INPUT_DTYPES = {"tensor(float)": np.float32, "tensor(double)": np.float64, 
 
 
 def _load_onnx(path: Path, obs_dim: int | None, name: str) -> Agent:
-    ort = _import_optional("onnxruntime", INSTALL_ONNX, "ONNX")
+    ort = import_onnxruntime()
     session = _onnx_session(ort, path)
     model_input = session.get_inputs()[0]
     shape = list(model_input.shape)
@@ -543,6 +544,13 @@ def _with_probed_obs_dim(build: Callable[[int], Agent], requested: int | None, d
 
 def _model_raised(reason: str) -> bool:
     return reason.startswith("the model raised")
+
+
+def import_onnxruntime() -> Any:
+    """onnxruntime without its telemetry (uploads, an offline cache in ~/.cache and a thread of its
+    own since 1.32), unless ORT_DISABLE_TELEMETRY says otherwise: it must be set before the import."""
+    os.environ.setdefault("ORT_DISABLE_TELEMETRY", "1")
+    return _import_optional("onnxruntime", INSTALL_ONNX, "ONNX")
 
 
 def _import_optional(module: str, install: str, purpose: str) -> Any:

@@ -1,8 +1,11 @@
 """league.agents: loaders, the contract checks with their error messages, the heuristic driver."""
 import math
+import os
+import subprocess
 import sys
 import warnings
 import zipfile
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -271,3 +274,19 @@ def test_callable_contract_checked_at_creation(output, message):
 def test_observations_of_the_wrong_size_are_a_caller_error():
     with pytest.raises(ValueError, match=r"expects observations of shape \(batch, 5\)"):
         heuristic_agent()(np.zeros((1, 20), dtype=np.float32))
+
+
+def test_onnx_agents_load_with_onnxruntimes_telemetry_off(onnx_actor, tmp_path):
+    """onnxruntime >= 1.32 uploads telemetry and keeps an offline cache in ~/.cache unless told
+    not to before it is imported; a student's laptop and the league's workers tell it."""
+    probe = ("import os, sys\n"
+             "from league.agents import load_agent\n"
+             "agent = load_agent(sys.argv[1])\n"
+             "print(os.environ['ORT_DISABLE_TELEMETRY'])\n")
+    env = {"PATH": os.environ["PATH"], "HOME": str(tmp_path), "OMP_NUM_THREADS": "1",
+           "PYTHONPATH": str(Path(__file__).resolve().parents[1])}
+    result = subprocess.run([sys.executable, "-c", probe, str(onnx_actor)], capture_output=True, text=True,
+                            env=env, timeout=120)
+    assert result.returncode == 0, result.stderr
+    assert result.stdout.split()[0] == "1"
+    assert not (tmp_path / ".cache").exists()

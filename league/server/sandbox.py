@@ -15,7 +15,7 @@ done by the child itself: rlimits (CPU, address space, files), a new network nam
 the `sandbox_user` instead of root. See sandbox_child.py.
 
 Starting: each thread that starts sandboxes has a `ForkServer`, a sandbox_child.py process that
-has imported numpy and onnx once and forks a sandbox per model (one start is a fork and a model
+has imported numpy, onnx and onnxruntime once and forks a sandbox per model (one start is a fork and a model
 load, ~0.03 s, instead of a new interpreter, ~0.25 s). The server dies with its thread and takes
 its sandboxes with it (the kernel's parent-death signal, which follows the starting thread).
 """
@@ -354,7 +354,8 @@ def _hand_over(workdir: Path, user: str | None) -> None:
 def _child_environment(workdir: Path) -> dict[str, str]:
     """No proxies, no credentials, no PYTHONPATH of ours: only what Python and one-thread math need."""
     return {"PATH": os.defpath, "HOME": str(workdir), "TMPDIR": str(workdir), "LANG": "C.UTF-8",
-            "OMP_NUM_THREADS": "1", "MKL_NUM_THREADS": "1", "OPENBLAS_NUM_THREADS": "1", "MALLOC_ARENA_MAX": "2"}
+            "OMP_NUM_THREADS": "1", "MKL_NUM_THREADS": "1", "OPENBLAS_NUM_THREADS": "1", "MALLOC_ARENA_MAX": "2",
+            "ORT_DISABLE_TELEMETRY": "1"}
 
 
 class SandboxedAgent(Agent):

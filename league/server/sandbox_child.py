@@ -122,9 +122,7 @@ def load_model(model_path: Path, memory_mb: int):
     checks = import_league_module("server.model_checks")
     if model_path.suffix == ".onnx":
         checks.check_onnx(model_path)
-        import onnxruntime  # imported before the cap: its footprint is not the model's
-
-        onnxruntime.disable_telemetry_events()
+        agents.import_onnxruntime().disable_telemetry_events()  # before the cap: its footprint is not the model's
 
         cap_address_space(memory_mb)
         return agents.load_agent(model_path, name="submission")
@@ -189,14 +187,16 @@ def fork_server(control_fd: int) -> int:
 
 
 def preload_runtimes() -> None:
-    """What every sandbox imports, as long as it starts no thread: onnxruntime (whose import starts
-    one) and torch are imported by each sandbox after the fork."""
+    """What every ONNX sandbox imports, all of which start no thread (onnxruntime only with its
+    telemetry off; torch is imported by each TorchScript sandbox after the fork)."""
     import contextlib
 
-    import_league_module("agents")  # numpy
+    agents = import_league_module("agents")  # numpy
     import_league_module("server.model_checks")
-    with contextlib.suppress(ImportError):  # an install without the onnx extra serves TorchScript only
+    with contextlib.suppress(agents.AgentError, ImportError):  # without the onnx extra: TorchScript only
         import onnx  # noqa: F401  (the static checks)
+
+        agents.import_onnxruntime().disable_telemetry_events()
 
 
 def fork_sandbox(request: dict, fds: list[int], control) -> int:
