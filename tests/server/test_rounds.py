@@ -23,6 +23,8 @@ POINTS = [25, 18, 15, 12, 10, 8, 6, 4, 2, 1]
 # standings read right after the round are fresh; one-episode evaluations: entering the agents is not the subject
 ROUND_SETTINGS = {"LEAGUE_PUBLIC_CACHE_S": "0", "LEAGUE_EVAL_EPISODES": "1"}
 ONE_AT_A_TIME = {"LEAGUE_WORKER_THREADS": "1"}
+# heats of 2 cars in finer steps: a heat lasts long enough (> 0.5 s) for a worker to be killed in it
+LONG_HEATS = {"tstep": 0.01, "max_episode_steps": 16000}
 
 
 @pytest.fixture(scope="module")
@@ -178,12 +180,12 @@ def test_worker_killed_mid_round_every_heat_counted_once(backend, tmp_path, driv
         wait_idle(server)
         entrants = students + baseline_ids(server)
         assert len(entrants) == 6
-        championship_id, started = start_round(server, heat_size=2, include_baselines=True)
+        championship_id, started = start_round(server, heat_size=2, include_baselines=True, env_options=LONG_HEATS)
         assert (started["number"], started["heats_total"], started["heats_done"]) == (1, 3, 0)
         race_ids = started["race_ids"]
         wait_for(lambda: race_jobs(server, race_ids), lambda jobs: any(j["status"] == "running" for j in jobs),
                  timeout=60, interval=0.05)
-        time.sleep(0.3)  # into the heat
+        time.sleep(0.1)  # into the heat
         doomed.kill()  # SIGKILL: the heat's lease is left behind
         doomed.wait()
         killed = [j for j in race_jobs(server, race_ids) if j["status"] == "running"]
@@ -210,7 +212,7 @@ def test_worker_killed_mid_round_every_heat_counted_once(backend, tmp_path, driv
                                                 for i in entrants if i not in students}}
     heat = races[killed_job["race_id"]]
     local = race([load_agent(files[e["submission_id"]]) for e in heat["entrants"]], seed=finished["track_seed"],
-                 names=[f"{e['name']} ({e['owner']})" for e in heat["entrants"]])
+                 names=[f"{e['name']} ({e['owner']})" for e in heat["entrants"]], **LONG_HEATS)
     assert [(r["position"], r["car"], r["outcome"]) for r in heat["classification"]] == \
         [(r["position"], r["car"], r["outcome"]) for r in local.classification]
     assert [r["time"] for r in heat["classification"]] == pytest.approx([r["time"] for r in local.classification])
@@ -248,7 +250,8 @@ def test_a_failed_round_races_its_failed_heats_again(tmp_path, drivers):
         try:
             entrants = enter_students(server, drivers[:4])
             wait_idle(server)
-            championship_id, started = start_round(server, heat_size=2, include_baselines=False)
+            championship_id, started = start_round(server, heat_size=2, include_baselines=False,
+                                                   env_options=LONG_HEATS)
             rounds = f"/api/championships/{championship_id}/rounds"
             running = wait_for(lambda: race_jobs(server, started["race_ids"]),
                                lambda jobs: any(j["status"] == "running" for j in jobs), timeout=60, interval=0.05)
