@@ -257,21 +257,19 @@ class ForkServer:
 
     def spawn(self, args: list[str], workdir: Path, env: dict[str, str]) -> ForkedProcess:
         """A sandbox process running sandbox_child.py `args` in `workdir`, with pipes to its stdio."""
-        pipes = [os.pipe() for _ in range(3)]
-        theirs = [pipes[0][0], pipes[1][1], pipes[2][1]]
+        (stdin, to_stdin), (from_stdout, stdout), (from_stderr, stderr) = (os.pipe() for _ in range(3))
+        ours = [to_stdin, from_stdout, from_stderr]
         try:
-            reply = self._ask({"args": args, "workdir": str(workdir), "env": env}, theirs)
+            reply = self._ask({"args": args, "workdir": str(workdir), "env": env}, [stdin, stdout, stderr])
         except BaseException:
-            for read, write in pipes:
-                os.close(read)
-                os.close(write)
+            for fd in ours:
+                os.close(fd)
             raise
-        finally:
-            for fd in theirs:
-                with contextlib.suppress(OSError):
-                    os.close(fd)
-        return ForkedProcess(reply["pid"], self, stdin=open(pipes[0][1], "wb"),
-                             stdout=open(pipes[1][0], "rb", buffering=0), stderr=open(pipes[2][0], "rb"))
+        finally:  # the child has its copies (or there is no child)
+            for fd in (stdin, stdout, stderr):
+                os.close(fd)
+        return ForkedProcess(reply["pid"], self, stdin=open(to_stdin, "wb"),
+                             stdout=open(from_stdout, "rb", buffering=0), stderr=open(from_stderr, "rb"))
 
     def exit_status(self, pid: int) -> int | None:
         try:
