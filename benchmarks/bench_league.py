@@ -238,7 +238,7 @@ def compare_workers(league: League, client, students: int, seed: int, repeats: i
     print(f"    {len(summary['heats'])} heats, median over {repeats} run(s) (range):", flush=True)
     for setup, runs in times.items():
         print(f"      {setup}: {medians[setup]:.1f} s ({min(runs):.1f} .. {max(runs):.1f} s)", flush=True)
-    one_all, one_pinned, two_pinned, two_all = medians.values()
+    one_all, one_pinned, two_pinned, two_all = (medians[setup] for setup in worker_setups())
     scale_out = one_pinned / two_pinned
     verdict = "ok" if scale_out >= SPEEDUP_TARGET else "OVER TARGET"
     print(f"    scale-out, one worker per CPU (1 -> 2 workers): speed-up {scale_out:.2f}x "
@@ -333,7 +333,7 @@ def main() -> None:
     parser.add_argument("--eval-episodes", type=int, default=1, help="episodes of each submission's evaluation")
     parser.add_argument("--seed", type=int, default=7, help="the championships' seed (their tracks and heats)")
     parser.add_argument("--round-repeats", type=int, default=1,
-                        help="pairs of rounds (1 worker, then 2) in (b), alternating; medians are compared")
+                        help="rounds per worker setup in (b), the setups alternating; medians are compared")
     parser.add_argument("--skip-heat", action="store_true", help="skip (a)")
     parser.add_argument("--skip-round", action="store_true", help="skip (b) and (c)")
     args = parser.parse_args()
@@ -343,6 +343,9 @@ def main() -> None:
     seconds = args.seconds or (5.0 if args.quick else 10.0)
     if students < HEAT_SIZE:
         parser.error(f"--students must be at least {HEAT_SIZE}")
+    if not args.skip_round and len(os.sched_getaffinity(0)) < 2:
+        parser.error("(b) compares one worker with two on CPUs of their own: this process may use one CPU "
+                     "(use --skip-round)")
     print(f"load average {' '.join(f'{x:.2f}' for x in os.getloadavg())}, {os.cpu_count()} CPUs", flush=True)
     with tempfile.TemporaryDirectory(prefix="league-bench-models-") as folder:
         models = student_models(Path(folder), students)
