@@ -3,9 +3,10 @@
 Forked by the fork server (`python -s -B -P sandbox_child.py --fork-server FD`, which
 league.server.sandbox starts once per job thread and which has imported the runtimes) as if run
 as `sandbox_child.py MODEL MEMORY_MB CPU_S USER` in a private temporary directory that holds
-only the model. Before it reads the model it limits itself (CPU time, open files, file size, no core dumps), leaves the network (a new,
-empty network namespace), drops root to USER, and forbids regaining privileges; after its
-runtime is imported it caps its address space. Inference is single-threaded.
+only the model. Before it reads the model it limits itself (CPU time, open files, file size, no
+core dumps), leaves the network (a new, empty network namespace), drops root to USER, and forbids
+regaining privileges; after its runtime is imported it caps its address space. Inference is
+single-threaded.
 
 Protocol (little endian; the parent sends only numbers, never a pickle):
     parent -> child  b"I" u32 n u32 d, then n*d float32     an observation batch
