@@ -114,9 +114,9 @@ class League:
         return subprocess.run([sys.executable, "-m", "league.server", *args], env=self.env, check=True,
                               capture_output=True, text=True, timeout=120).stdout
 
-    def _spawn(self, *args: str, log: str) -> subprocess.Popen:
+    def _spawn(self, *args: str, log: str, settings: dict[str, str] | None = None) -> subprocess.Popen:
         with open(self.folder / log, "ab") as output:
-            return subprocess.Popen([sys.executable, "-m", "league.server", *args], env=self.env,
+            return subprocess.Popen([sys.executable, "-m", "league.server", *args], env={**self.env, **(settings or {})},
                                     stdout=output, stderr=subprocess.STDOUT)
 
     def _wait_healthy(self, timeout: float = 60) -> None:
@@ -132,12 +132,13 @@ class League:
             time.sleep(0.1)
         raise RuntimeError(f"the server did not start in {timeout:g} s:\n{self.log('api.log')}")
 
-    def start_worker(self, wait: bool = False, timeout: float = 60, cpus: str | None = None) -> subprocess.Popen:
-        """A `league worker` process (on the given CPUs, else on all); with `wait`, return once its
-        consumer runs."""
+    def start_worker(self, wait: bool = False, timeout: float = 60, cpus: str | None = None,
+                     settings: dict[str, str] | None = None) -> subprocess.Popen:
+        """A `league worker` process (on the given CPUs, else on all; with more LEAGUE_* `settings`);
+        with `wait`, return once its consumer runs."""
         log = f"worker-{self.workers_started}.log"  # a log of its own: "consumer started" is this one's
         self.workers_started += 1
-        worker = self._spawn("worker", *(["--cpus", cpus] if cpus else []), log=log)
+        worker = self._spawn("worker", *(["--cpus", cpus] if cpus else []), log=log, settings=settings)
         self.workers.append(worker)
         deadline = time.monotonic() + timeout
         while wait and "consumer started" not in self.log(log).lower():

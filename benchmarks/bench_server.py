@@ -6,7 +6,10 @@
     process, sandbox start included, pinned to one core: target <= 15 s;
 (b) GET /api/submissions/{id} at 200 requests/s on loopback while a `league worker` process
     keeps evaluating (re-runs of every submission): target p99 <= 50 ms; then the same with
-    the worker embedded in `league serve` (one process, the default setup).
+    the worker embedded in `league serve` (one process, the default setup);
+(c) the same evaluation as (a) as a job of a `league worker` that may use every CPU (as a
+    course runs it): the job's run time with the worker's CPU placement (its thread and the
+    sandbox on one CPU, the default) and without it (LEAGUE_CPU_PLACEMENT=false).
 
 Everything runs on this machine: a server on 127.0.0.1, a bounded number of requests.
 """
@@ -88,17 +91,51 @@ def bench_status(model: Path, rate: float, seconds: float, embedded: bool) -> fl
     return float(p99)
 
 
+# --------------------------------------------------------------------------- (c) evaluation job
+
+
+def bench_evaluation_job(model: Path, episodes: int, placement: bool) -> float:
+    from datetime import datetime
+
+    with tempfile.TemporaryDirectory(prefix="league-bench-") as tmp:
+        with League(Path(tmp), embedded=False, settings={"LEAGUE_EVAL_EPISODES": str(episodes)}) as league:
+            league.start_worker(wait=True, settings={"LEAGUE_CPU_PLACEMENT": str(placement).lower(),
+                                                     "LEAGUE_CPU_SLOTS_DIR": str(Path(tmp) / "cpu-slots")})
+            client = league.client()
+            with open(model, "rb") as handle:
+                client.post("/api/submissions", files={"file": (model.name, handle)}).raise_for_status()
+            deadline = time.monotonic() + 60 + episodes
+            while True:
+                jobs = client.get("/api/jobs", params={"limit": 100}).json()
+                evaluation = [job for job in jobs if job["kind"] == "evaluate" and job["status"] in ("done", "failed")]
+                if evaluation:
+                    break
+                if time.monotonic() > deadline:
+                    raise TimeoutError(f"the evaluation did not finish: {jobs}")
+                time.sleep(0.2)
+    job = evaluation[0]
+    seconds = (datetime.fromisoformat(job["finished_at"]) - datetime.fromisoformat(job["started_at"])).total_seconds()
+    print(f"(c) {episodes}-episode evaluation job in a `league worker` on every CPU, CPU placement "
+          f"{'on (the default)' if placement else 'off'}: {seconds:.2f} s ({job['status']})", flush=True)
+    return seconds
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--episodes", type=int, default=100)
     parser.add_argument("--rate", type=float, default=200.0, help="GET requests per second")
     parser.add_argument("--seconds", type=float, default=10.0, help="length of the GET load")
+    parser.add_argument("--only-jobs", action="store_true", help="only (c)")
     args = parser.parse_args()
     with tempfile.TemporaryDirectory(prefix="league-bench-model-") as folder:
         model = thesis_actor(Path(folder))
-        bench_evaluation(model, args.episodes)
-        bench_status(model, args.rate, args.seconds, embedded=False)
-        bench_status(model, args.rate, args.seconds, embedded=True)
+        if not args.only_jobs:
+            bench_evaluation(model, args.episodes)
+            bench_status(model, args.rate, args.seconds, embedded=False)
+            bench_status(model, args.rate, args.seconds, embedded=True)
+        placed = bench_evaluation_job(model, args.episodes, placement=True)
+        unplaced = bench_evaluation_job(model, args.episodes, placement=False)
+        print(f"    CPU placement makes the evaluation job {unplaced / placed:.1f}x faster")
 
 
 if __name__ == "__main__":

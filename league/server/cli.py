@@ -32,7 +32,9 @@ def add_commands(subparsers) -> None:
                                                "PostgreSQL and Redis to work for a remote server.")
     worker.add_argument("--threads", type=int, help="jobs run at once (default LEAGUE_WORKER_THREADS)")
     worker.add_argument("--cpus", help="run on these CPUs only, e.g. 1 or 0-3,6 (default LEAGUE_WORKER_CPUS: all); "
-                                       "the sandboxes it starts inherit them")
+                                       "the sandboxes it starts inherit them. Not needed to share a machine: "
+                                       "the workers of one machine split its CPUs by themselves "
+                                       "(LEAGUE_CPU_SLOTS_DIR)")
     worker.set_defaults(run=run_worker)
 
     users = subparsers.add_parser("users", help="manage accounts")

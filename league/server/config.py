@@ -6,6 +6,7 @@ several machines.
 """
 from __future__ import annotations
 
+import tempfile
 from pathlib import Path
 from typing import Any
 
@@ -60,6 +61,12 @@ class Settings(BaseSettings):
     worker_cpus: str = Field("", description="CPUs a `league worker` and its sandboxes run on, as taskset "
                                              "lists them ('1', '0-3,6'); empty: all (a race then uses more "
                                              "than one CPU)")
+    cpu_placement: bool = Field(True, description="place job threads and their sandboxes on CPUs: an "
+                                                   "evaluation on one CPU, the job threads of a machine on "
+                                                   "CPUs of their own (see league/server/placement.py)")
+    cpu_slots_dir: str = Field(str(Path(tempfile.gettempdir()) / "league-cpu-slots"),
+                               description="directory the workers of one machine share to split its CPUs; "
+                                           "empty: each worker splits only its own CPUs between its threads")
     job_nice: int = Field(10, ge=0, le=19, description="CPU priority (nice) of job threads and their sandboxes: "
                                                        "the API stays responsive while they race")
     heartbeat_interval_s: float = 5.0

@@ -30,6 +30,7 @@ from sqlalchemy.orm import Session, sessionmaker
 
 from league.server.config import Settings
 from league.server.db.models import DONE, FAILED, QUEUED, RUNNING, Job, utcnow
+from league.server.placement import Placement
 from league.server.storage import BlobStore
 from league.server.taskqueue import JobQueue
 
@@ -43,6 +44,7 @@ class WorkerContext:
     queue: JobQueue
     store: BlobStore
     active: dict[int, JobRun] = field(default_factory=dict)  # jobs this process is running
+    placement: Placement | None = None  # CPUs of job threads and their sandboxes (None: left to the OS)
 
 
 @dataclass
@@ -56,6 +58,8 @@ class JobRun:
 
 
 class JobHandler(Protocol):
+    parallel_sandboxes: bool  # its sandboxes work at the same time (a race), or one at a time
+
     def begin(self, session: Session, job: Job) -> None:
         """In the claim's transaction: show the subject as in progress."""
 
@@ -90,6 +94,7 @@ def run_job(context: WorkerContext, job_id: int) -> None:
     job = claim(context.sessions, job_id=job_id, attempt_id=attempt_id)
     if job is None:
         return  # done, failed, or running elsewhere: a duplicate message
+    place_thread(context, HANDLERS[job.kind])
     run = JobRun(context, job, attempt_id)
     context.active[job.id] = run
     try:
@@ -105,6 +110,18 @@ def lower_thread_priority(nice: int) -> None:
         os.setpriority(os.PRIO_PROCESS, threading.get_native_id(), nice)
     except OSError:  # not allowed to lower it back (not root, nice already higher): keep what we have
         pass
+
+
+def place_thread(context: WorkerContext, handler: JobHandler) -> None:
+    """Put this thread (and the sandboxes it starts) on its CPUs for the job."""
+    if context.placement is None:
+        return
+    try:
+        cpus = context.placement.place(parallel=getattr(handler, "parallel_sandboxes", False))
+    except OSError as error:  # placement is for speed only: the job runs anyway
+        log.warning("could not place job thread on CPUs: %s", error)
+        return
+    log.debug("job thread on CPUs %s", ",".join(map(str, cpus)))
 
 
 def _work(run: JobRun) -> None:

@@ -64,6 +64,8 @@ class RaceOutcome:
 
 
 class RunRace:
+    parallel_sandboxes = True  # every car is asked before any answer is awaited
+
     def begin(self, session: Session, job: Job) -> None:
         race_row = session.get(Race, job.race_id)
         race_row.status, race_row.error, race_row.started_at = RUNNING, None, utcnow()

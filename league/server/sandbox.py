@@ -18,6 +18,7 @@ Starting: each thread that starts sandboxes has a `ForkServer`, a sandbox_child.
 has imported numpy, onnx and onnxruntime once and forks a sandbox per model (one start is a fork and a model
 load, ~0.03 s, instead of a new interpreter, ~0.25 s). The server dies with its thread and takes
 its sandboxes with it (the kernel's parent-death signal, which follows the starting thread).
+Sandboxes run on the CPUs their thread may use when they start (see league.server.placement).
 """
 from __future__ import annotations
 
@@ -253,10 +254,13 @@ class ForkServer:
                 pass_fds=[theirs.fileno()], start_new_session=True)
         self.control = ours
         self.control.settimeout(FORK_SERVER_TIMEOUT_S)
+        self.cpus = os.sched_getaffinity(0)  # the thread's, inherited by the server
         self._lock = threading.Lock()
 
     def spawn(self, args: list[str], workdir: Path, env: dict[str, str]) -> ForkedProcess:
-        """A sandbox process running sandbox_child.py `args` in `workdir`, with pipes to its stdio."""
+        """A sandbox process running sandbox_child.py `args` in `workdir`, with pipes to its stdio,
+        on the CPUs the calling thread may use now (league.server.placement moves job threads)."""
+        self._follow_thread_affinity()
         (stdin, to_stdin), (from_stdout, stdout), (from_stderr, stderr) = (os.pipe() for _ in range(3))
         ours = [to_stdin, from_stdout, from_stderr]
         try:
@@ -270,6 +274,13 @@ class ForkServer:
                 os.close(fd)
         return ForkedProcess(reply["pid"], self, stdin=open(to_stdin, "wb"),
                              stdout=open(from_stdout, "rb", buffering=0), stderr=open(from_stderr, "rb"))
+
+    def _follow_thread_affinity(self) -> None:
+        cpus = os.sched_getaffinity(0)
+        if cpus != self.cpus:
+            with contextlib.suppress(ProcessLookupError):  # (a dead server fails the request next)
+                os.sched_setaffinity(self.proc.pid, cpus)  # the server has one thread
+            self.cpus = cpus
 
     def exit_status(self, pid: int) -> int | None:
         try:

@@ -39,6 +39,8 @@ def queue_evaluation(session: Session, *, submission: Submission, max_attempts: 
 
 
 class ValidateSubmission:
+    parallel_sandboxes = False
+
     def begin(self, session: Session, job: Job) -> None:
         submission = session.get(Submission, job.submission_id)
         submission.status, submission.error = VALIDATING, None
@@ -70,6 +72,8 @@ class EvaluationOutcome:
 
 
 class EvaluateSubmission:
+    parallel_sandboxes = False  # one sandbox, a call at a time
+
     def begin(self, session: Session, job: Job) -> None:
         evaluation = session.get(Evaluation, job.evaluation_id)
         evaluation.status, evaluation.error = RUNNING, None

@@ -8,6 +8,7 @@ from __future__ import annotations
 import logging
 import os
 import threading
+from pathlib import Path
 
 from huey.consumer import Consumer
 
@@ -15,6 +16,7 @@ from league.server import racing, tasks  # noqa: F401  (they register the job ha
 from league.server.config import Settings
 from league.server.db.session import make_engine, make_sessionmaker, migrate
 from league.server.jobs import WorkerContext, reap, release_active, run_job
+from league.server.placement import Placement
 from league.server.storage import BlobStore
 from league.server.taskqueue import JobQueue, build_queue
 
@@ -57,6 +59,9 @@ class Reaper:
 class Worker:
     def __init__(self, context: WorkerContext, *, threads: int, embedded: bool):
         context.queue.runner = lambda job_id: run_job(context, job_id)
+        settings = context.settings
+        if settings.cpu_placement and context.placement is None:
+            context.placement = Placement(threads, Path(settings.cpu_slots_dir) if settings.cpu_slots_dir else None)
         consumer_class = _EmbeddedConsumer if embedded else Consumer
         self.context = context
         self.consumer = consumer_class(context.queue.huey, workers=threads, periodic=False,
@@ -72,6 +77,7 @@ class Worker:
         self.consumer.stop(graceful=False)
         self._hand_back()
         self.reaper.stop()
+        self._release_cpus()
 
     def run_forever(self) -> None:
         """Run in the foreground until SIGINT (graceful: running jobs finish) or SIGTERM (they are handed back)."""
@@ -81,6 +87,11 @@ class Worker:
         finally:
             self._hand_back()
             self.reaper.stop()
+            self._release_cpus()
+
+    def _release_cpus(self) -> None:
+        if self.context.placement is not None:
+            self.context.placement.close()
 
     def _hand_back(self) -> None:
         released = release_active(self.context)

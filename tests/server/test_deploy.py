@@ -37,3 +37,11 @@ def test_compose_and_dockerfile_commands_are_league_commands():
         assert command[0] == "league"
         args = parser.parse_args(command[1:])
         assert args.run.__module__ == "league.server.cli"
+
+
+def test_the_workers_of_one_host_share_a_cpu_slots_volume():
+    compose_file = compose()
+    worker = compose_file["services"]["worker"]
+    slots_dir = worker["environment"]["LEAGUE_CPU_SLOTS_DIR"]
+    volume = next(mount.split(":")[0] for mount in worker["volumes"] if mount.split(":")[1] == slots_dir)
+    assert volume in compose_file["volumes"]  # a named volume: every replica on the host mounts the same one

@@ -2,6 +2,7 @@
 stale jobs re-queued by the reaper, failed for good after their attempts."""
 from __future__ import annotations
 
+import os
 import threading
 from datetime import timedelta
 
@@ -11,7 +12,8 @@ from league.server.config import Settings
 from league.server.db import crud
 from league.server.db.models import DONE, FAILED, QUEUED, RUNNING, Job, utcnow
 from league.server.db.session import make_engine, make_sessionmaker, migrate
-from league.server.jobs import WorkerContext, claim, complete, heartbeat, reap, register_handler, run_job
+from league.server.jobs import HANDLERS, WorkerContext, claim, complete, heartbeat, reap, register_handler, run_job
+from league.server.placement import Placement
 from league.server.storage import BlobStore
 from league.server.taskqueue import build_queue
 
@@ -171,3 +173,32 @@ def test_a_worker_shutting_down_hands_its_jobs_back(context, recorder):
     assert (row.status, row.worker_id, row.error) == (QUEUED, None, "its worker shut down")
     assert context.queue.pending() == pending + 1
     assert complete(context.sessions, job_id=job_id, attempt_id="leaving", outcome={}) == []
+
+
+class AffinityRecorder(Recorder):
+    """A job kind that records the CPUs its thread may use while it runs."""
+
+    def __init__(self, parallel_sandboxes: bool):
+        super().__init__()
+        self.parallel_sandboxes = parallel_sandboxes
+
+    def run(self, run):
+        return {"cpus": sorted(os.sched_getaffinity(0))}
+
+
+@pytest.mark.skipif(len(os.sched_getaffinity(0)) < 2, reason="needs two CPUs")
+def test_a_job_thread_is_placed_by_the_kind_of_its_job(context, tmp_path):
+    cpus = sorted(os.sched_getaffinity(0))
+    context.placement = Placement(1, tmp_path / "slots")
+    for kind, parallel in (("test-one-sandbox", False), ("test-race", True)):
+        register_handler(kind, AffinityRecorder(parallel))
+    with context.sessions.begin() as session:
+        ids = [crud.create_job(session, kind=kind).id for kind in ("test-one-sandbox", "test-race")]
+    worker = threading.Thread(target=lambda: [run_job(context, job_id) for job_id in ids])  # a job thread
+    worker.start()
+    worker.join()
+    with context.sessions() as session:
+        assert [session.get(Job, job_id).status for job_id in ids] == [DONE, DONE]
+    assert HANDLERS["test-one-sandbox"].finished == [{"cpus": cpus[:1]}]  # its sandbox beside it
+    assert HANDLERS["test-race"].finished == [{"cpus": cpus}]  # alone on the machine: every CPU
+    context.placement.close()

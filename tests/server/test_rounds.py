@@ -13,6 +13,7 @@ import pytest
 
 from league.agents import load_agent
 from league.evaluation import race
+from league.server.placement import CpuSlots
 
 from .conftest import (
     TEST_SETTINGS, LeagueServer, create_student, fresh_backend, make_server, upload, wait_for, wait_settled,
@@ -231,8 +232,10 @@ def test_two_workers_share_the_heats_of_a_round(tmp_path, drivers):
             assert started["heats_total"] == 4
             finished = wait_round_over(server, championship_id)
             _, jobs = check_round_counted_once(server, championship_id, finished, entrants)
+            slots = CpuSlots(tmp_path / "cpu-slots").held()  # the CPUs of this machine are split between them
         finally:
             server.stop_all()
+    assert slots == [0, 1]
     assert all(j["attempts"] == 1 and j["error"] is None for j in jobs), jobs
     pids = {worker.pid for worker in server.workers}  # both took part: heats were shared, none raced twice
     by_worker = Counter(worker_pid(j) for j in jobs)

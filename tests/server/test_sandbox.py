@@ -195,3 +195,23 @@ def test_nothing_outlives_a_killed_worker(files, tmp_path):
     assert result.returncode == -signal.SIGKILL, result.stderr
     pids = [int(pid) for pid in result.stdout.split()]
     assert len(pids) == 2 and wait_gone(pids) == []
+
+
+@pytest.mark.skipif(len(os.sched_getaffinity(0)) < 2, reason="needs two CPUs")
+def test_sandboxes_start_on_the_cpus_their_thread_may_use_now(files):
+    cpus = sorted(os.sched_getaffinity(0))
+    seen = []
+
+    def start_two():  # one fork server for both (one thread), moved between them
+        os.sched_setaffinity(0, {cpus[1]})
+        with SandboxedAgent(files["good"], "onnx", FAST) as agent:
+            seen.append(os.sched_getaffinity(agent._process.proc.pid))
+        os.sched_setaffinity(0, set(cpus))
+        with SandboxedAgent(files["good"], "onnx", FAST) as agent:
+            seen.append(os.sched_getaffinity(agent._process.proc.pid))
+            agent(obs())
+
+    thread = threading.Thread(target=start_two)
+    thread.start()
+    thread.join()
+    assert seen == [{cpus[1]}, set(cpus)]
