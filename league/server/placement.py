@@ -37,25 +37,34 @@ class CpuSlots:
         self._fds: list[int] = []  # the open files holding our slots' locks
 
     def claim(self, count: int) -> list[int]:
-        """Hold `count` free slots for this process's life."""
+        """Hold `count` free slots for this process's life (all or none: OSError if not)."""
         if self.folder is None:
             self.mine = list(range(count))
             return self.mine
-        self.folder.mkdir(parents=True, exist_ok=True)
-        if self.folder.stat().st_uid == os.geteuid():
-            os.chmod(self.folder, 0o1777)  # workers of other users on this machine share it
-        for number in range(MAX_SLOTS):
-            if len(self.mine) == count:
-                return self.mine
-            fd = os.open(self._path(number), os.O_RDWR | os.O_CREAT | os.O_CLOEXEC, 0o666)
-            try:
-                fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
-            except BlockingIOError:
-                os.close(fd)
-                continue
-            self._fds.append(fd)
-            self.mine.append(number)
-        raise RuntimeError(f"no free CPU slot in {self.folder} ({MAX_SLOTS} held)")
+        try:
+            self.folder.mkdir(parents=True, exist_ok=True)
+            if self.folder.stat().st_uid == os.geteuid():
+                os.chmod(self.folder, 0o1777)  # workers of other users on this machine share it
+            for number in range(MAX_SLOTS):
+                if len(self.mine) == count:
+                    return self.mine
+                if self._lock(number):
+                    self.mine.append(number)
+            raise OSError(f"no free CPU slot ({MAX_SLOTS} held)")
+        except OSError:
+            self.release()
+            raise
+
+    def _lock(self, number: int) -> bool:
+        # read-only: flock needs no write access, so a slot file another user created is usable
+        fd = os.open(self._path(number), os.O_RDONLY | os.O_CREAT | os.O_CLOEXEC, 0o644)
+        try:
+            fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+        except BlockingIOError:
+            os.close(fd)
+            return False
+        self._fds.append(fd)
+        return True
 
     def held(self) -> list[int]:
         """The slots held on this machine now, ours included."""
@@ -69,6 +78,7 @@ class CpuSlots:
         for fd in self._fds:
             os.close(fd)
         self._fds.clear()
+        self.mine.clear()
 
     def _is_held(self, number: int) -> bool:
         try:

@@ -93,3 +93,10 @@ def test_an_unusable_slots_directory_falls_back_to_the_workers_own_threads(tmp_p
     blocked.write_text("not a directory")
     placement = Placement(2, blocked)
     assert placement.slots.folder is None and placement.slots.held() == [0, 1]
+
+
+def test_a_worker_that_cannot_claim_all_its_slots_holds_none(tmp_path):
+    (tmp_path / "slot-1").symlink_to(tmp_path / "missing" / "slot")  # slot 1 cannot be created
+    placement = Placement(2, tmp_path)
+    assert placement.slots.folder is None and placement.slots.held() == [0, 1]  # fell back to its own threads
+    assert CpuSlots(tmp_path).held() == []  # slot 0, claimed first, was let go
