@@ -16,7 +16,7 @@ COPY . /app
 RUN pip install ".[server,torch]" && mkdir -p /data /app/agents_submissions/baselines
 
 # Runs as root so that each sandbox can enter its own network namespace and then drop to
-# `nobody` (see league/server/sandbox_child.py); the API and workers never load a model.
+# `nobody` (see league/server/sandbox/child.py); the API and workers never load a model.
 VOLUME /data
 EXPOSE 8000
 CMD ["league", "serve", "--host", "0.0.0.0", "--port", "8000"]

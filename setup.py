@@ -1,7 +1,18 @@
-"""Build the compiled core (league/lidar.pyx) with Cython at install time."""
+"""Build the compiled core (league/lidar.pyx) with Cython at install time.
+
+The core's numbers come from league/constants.py (Cython's compile_time_env); its compiler
+directives are in the .pyx header.
+"""
+import runpy
+from pathlib import Path
+
 import numpy
 from Cython.Build import cythonize
 from setuptools import Extension, setup
+
+HERE = Path(__file__).parent
+CONSTANTS = HERE / "league" / "constants.py"
+GENERATED = HERE / "league" / "lidar.c"
 
 extensions = [
     Extension(
@@ -13,10 +24,13 @@ extensions = [
     )
 ]
 
+# Cython regenerates the C file when the .pyx changes; the constants are an input too.
+constants_changed = not GENERATED.exists() or CONSTANTS.stat().st_mtime > GENERATED.stat().st_mtime
+
 setup(
     ext_modules=cythonize(
         extensions,
-        language_level=3,
-        compiler_directives={"boundscheck": False, "wraparound": False, "cdivision": True, "initializedcheck": False},
+        compile_time_env=runpy.run_path(str(CONSTANTS))["compiled"](),
+        force=constants_changed,
     )
 )

@@ -27,8 +27,10 @@ import numpy as np
 
 from league.agents import load_agent
 from league.baselines import ALGORITHMS
-from league.baselines.cli import export_run
-from league.baselines.common import eval_key, moving_average, read_csv
+from league.baselines.common.evaluation import eval_key
+from league.baselines.common.export import export_run
+from league.baselines.common.logger import read_csv
+from league.baselines.common.plots import moving_average
 from league.evaluation import metrics_run
 
 THESIS = {  # tables 4.2 and 4.3: mean training time, mean / best completed, mean return, mean speed

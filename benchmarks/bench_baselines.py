@@ -15,7 +15,9 @@ import numpy as np
 import torch
 
 from league.baselines import sac
-from league.baselines.common import Cars, ReplayBuffer, seed_everything
+from league.baselines.common.buffers import ReplayBuffer
+from league.baselines.common.cars import Cars
+from league.baselines.common.seeding import seed_everything
 
 
 def main() -> None:

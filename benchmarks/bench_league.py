@@ -1,16 +1,16 @@
-"""Benchmark of the league server's races and championships (issue 6's performance targets).
+"""Benchmark of the league server's races and championships.
 
     python benchmarks/bench_league.py [--quick] [--students 40] [--repeats 3] [--round-repeats 1]
                                       [--rate 200] [--seconds 10] [--backend sqlite|postgres]
 
 (a) a 10-car heat of thesis-size ONNX agents (5 -> 64 -> 64 -> 2), each in its own sandbox
     process, pinned to one core: from starting the 10 sandboxes to the classification, sandbox
-    start and close included (league.server.racing.race_in_sandboxes, as the race job runs it);
+    start and close included (league.server.jobs.race.race_in_sandboxes, as the race job runs it);
     repeated, median and range: target <= 5 s;
 (b) a championship round of N students in heats of 10 (40 students: 4 heats), wall time from
     POST .../rounds to the round being done, per worker setup: one `league worker`, one on one
     CPU (`--cpus`), two, and two with their CPU placement off (1 job thread each; two workers
-    split the CPUs by themselves, league/server/placement.py); each on a new championship with
+    split the CPUs by themselves, league/server/jobs/placement.py); each on a new championship with
     the same seed (same heats, same track), the API started with --no-worker; evaluations are
     finished and the workers started before the round is posted, so only racing is timed.
     Target: a speed-up >= 1.7x from one worker to two on a 2-core machine; the speed-up per CPU
@@ -66,8 +66,8 @@ def outcomes(classification: list[dict]) -> str:
 
 def bench_heat(models: list[Path], repeats: int) -> float:
     from league.evaluation import race
-    from league.server.racing import race_in_sandboxes
-    from league.server.sandbox import SandboxedAgent, SandboxLimits
+    from league.server.jobs.race import race_in_sandboxes
+    from league.server.sandbox.agent import SandboxedAgent, SandboxLimits
 
     names = [f"student{k:02d}" for k in range(len(models))]
     limits = SandboxLimits()

@@ -1,4 +1,4 @@
-"""Benchmark of the league server (issue 5's performance targets).
+"""Benchmark of the league server: a sandboxed evaluation, and status answers under load.
 
     python benchmarks/bench_server.py [--episodes 100] [--rate 200] [--seconds 10]
 
@@ -29,7 +29,7 @@ P99_TARGET_MS = 50.0
 
 def bench_evaluation(model: Path, episodes: int) -> float:
     from league.evaluation import metrics_run
-    from league.server.sandbox import SandboxedAgent, SandboxLimits
+    from league.server.sandbox.agent import SandboxedAgent, SandboxLimits
 
     with one_core():  # one core, for this process and the sandbox it starts
         start = time.perf_counter()

@@ -1,36 +1,87 @@
-"""Simulator speed: reset, one-car step, lidar, PettingZoo step with 64 cars, the batched interface.
+"""Simulator speed: reset, one-car step, lidar, PettingZoo step with 64 cars, the batched interface,
+and the vector env against Gymnasium's SyncVectorEnv.
 
-    python benchmarks/bench_simulator.py [--quick]
+    python benchmarks/bench_simulator.py [--quick] [--reference PATH] [--before PATH]
 
-Prints medians over many calls (one process, one thread). Cars are driven by the SPEC's
-heuristic driver, computed for all cars at once in numpy, so they stay on the road; only the
-step calls are timed, never the resets.
-Targets (issue 2): reset <= 3 ms, step <= 5 us, lidar <= 1.5 us,
-PettingZoo 64 cars >= 250k car-steps/s, batched >= 1M car-steps/s.
+Prints medians over many calls (one process, one thread, pinned to one core). Cars are driven by
+SPEC's heuristic driver, computed for all cars at once in numpy, so they stay on the road; only
+the step calls are timed, never the resets, except in the vector env rows, which time whole
+loops (driver, steps and the autoresets with their new tracks) as a training loop runs them.
+Resets and loops are timed in CPU time of the process (time.process_time): on a shared machine
+the other processes' time slices on this core are not counted; microsecond calls use the wall
+clock (a median over thousands of calls).
+
+--reference PATH: a checkout of the reference implementation (github.com/asperti/MicroRacer);
+    its reset and step are timed beside ours, in a subprocess (it builds its lidar with
+    pyximport on first use). Its column is skipped without it.
+--before PATH: a built checkout of this project at an earlier commit (e.g. `git worktree add
+    /tmp/before <commit> && cd /tmp/before && python setup.py build_ext --inplace`); its reset
+    is timed beside ours, in a subprocess, in the same run.
+
+Targets: reset <= 1 ms and >= 150x the reference's (issue 12); step <= 5 us, lidar <= 1.5 us,
+PettingZoo 64 cars >= 250k car-steps/s, batched >= 1M car-steps/s (issue 2); vector env with a
+new track every episode >= 5x make_vec(..., "sync"), from a track pool >= 1M steps/s (issue 12).
 """
 from __future__ import annotations
 
 import argparse
+import json
+import os
+import subprocess
+import sys
 import time
 import timeit
+from pathlib import Path
 
 import gymnasium as gym
 import numpy as np
 
 import league
-from league import lidar
+from league import lidar, render
+from league.agents import heuristic_actions as heuristic
 
-
-def heuristic(obs: np.ndarray) -> np.ndarray:
-    """SPEC's driver for a batch of compact observations: steer to the free direction, hold ~0.25."""
-    actions = np.empty((len(obs), 2), dtype=np.float32)
-    actions[:, 0] = np.where(obs[:, 4] < 0.25, 0.5, -0.2)
-    actions[:, 1] = np.clip(-obs[:, 0] / (np.pi / 6), -1, 1)
-    return actions
+RESET_SNIPPET = """
+import contextlib, io, json, sys, time
+import numpy as np
+with contextlib.redirect_stdout(io.StringIO()):  # the reference prints as it works
+    {setup}
+    reset()
+    samples = []
+    for _ in range({n}):
+        t0 = time.process_time()
+        reset()
+        samples.append(time.process_time() - t0)
+    {step_setup}
+print(json.dumps({{"reset_us": float(np.median(samples) * 1e6), "step_us": step_us}}))
+"""
+REFERENCE_SETUP = """import tracks
+    racer = tracks.Racer()
+    reset = racer.reset"""
+REFERENCE_STEP = """racer.reset()
+    steps = []
+    for _ in range(2000):
+        t0 = time.perf_counter()
+        state, reward, done = racer.step([0.0, 0.0])  # straight on
+        steps.append(time.perf_counter() - t0)
+        if done:
+            racer.reset()
+    step_us = float(np.median(steps) * 1e6)"""
+BEFORE_SETUP = """import league
+    env = league.MicroRacerEnv()
+    env.reset(seed=0)
+    reset = env.reset"""
 
 
 def median_us(samples) -> float:
     return float(np.median(samples) * 1e6)
+
+
+def pin_to_one_core() -> str:
+    if hasattr(os, "sched_setaffinity"):
+        core = min(os.sched_getaffinity(0))
+        os.sched_setaffinity(0, {core})
+        return f"pinned to core {core}"
+    return "not pinned"
 
 
 def bench_reset(n: int) -> float:
@@ -38,10 +89,20 @@ def bench_reset(n: int) -> float:
     env.reset(seed=0)
     samples = []
     for _ in range(n):
-        t0 = time.perf_counter()
+        t0 = time.process_time()
         env.reset()
-        samples.append(time.perf_counter() - t0)
+        samples.append(time.process_time() - t0)
     return median_us(samples)
+
+
+def bench_elsewhere(path: Path, setup: str, n: int, step_setup: str = "step_us = None") -> dict:
+    """Time a reset (and a step) of another checkout in a subprocess on this core."""
+    code = RESET_SNIPPET.format(setup=setup, step_setup=step_setup, n=n)
+    env = {**os.environ, "PYTHONPATH": str(path), "MPLBACKEND": "Agg"}
+    done = subprocess.run([sys.executable, "-c", code], cwd=path, env=env, capture_output=True, text=True, timeout=3600)
+    if done.returncode != 0:
+        raise SystemExit(f"timing {path} failed:\n{done.stderr[-2000:]}")
+    return json.loads(done.stdout.strip().splitlines()[-1])
 
 
 def bench_step(env, n: int) -> float:
@@ -65,6 +126,18 @@ def bench_lidar(n: int) -> float:
     x, y = track.start_position
     grid, heading = track.grid, track.start_heading
     return min(timeit.repeat(lambda: lidar.lidar(grid, x, y, heading), number=n, repeat=5)) / n * 1e6
+
+
+def bench_frame(n_cars: int, n: int) -> float:
+    """Median time of one rgb_array frame (650 x 650 px) with n cars, each with a 600-point trail."""
+    env = league.MicroRacerEnv()
+    env.reset(seed=0)
+    track = env.unwrapped.track
+    trails = [track.midline(np.linspace(0, 2 * np.pi * k / n_cars, 600)) for k in range(1, n_cars + 1)]
+    xs, ys = [t[-1, 0] for t in trails], [t[-1, 1] for t in trails]
+    render.render_frame(track, xs, ys, np.zeros(n_cars), trails)  # the background is drawn once per track
+    return median_us(timeit.repeat(lambda: render.render_frame(track, xs, ys, np.zeros(n_cars), trails),
+                                   number=1, repeat=n))
 
 
 def bench_parallel(n_cars: int, seconds: float, batched: bool) -> float:
@@ -95,22 +168,67 @@ def bench_parallel(n_cars: int, seconds: float, batched: bool) -> float:
     return car_steps / elapsed
 
 
+def bench_vector(make, seconds: float) -> float:
+    """Sub-env steps per second of a whole training-style loop: driver, step, autoresets."""
+    venv = make()
+    obs, _ = venv.reset(seed=0)
+    steps, start = 0, time.process_time()
+    while time.process_time() - start < seconds:
+        for _ in range(50):
+            obs, *_ = venv.step(heuristic(obs))
+        steps += 50 * venv.num_envs
+    rate = steps / (time.process_time() - start)
+    venv.close()
+    return rate
+
+
 def main():
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("--quick", action="store_true", help="fewer repetitions (a smoke run)")
+    parser.add_argument("--reference", type=Path, help="a checkout of github.com/asperti/MicroRacer, timed beside ours")
+    parser.add_argument("--before", type=Path, help="a built checkout of this project at an earlier commit")
     args = parser.parse_args()
     scale = 0.1 if args.quick else 1.0
+    print(f"simulator benchmark, {pin_to_one_core()}")
+
+    reset_us = bench_reset(int(300 * scale))
+    print(f"{'reset, new random track, all options on':<58} {reset_us:>12,.1f}  us          <= 1000")
+    if args.before:
+        before = bench_elsewhere(args.before, BEFORE_SETUP, int(300 * scale))["reset_us"]
+        print(f"{'  the same, --before checkout':<58} {before:>12,.1f}  us          ({before / reset_us:.1f}x ours)")
+    if args.reference:
+        reference = bench_elsewhere(args.reference, REFERENCE_SETUP, max(3, int(30 * scale)), REFERENCE_STEP)
+        print(f"{'  the same, reference implementation':<58} {reference['reset_us']:>12,.1f}  us          "
+              f"({reference['reset_us'] / reset_us:.0f}x ours, target >= 150x)")
+
     rows = [
-        ("reset, new random track, all options on", bench_reset(int(300 * scale)), "us", "<= 3000"),
         ("MicroRacerEnv.step, one car", bench_step(league.MicroRacerEnv(), int(20000 * scale)), "us", "<= 5"),
         ("gym.make(...).step (with Gymnasium's wrappers)", bench_step(gym.make("league/MicroRacer-v0"), int(20000 * scale)), "us", ""),
+    ]
+    if args.reference:
+        rows.append(("  Racer.step of the reference implementation", reference["step_us"], "us", ""))
+    rows += [
         ("lidar of one car (19 rays)", bench_lidar(int(100000 * scale)), "us", "<= 1.5"),
+        ("rgb_array frame, 1 car with a 600-point trail", bench_frame(1, int(200 * scale)), "us", ""),
+        ("rgb_array frame, 10 cars with 600-point trails", bench_frame(10, int(200 * scale)), "us", "<= 30000"),
         ("PettingZoo step, 64 cars", bench_parallel(64, 3 * scale, batched=False), "car-steps/s", ">= 250000"),
         ("batched step_arrays, 64 cars", bench_parallel(64, 3 * scale, batched=True), "car-steps/s", ">= 1000000"),
     ]
-    print(f"{'measure':<50} {'median':>12}  {'unit':<12} target")
     for name, value, unit, target in rows:
-        print(f"{name:<50} {value:>12,.1f}  {unit:<12} {target}")
+        print(f"{name:<58} {value:>12,.1f}  {unit:<12} {target}")
+
+    seconds = 4 * scale
+    sync = bench_vector(lambda: gym.make_vec("league/MicroRacer-v0", num_envs=8, vectorization_mode="sync"), seconds)
+    label = 'make_vec(..., "sync"), 8 envs, new track every episode'
+    print(f"{label:<58} {sync:>12,.1f}  steps/s")
+    for num_envs in (8, 64, 256):
+        fresh = bench_vector(lambda: league.vector_env(num_envs=num_envs), seconds)
+        print(f"{f'league.vector_env, {num_envs} envs, new track every episode':<58} {fresh:>12,.1f}  steps/s"
+              f"     {fresh / sync:.1f}x sync, target >= 5x")
+    for num_envs, pool_size in ((256, 8), (256, 100)):
+        pool = bench_vector(lambda: league.vector_env(num_envs=num_envs, track_pool=pool_size), seconds)
+        print(f"{f'league.vector_env, {num_envs} envs, pool of {pool_size} tracks':<58} {pool:>12,.1f}  steps/s"
+              f"     target >= 1000000")
 
 
 if __name__ == "__main__":

@@ -1,19 +1,26 @@
 """MicroRacer League: a didactic deep-RL racing environment, student toolkit and league server.
 
-`import league` registers the Gymnasium id "league/MicroRacer-v0".
+`import league` registers the Gymnasium id "league/MicroRacer-v0" (with its native vector env:
+``gymnasium.make_vec("league/MicroRacer-v0", num_envs=8, vectorization_mode="vector_entry_point")``).
 """
 from gymnasium.envs.registration import register
 
 from league.env import MicroRacerEnv
 from league.parallel_env import MicroRacerParallelEnv, env, parallel_env
-from league.physics import RaceOptions
+from league.physics import MAX_EPISODE_STEPS, RaceOptions
 from league.track import Track, generate_track
+from league.vector_env import MicroRacerVectorEnv, vector_env
 
 __version__ = "0.1.0"
 
-register(id="league/MicroRacer-v0", entry_point="league.env:MicroRacerEnv")
+# The time limit is Gymnasium's TimeLimit wrapper, so gym.make(..., max_episode_steps=N) sets it;
+# the entry point turns the env's own limit (for direct construction) off. make_vec passes the
+# limit to the vector env as its max_episode_steps option.
+register(id="league/MicroRacer-v0", entry_point="league.env:registered_env", max_episode_steps=MAX_EPISODE_STEPS,
+         vector_entry_point="league.vector_env:MicroRacerVectorEnv")
 
-__all__ = ["MicroRacerEnv", "MicroRacerParallelEnv", "RaceOptions", "Track", "env", "generate_track", "parallel_env"]
+__all__ = ["MicroRacerEnv", "MicroRacerParallelEnv", "MicroRacerVectorEnv", "RaceOptions", "Track", "env",
+           "generate_track", "parallel_env", "vector_env"]
 
 # The thesis' interface (section 3.4-3.6) and the toolkit's entry points.
 from league.agents import AgentError, heuristic_agent, load_agent  # noqa: E402

@@ -13,9 +13,9 @@ torch and onnxruntime are optional: they are imported only when a file of their 
 from __future__ import annotations
 
 import functools
-import math
 import os
 import sys
+import unicodedata
 import warnings
 import zipfile
 from pathlib import Path
@@ -23,32 +23,32 @@ from typing import Any, Callable
 
 import numpy as np
 
-COMPACT_DIM = 5  # [direction, left, max, right, speed]
-LIDAR_DIM = 20  # 19 rays + speed
+from league.constants import COMPACT_DIM, LIDAR_DIM, MAX_TURN, MODEL_SUFFIXES, N_RAYS, PICKLE_MARK, ZIP_MAGIC
+
 OBS_DIMS = (COMPACT_DIM, LIDAR_DIM)
-N_RAYS = 19
-MAX_TURN = math.pi / 6  # rad, widest lidar angle and largest turn
 HEURISTIC_TARGET_SPEED = 0.25  # world units per second
 HEURISTIC_ACC, HEURISTIC_BRAKE = 0.5, -0.2
 
 INSTALL_ONNX = 'pip install "microracer-league[onnx]"'
 INSTALL_TORCH = 'pip install "microracer-league[torch]"'
 
-TORCHSCRIPT_SUFFIXES = (".pt", ".pth", ".ts", ".jit", ".torchscript")
-ZIP_MAGIC = b"PK\x03\x04"
-PICKLE_PROTOCOL_MARK = 0x80  # first byte of every pickle of protocol >= 2
 
 
 class AgentError(Exception):
     """An agent that cannot be loaded or that failed while acting.
 
     ``reason`` is a one-line, human-readable explanation (shown to students, stored by the
-    server as the reason of a DNF).
+    server as the reason of a DNF). ``isolable`` is True when the failure is the model's answer
+    to these observations (it raised, or returned a wrong shape or non-finite actions): asked
+    again row by row, the model fails only on the observations that make it fail, so a batched
+    evaluation fails only those episodes. It is False for failures of the agent as a whole (it
+    cannot load, missed a deadline, its process died, the run was cancelled).
     """
 
-    def __init__(self, reason: str):
+    def __init__(self, reason: str, *, isolable: bool = False):
         super().__init__(reason)
         self.reason = reason
+        self.isolable = isolable
 
 
 class Agent:
@@ -59,6 +59,8 @@ class Agent:
             environment's observation from it.
         name: shown in results, tables and race legends.
         kind: where the policy comes from: "onnx", "torchscript", "python" or "heuristic".
+        fixed_batch: the model takes one observation at a time (an export with batch size 1):
+            a batch is passed to it row by row, in this process (set by the loaders' dry run).
 
     Calling the agent with float32 observations of shape ``(batch, obs_dim)`` (a single
     observation of shape ``(obs_dim,)`` is treated as a batch of one) returns float32 actions
@@ -67,26 +69,33 @@ class Agent:
     :class:`AgentError`, which evaluations record as a DNF with its reason.
 
     Subclasses implement ``_act(obs) -> array-like`` (and may override ``reset``, called before
-    every episode and race). An agent living elsewhere (e.g. in a sandbox process) only needs
-    the same ``obs_dim``, ``name`` and ``__call__`` raising AgentError on failure.
+    every evaluation and race). An agent living elsewhere (e.g. in a sandbox process) only needs
+    the same ``obs_dim``, ``name`` and ``__call__`` raising AgentError on failure (isolable
+    when the model itself failed on the observations).
     """
 
     kind = "python"
 
-    def __init__(self, obs_dim: int, name: str):
+    def __init__(self, obs_dim: int, name: str, *, fixed_batch: bool = False):
         if obs_dim not in OBS_DIMS:
             raise AgentError(f"observation size {obs_dim} is not supported: use 5 (compact) or 20 (lidar)")
         self.obs_dim = int(obs_dim)
         self.name = name
+        self.fixed_batch = fixed_batch
 
     def __call__(self, obs: np.ndarray) -> np.ndarray:
         obs = self._check_observations(obs)
+        if self.fixed_batch and len(obs) > 1:
+            return np.concatenate([self._checked_act(obs[k:k + 1]) for k in range(len(obs))])
+        return self._checked_act(obs)
+
+    def _checked_act(self, obs: np.ndarray) -> np.ndarray:
         try:
             raw = self._act(obs)
         except AgentError:
             raise
         except Exception as error:  # the model is foreign code: any failure is the agent's
-            raise AgentError(f"the model raised {type(error).__name__}: {_one_line(error)}") from error
+            raise AgentError(f"the model raised {type(error).__name__}: {_one_line(error)}", isolable=True) from error
         return check_actions(raw, batch=obs.shape[0])
 
     def _act(self, obs: np.ndarray) -> Any:
@@ -128,13 +137,14 @@ def check_actions(raw: Any, batch: int) -> np.ndarray:
     """Validate a model's output for ``batch`` observations; return float32 (batch, 2) clipped."""
     actions = _to_numpy(raw)
     if actions.dtype.kind not in "f":
-        raise AgentError(f"the model's output is not floating point (dtype {actions.dtype}); actions must be float32")
+        raise AgentError(f"the model's output is not floating point (dtype {actions.dtype}); actions must be float32",
+                         isolable=True)
     if actions.shape == (2,) and batch == 1:
         actions = actions[None, :]
     if actions.ndim != 2 or actions.shape[0] != batch or actions.shape[1] != 2:
-        raise AgentError(_wrong_shape_message(actions.shape, batch))
+        raise AgentError(_wrong_shape_message(actions.shape, batch), isolable=True)
     if not np.all(np.isfinite(actions)):
-        raise AgentError("the model returned NaN or infinite actions")
+        raise AgentError("the model returned NaN or infinite actions", isolable=True)
     return np.clip(actions, -1.0, 1.0).astype(np.float32, copy=False)
 
 
@@ -158,7 +168,7 @@ def _to_numpy(raw: Any) -> np.ndarray:
     try:
         return np.asarray(raw)
     except Exception as error:
-        raise AgentError(f"the model's output is not an array ({type(raw).__name__})") from error
+        raise AgentError(f"the model's output is not an array ({type(raw).__name__})", isolable=True) from error
 
 
 def _is_array_like(value: Any) -> bool:
@@ -166,7 +176,15 @@ def _is_array_like(value: Any) -> bool:
 
 
 def _one_line(error: BaseException, limit: int = 300) -> str:
-    text = " ".join(str(error).split())
+    return plain_text(str(error), limit)
+
+
+def plain_text(text: str, limit: int = 300) -> str:
+    """Text a model produced, made safe to show: one line, no control or format characters (a
+    right-to-left override would reverse what follows it on a page), at most `limit` characters."""
+    text = "".join(" " if char.isspace() else char for char in text
+                   if char.isspace() or unicodedata.category(char) not in ("Cc", "Cf", "Co", "Cs"))
+    text = " ".join(text.split())
     return text if len(text) <= limit else text[: limit - 3] + "..."
 
 
@@ -276,7 +294,7 @@ def _load_torchscript(path: Path, obs_dim: int | None, name: str) -> Agent:
 def _refuse_pickles(path: Path) -> None:
     """TorchScript is a zip with code/ and constants.pkl; a bare pickle or a torch.save checkpoint is refused unread."""
     head = _read_head(path)
-    if head[:1] and head[0] == PICKLE_PROTOCOL_MARK:
+    if head[:1] == PICKLE_MARK:
         raise AgentError(f"{path.name} is a Python pickle, not TorchScript; pickles can run arbitrary code and are "
                          "never loaded. Export with torch.jit.script(model).save(path) or torch.onnx.export")
     if head[:4] != ZIP_MAGIC:
@@ -317,20 +335,18 @@ class OnnxAgent(Agent):
     kind = "onnx"
 
     def __init__(self, session: Any, obs_dim: int, name: str, *, fixed_batch: bool, rank: int, input_dtype: type):
-        super().__init__(obs_dim, name)
+        super().__init__(obs_dim, name, fixed_batch=fixed_batch or rank == 1)
         self._session = session
         self._input = session.get_inputs()[0].name
         self._outputs = [session.get_outputs()[0].name]
-        self._fixed_batch = fixed_batch  # exported with batch size 1: run row by row
-        self._rank = rank
+        self._rank = rank  # 1: the model takes one observation, shape (obs_dim,)
         self._input_dtype = input_dtype
 
     def _act(self, obs: np.ndarray) -> np.ndarray:
         obs = obs.astype(self._input_dtype, copy=False)
-        if not self._fixed_batch:
-            return self._run(obs)
-        rows = [np.asarray(self._run(row if self._rank == 1 else row[None, :])).reshape(-1) for row in obs]
-        return np.stack(rows)
+        if self._rank == 1:
+            return np.asarray(self._run(obs[0])).reshape(1, -1)
+        return self._run(obs)
 
     def _run(self, obs: np.ndarray) -> np.ndarray:
         return self._session.run(self._outputs, {self._input: obs})[0]
@@ -496,9 +512,9 @@ def load_agent(path_or_name: str | os.PathLike, name: str | None = None, obs_dim
 
 def _looks_like_torchscript(path: Path) -> bool:
     head = _read_head(path)
-    if head[:4] == ZIP_MAGIC or (head[:1] and head[0] == PICKLE_PROTOCOL_MARK):
+    if head[:4] == ZIP_MAGIC or head[:1] == PICKLE_MARK:
         return True
-    return path.suffix.lower() in TORCHSCRIPT_SUFFIXES
+    return MODEL_SUFFIXES.get(path.suffix.lower()) == "torchscript"
 
 
 def _read_head(path: Path, size: int = 8) -> bytes:
@@ -516,9 +532,21 @@ def dry_run_observations(obs_dim: int, batch: int = 2) -> np.ndarray:
 
 
 def dry_run_check(agent: Agent) -> None:
-    """Call the agent once on a batch of 2 and once on a batch of 1; raise AgentError if it breaks."""
-    for batch in (2, 1):
-        agent(dry_run_observations(agent.obs_dim, batch))
+    """Call the agent on a batch of 2 and on a batch of 1; raise AgentError if it breaks.
+
+    A model that fails on the batch of 2 but answers the batch of 1 takes one observation at a
+    time (an export fixed to batch size 1): it becomes `fixed_batch`, called row by row.
+    """
+    try:
+        agent(dry_run_observations(agent.obs_dim, 2))
+    except AgentError as error:
+        if not error.isolable or agent.fixed_batch:
+            raise
+        agent(dry_run_observations(agent.obs_dim, 1))  # fails too: the model is broken, not batch-bound
+        agent.fixed_batch = True
+        agent(dry_run_observations(agent.obs_dim, 2))
+    else:
+        agent(dry_run_observations(agent.obs_dim, 1))
 
 
 def _with_probed_obs_dim(build: Callable[[int], Agent], requested: int | None, declared: int | None) -> Agent:

@@ -1,7 +1,7 @@
 """Championship rules: heats, points, standings and ratings.
 
-Pure functions over plain data, so the league server and the command line share one
-implementation and every round can be recomputed from what is stored.
+Pure functions over plain data, so the league server's standings (league.server.standings) can
+be recomputed at any time from the stored classifications.
 """
 from __future__ import annotations
 
@@ -11,7 +11,6 @@ from dataclasses import dataclass, field
 import numpy as np
 
 DEFAULT_POINTS = (25, 18, 15, 12, 10, 8, 6, 4, 2, 1)  # Formula 1's table
-DEFAULT_HEAT_SIZE = 10
 
 
 def split_into_heats(

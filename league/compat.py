@@ -1,10 +1,14 @@
 """The thesis' interface (Galletti, sections 3.4-3.6), for the course's existing material.
 
-``Racer``, ``newrun`` and ``metrics_run`` keep the names and arguments of the original
-``tracks.py`` but are thin layers over ``league.MicroRacerEnv`` and ``league.evaluation``.
-They accept the toolkit's agents and also what the thesis passed: any model that takes a batch
-of states and returns the action as its (first) output - a Keras model, a torch module, a
-function, an object with ``predict`` - or the path of an ONNX / TorchScript file.
+``Racer``, ``newrun`` and ``metrics_run`` keep the names, positional arguments, attributes and
+return values of the original ``tracks.py`` (SPEC "The thesis' Python interface"), so the
+thesis' training scripts run with ``tracks.py`` reduced to ``from league.compat import *``
+(docs/THESIS_SCRIPTS.md). They are thin layers over
+``league.MicroRacerEnv`` and ``league.evaluation``. Like the original, new tracks come from
+NumPy's global generator unless a seed is given, so ``np.random.seed(s)`` makes a script
+repeatable. The actors may be what the thesis passed: any model that takes a batch of states and
+returns the action as its (first) output - a Keras model, a torch module, a function, an object
+with ``predict`` - or the toolkit's agents and the path of an ONNX / TorchScript file.
 """
 from __future__ import annotations
 
@@ -13,41 +17,168 @@ import warnings
 from typing import Any, Sequence
 
 import numpy as np
+from gymnasium.utils import seeding
 
 from league import evaluation
 from league.agents import as_agent
 from league.env import MicroRacerEnv
+from league.physics import FINISHED, MAX_ACC, MAX_TURN, RUNNING, turn_bound
+from league.track import PeriodicSpline, Track
+
+
+def global_seed() -> int:
+    """A seed drawn from NumPy's global generator: where the thesis drew its tracks from."""
+    return int(np.random.randint(0, 2**32, dtype=np.int64))
+
+
+def _option(name: str, doc: str) -> property:
+    return property(lambda self: getattr(self.env.options, name), doc=doc)
+
+
+def _car(name: str, doc: str) -> property:
+    return property(lambda self: float(getattr(self._cars(), name)[0]), doc=doc)
 
 
 class Racer:
     """The thesis' environment object: ``reset() -> state``, ``step(action) -> (state, reward, done)``.
 
-    ``Racer(obstacles=False, turn_limit=False, chicanes=False, low_speed_termination=False)``
-    turns the optional parts off. The state is the compact observation
-    ``[direction, left, max, right, speed]`` (float32, shape (5,)); ``done`` is true when the
-    episode ended for any reason (lap, crash, time limit). Unlike the original, a done step
-    returns the last valid state rather than a one-element array. ``info`` holds the last step's
-    details (outcome, progress, time, distance, speed). ``seed`` seeds the first ``reset``.
+    ``Racer(obstacles=True, turn_limit=True, chicanes=True, low_speed_termination=True)``, in
+    this positional order, as the thesis' scripts call it. The state is the compact observation
+    ``[direction, left, max, right, speed]`` (float32, shape (5,)).
+
+    ``step`` returns, as the original does:
+
+    * on a crash (off road), a wrong direction or too slow: ``(np.array([0]), -3.0, True)``; the
+      thesis' scripts tell such a failure by ``done and len(state) < 5`` and store it as terminal;
+    * on a completed lap: the full state, the step's reward and ``True``;
+    * otherwise the full state, the reward and ``False``. The original has no time limit; here
+      an episode also ends (full state, ``done`` true, ``completation`` 0) after 4000 steps
+      (``max_episode_steps``), which no lap at the lowest allowed speed reaches.
+
+    ``reset(shared_map=(cs, map, obs_pos, init_v))`` races the track another racer reset on, at
+    that initial speed (the values of its ``cs``, ``map``, ``obs_pos`` and ``sinit_v``).
+
+    Attributes of the original: ``curves``, ``tstep``, ``max_acc``, ``max_turn``,
+    ``track_width``, ``obstacles_number``, the four options; after ``reset``: ``cs`` / ``csin``
+    / ``csout`` (the mid-line and border splines; ``cs`` of the angle in [0, 2 pi], the borders
+    of their polar angle), ``map`` (the 1300 x 1300 boolean grid of cells a car may occupy),
+    ``obs_pos`` (the obstacles' segments, shape (k, 2 ends, xy)), ``carx``, ``cary``,
+    ``carvx``, ``carvy`` (velocity), ``cartheta`` (polar angle), ``done``, ``completation``
+    (0 running, 1 lap completed, 2 off road, 3 wrong direction, 4 too slow), ``sinit_v``
+    (initial speed) and, after a step, ``max_turnrad`` (that step's turn bound).
+
+    Beyond the original: ``seed`` (keyword) seeds the first ``reset`` and the later ones
+    continue its stream, apart from NumPy's global generator; other keyword options of
+    ``league.MicroRacerEnv`` (``tstep``, ``curves``...) are passed on; ``info`` holds the last
+    step's details (outcome, progress, time, distance, speed) and ``track`` the league Track.
     """
 
-    def __init__(self, tstep: float = 0.04, obstacles: bool = True, turn_limit: bool = True, chicanes: bool = True,
-                 low_speed_termination: bool = True, seed: int | None = None, **env_options):
-        self.env = MicroRacerEnv(tstep=tstep, obstacles=obstacles, turn_limit=turn_limit, chicanes=chicanes,
-                                 low_speed_termination=low_speed_termination, observation="compact", **env_options)
-        self._seed = seed
-        self.info: dict = {}
+    max_acc = MAX_ACC
+    max_turn = MAX_TURN
+    curves = _option("curves", "control points of the mid-line")
+    tstep = _option("tstep", "seconds per step")
+    track_width = _option("track_width", "world units")
+    obstacles_number = _option("n_obstacles", "obstacles per track, when obstacles are on")
+    obstacles = _option("obstacles", "obstacles on the track")
+    turn_limit = _option("turn_limit", "turn limiter: the faster, the smaller the largest turn")
+    chicanes = _option("chicanes", "a chicane on the track")
+    low_speed_termination = _option("low_speed_termination", "the episode ends below speed 0.05")
+    carx = _car("x", "x of the car (world units)")
+    cary = _car("y", "y of the car (world units)")
+    cartheta = _car("theta", "polar angle of the car around the origin (rad)")
 
-    def reset(self) -> np.ndarray:
-        state, self.info = self.env.reset(seed=self._seed)
-        self._seed = None  # later resets continue the seeded stream
+    def __init__(self, obstacles: bool = True, turn_limit: bool = True, chicanes: bool = True,
+                 low_speed_termination: bool = True, *, seed: int | None = None, **env_options):
+        self.env = MicroRacerEnv(obstacles=obstacles, turn_limit=turn_limit, chicanes=chicanes,
+                                 low_speed_termination=low_speed_termination, observation="compact", **env_options)
+        self._seeded = seed is not None
+        if self._seeded:
+            self.env.np_random, _ = seeding.np_random(seed)
+        self.info: dict = {}
+        self.done = False
+        self.sinit_v: float | None = None
+        self.max_turnrad = MAX_TURN
+
+    def reset(self, shared_map: tuple | None = None) -> np.ndarray:
+        options = None
+        if shared_map is not None:
+            cs, grid, obs_pos, init_v = shared_map
+            options = {"track": self._shared_track(cs, grid, obs_pos), "initial_speed": float(init_v)}
+        state, self.info = self.env.reset(seed=None if self._seeded else global_seed(), options=options)
+        self.done = False
+        self.sinit_v = self.info["speed"]
+        self.max_turnrad = MAX_TURN
         return state
 
     def step(self, action) -> tuple[np.ndarray, float, bool]:
-        state, reward, terminated, truncated, self.info = self.env.step(np.asarray(action, dtype=np.float32).reshape(2))
-        return state, reward, bool(terminated or truncated)
+        acc, turn = np.asarray(action, dtype=np.float32).reshape(2)
+        self.max_turnrad = turn_bound(float(self._cars().speed[0]), float(acc), self.env.options)
+        state, reward, terminated, truncated, self.info = self.env.step((acc, turn))
+        self.done = bool(terminated or truncated)
+        if terminated and self.completation != FINISHED:
+            return np.array([0]), reward, True  # the original's failure state
+        return state, reward, self.done
+
+    def _shared_track(self, cs: PeriodicSpline, grid: np.ndarray, obs_pos) -> Track:
+        """The track of another racer's ``(cs, map, obs_pos)``, rebuilt from the spline's control points."""
+        if not isinstance(cs, PeriodicSpline):
+            raise TypeError(f"shared_map[0] must be another Racer's cs (its mid-line spline), got {type(cs).__name__}")
+        # Each cubic piece's constant term is the spline's value at its knot: the control points.
+        points = np.vstack([cs.c[-1], cs.c[-1][:1]])
+        track = Track(cs.x, points, self.track_width, np.asarray(obs_pos, dtype=np.float64).reshape(-1, 2, 2))
+        if not np.array_equal(track.valid, np.asarray(grid, dtype=bool)):
+            raise ValueError("shared_map's map is not the map of its cs and obs_pos: pass another Racer's "
+                             "(racer.cs, racer.map, racer.obs_pos, racer.sinit_v) after its reset(), unchanged, "
+                             "to a Racer with the same track_width")
+        return track
+
+    def _cars(self):
+        if self.env.cars is None:
+            raise RuntimeError("call reset() before reading the car's state")
+        return self.env.cars
 
     @property
-    def track(self):
+    def track(self) -> Track | None:
+        return self.env.track
+
+    @property
+    def cs(self) -> PeriodicSpline:
+        return self._track().midline
+
+    @property
+    def csin(self) -> PeriodicSpline:
+        return self._track().inner
+
+    @property
+    def csout(self) -> PeriodicSpline:
+        return self._track().outer
+
+    @property
+    def map(self) -> np.ndarray:
+        return self._track().valid
+
+    @property
+    def obs_pos(self) -> np.ndarray:
+        return self._track().obstacles
+
+    @property
+    def carvx(self) -> float:
+        cars = self._cars()
+        return float(cars.speed[0] * np.cos(cars.heading[0]))
+
+    @property
+    def carvy(self) -> float:
+        cars = self._cars()
+        return float(cars.speed[0] * np.sin(cars.heading[0]))
+
+    @property
+    def completation(self) -> int:
+        """0 running (or out of time), 1 lap completed, 2 off road, 3 wrong direction, 4 too slow."""
+        return int(self._cars().outcome[0]) if self.env.cars is not None else RUNNING
+
+    def _track(self) -> Track:
+        if self.env.track is None:
+            raise RuntimeError("call reset() before reading the track")
         return self.env.track
 
 
@@ -56,13 +187,15 @@ def newrun(actors: Sequence[Any], obstacles: bool = True, turn_limit: bool = Tru
            show: bool = True, save: str | os.PathLike | None = None, **env_options) -> evaluation.RaceResult:
     """The thesis' race: all actors on one track, printed classification and an animation.
 
-    ``seed`` (random if omitted) fixes the track; ``save="race.gif"`` writes the animation;
-    ``show`` opens a window when a display is available. Returns the RaceResult.
+    ``seed`` fixes the track; without it every call draws a new one from NumPy's global
+    generator, as the thesis did (the seed is printed, to race that track again).
+    ``save="race.gif"`` writes the animation; ``show`` opens a window when a display is
+    available. Returns the RaceResult.
     """
     from league import render
 
     if seed is None:
-        seed = int(np.random.SeedSequence().generate_state(1)[0])
+        seed = global_seed()
     agents = [as_agent(actor) for actor in actors]
     result = evaluation.race(agents, seed=seed, names=names, obstacles=obstacles, turn_limit=turn_limit,
                              chicanes=chicanes, low_speed_termination=low_speed_termination, **env_options)
@@ -81,21 +214,23 @@ def newrun(actors: Sequence[Any], obstacles: bool = True, turn_limit: bool = Tru
 
 
 def metrics_run(actor: Any, runs_num: int = 100, obstacles: bool = True, turn_limit: bool = True,
-                chicanes: bool = True, low_speed_termination: bool = True, *, seed: int = 0, verbose: bool = True,
-                **env_options) -> evaluation.MetricsResult:
-    """The thesis' evaluation run: ``runs_num`` episodes, printed as they end, then the totals.
+                chicanes: bool = True, low_speed_termination: bool = True, *, seed: int | None = None,
+                verbose: bool = True, **env_options) -> evaluation.MetricsResult:
+    """The thesis' evaluation run: ``runs_num`` episodes, printed one by one, then the totals.
 
-    The same as ``league.evaluation.metrics_run(as_agent(actor), episodes=runs_num, seed=seed, ...)``.
+    Without ``seed`` every call meets new tracks, drawn from NumPy's global generator as in the
+    thesis (the run's seed is in ``result.settings["seed"]``). With one, it is
+    ``league.evaluation.metrics_run(as_agent(actor), episodes=runs_num, seed=seed, ...)``: the
+    same tracks for every agent.
     """
 
-    def report(i: int, episode: evaluation.EpisodeResult) -> None:
-        print(f"episode {i}: steps {episode.steps}, return {episode.episode_return:.3f}, "
-              f"mean speed {episode.mean_speed:.3f}, {evaluation.OUTCOME_TEXT[episode.outcome]}")
-
-    result = evaluation.metrics_run(as_agent(actor), episodes=runs_num, seed=seed, on_episode=report if verbose else None,
+    result = evaluation.metrics_run(as_agent(actor), episodes=runs_num, seed=global_seed() if seed is None else seed,
                                     obstacles=obstacles, turn_limit=turn_limit, chicanes=chicanes,
                                     low_speed_termination=low_speed_termination, **env_options)
-    if verbose:
+    if verbose:  # after the run: its episodes run together and end in any order
+        for i, episode in enumerate(result.episodes):
+            print(f"episode {i}: steps {episode.steps}, return {episode.episode_return:.3f}, "
+                  f"mean speed {episode.mean_speed:.3f}, {evaluation.OUTCOME_TEXT[episode.outcome]}")
         print(f"completed {result.completed} / {result.episodes_total}, mean return {result.mean_return:.3f}, "
               f"mean steps {result.mean_steps:.1f}, mean speed {result.mean_speed:.3f}")
     return result

@@ -5,7 +5,8 @@ import gymnasium as gym
 import numpy as np
 from gymnasium import spaces
 
-from league.physics import MAX_TURN, RUNNING, RaceOptions, as_actions, start_cars
+from league.physics import MAX_TURN, OUTCOME_CODES, RUNNING, RaceOptions, as_actions, start_cars
+from league.render import FRAME_SHAPE
 from league.track import Track
 
 MAX_LIDAR_RANGE = 3.7  # no reading exceeds the map's diagonal (world units)
@@ -20,6 +21,13 @@ def observation_space(observation: str) -> spaces.Box:
         low = np.zeros(20, dtype=np.float32)
         high = np.array([MAX_LIDAR_RANGE] * 19 + [MAX_SPEED], dtype=np.float32)
     return spaces.Box(low, high, dtype=np.float32)
+
+
+def env_info(cars, i: int) -> dict:
+    """Car i's info: the same keys and types every step, numbers beside the outcome's name."""
+    info = cars.info(i)
+    info["outcome_code"] = OUTCOME_CODES[info["outcome"]]  # a dict lookup: cheaper than reading the array
+    return info
 
 
 def action_space() -> spaces.Box:
@@ -54,9 +62,20 @@ class MicroRacerEnv(gym.Env):
     `terminated` when the lap is complete or the car goes off road (border or obstacle), turns
     back (wrong direction) or, with low-speed termination, drops below speed 0.05. A crash
     leaves the car where it was and returns its last valid observation. `truncated` after
-    `max_episode_steps`. `info["outcome"]` says which: "running", "finished", "off_road",
-    "wrong_direction", "too_slow"; `info` also has "progress" (lap fraction), "time" (s),
-    "distance" and "speed".
+    `max_episode_steps` (4000 steps, 160 s): `gym.make` adds Gymnasium's `TimeLimit` wrapper
+    (`gym.make(..., max_episode_steps=N)` changes it); a directly built `MicroRacerEnv` keeps
+    time itself.
+
+    ## Info
+    The same keys and types at every step: "outcome" says why the episode ended ("running",
+    "finished", "off_road", "wrong_direction", "too_slow") and "outcome_code" is its index in
+    `league.physics.OUTCOMES` (0 to 4, the thesis' `completation` codes); "progress" (lap
+    fraction), "time" (s), "distance" and "speed".
+
+    ## Rendering
+    `render_mode="rgb_array"` returns uint8 frames of one fixed shape, `metadata["render_frame_shape"]`
+    (650, 650, 3): the whole world at 1 px = 2 map cells, so video recorders and pixel wrappers
+    work across episodes. `render_mode="human"` shows them in a matplotlib window.
 
     ## Arguments
     ```python
@@ -64,17 +83,21 @@ class MicroRacerEnv(gym.Env):
                    low_speed_termination=True, observation="compact", curves=20,
                    track_width=0.04, n_obstacles=6, tstep=0.04, max_episode_steps=4000)
     ```
+    An unknown argument raises Python's own `TypeError` ("got an unexpected keyword argument").
     `reset(options={"track": track})` races on a given `league.track.Track` instead of a new
-    one; `options={"initial_speed": v}` sets the start speed.
+    one; `options={"initial_speed": v}` sets the start speed. Many episodes at once, in one
+    compiled step: `gymnasium.make_vec("league/MicroRacer-v0", num_envs=N,
+    vectorization_mode="vector_entry_point")` or `league.vector_env(num_envs=N, track_pool=None,
+    **options)` (`league.vector_env.MicroRacerVectorEnv`).
 
     ## Version History
     * v0: first version, SPEC of the reference implementation with a 1/500-accurate lidar.
     """
 
-    metadata = {"render_modes": ["human", "rgb_array"], "render_fps": 25}
+    metadata = {"render_modes": ["human", "rgb_array"], "render_fps": 25, "render_frame_shape": FRAME_SHAPE}
 
     def __init__(self, render_mode: str | None = None, **options):
-        self.options = RaceOptions.from_kwargs(**options)
+        self.options = RaceOptions.from_kwargs("MicroRacerEnv.__init__", **options)
         if render_mode is not None and render_mode not in self.metadata["render_modes"]:
             raise ValueError(f"render_mode must be one of {self.metadata['render_modes']} or None, got {render_mode!r}")
         self.render_mode = render_mode
@@ -93,7 +116,7 @@ class MicroRacerEnv(gym.Env):
         speed = self.options.initial_speed(self.np_random) if speed is None else float(speed)
         self.cars = start_cars(self.cars, 1, self.track, self.options, speed)
         self._trail = [self.track.start_position]
-        return self.cars.observation(0), self.cars.info(0)
+        return self.cars.observation(0), env_info(self.cars, 0)
 
     def step(self, action):
         cars = self.cars
@@ -110,8 +133,9 @@ class MicroRacerEnv(gym.Env):
             self._trail.append((float(cars.x[0]), float(cars.y[0])))
             if self.render_mode == "human":
                 self.render()
-        truncated = outcome == RUNNING and cars.steps >= self.options.max_episode_steps
-        return cars.observation(0), cars.reward[0].item(), outcome != RUNNING, truncated, cars.info(0)
+        limit = self.options.max_episode_steps
+        truncated = outcome == RUNNING and limit is not None and cars.steps >= limit
+        return cars.observation(0), cars.reward[0].item(), outcome != RUNNING, truncated, env_info(cars, 0)
 
     def render(self):
         from league import render
@@ -120,7 +144,10 @@ class MicroRacerEnv(gym.Env):
             gym.logger.warn('render() needs a render_mode: gymnasium.make(..., render_mode="rgb_array")')
             return None
         cars = self.cars
-        frame = render.render_frame(self.track, cars.x, cars.y, cars.heading, [np.array(self._trail)])
+        if cars is None:
+            frame = render.blank_frame()  # wrappers render before the first reset to learn the shape
+        else:
+            frame = render.render_frame(self.track, cars.x, cars.y, cars.heading, [np.array(self._trail)])
         if self.render_mode == "rgb_array":
             return frame
         self._window = render.show_frame(frame, self._window)
@@ -132,3 +159,9 @@ class MicroRacerEnv(gym.Env):
 
             render.close_window(self._window)
             self._window = None
+
+
+def registered_env(**options) -> MicroRacerEnv:
+    """The entry point of `gym.make("league/MicroRacer-v0")`: its time limit is the registry's
+    TimeLimit wrapper (so `gym.make(..., max_episode_steps=N)` sets it), not the env's own."""
+    return MicroRacerEnv(max_episode_steps=None, **options)

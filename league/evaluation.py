@@ -1,8 +1,9 @@
 """Evaluations and races: the one home of the league's scoring logic (CLI and server alike).
 
-`metrics_run` drives one agent through many seeded episodes (SPEC "Evaluation run");
-`race` puts several agents on one shared track through the PettingZoo environment and
-returns the classification and a compact, versioned replay.
+`metrics_run` drives one agent through many seeded episodes (SPEC "Evaluation run"), all of
+them in lockstep: one agent call per step for every episode still running; `race` puts
+several agents on one shared track through the PettingZoo environment and returns the
+classification and a compact, versioned replay.
 """
 from __future__ import annotations
 
@@ -17,11 +18,12 @@ import numpy as np
 from tqdm.auto import tqdm
 
 from league.agents import COMPACT_DIM, LIDAR_DIM, Agent, AgentError, as_agent, compact_from_lidar
-from league.env import MicroRacerEnv
+from league.constants import FINISHED, OUTCOMES, RUNNING
 from league.parallel_env import parallel_env
-from league.physics import RaceOptions
+from league.physics import RaceOptions, episode_start, new_cars, place_car
 from league.track import Track
 
+LOCKSTEP_EPISODES = 128  # episodes metrics_run advances together; their maps (1.69 MB each) bound its memory
 REPLAY_FORMAT = "microracer-replay"
 REPLAY_VERSION = 1
 # Replay precision: 1e-5 world units is 1 cm; actions are shown with 2 decimals.
@@ -169,7 +171,9 @@ def _options_text(options: dict) -> str:
 
 
 def run_episode(env: Any, agent: Agent, seed: int) -> EpisodeResult:
-    """One episode of `agent` in a MicroRacerEnv, seeded; an AgentError ends it as a DNF."""
+    """One episode of `agent` in a MicroRacerEnv, seeded, one agent call per step (the way the
+    thesis evaluated); an AgentError ends it as a DNF. `metrics_run` gives the same results for
+    all its episodes at once."""
     try:
         _reset(agent)
     except AgentError as error:
@@ -202,18 +206,30 @@ def metrics_run(agent: Agent | str | os.PathLike, episodes: int = 100, seed: int
                 on_episode: Callable[[int, EpisodeResult], None] | None = None, **env_options) -> MetricsResult:
     """Evaluate an agent over `episodes` random tracks (SPEC "Evaluation run").
 
+    The episodes run in lockstep (up to `LOCKSTEP_EPISODES` at a time): each step, the agent is
+    called once with the observations of every episode still running (a model fixed to batch
+    size 1 is called row by row). Each
+    episode's figures are those of running it alone (`run_episode`); only a model's batched
+    float arithmetic may differ in the last bits from one observation at a time.
+
     Args:
         agent: an :class:`~league.agents.Agent` (or a path / "heuristic", loaded with
             ``load_agent``). Its ``obs_dim`` chooses the observation (5: compact, 20: lidar).
+            ``agent.reset()`` is called once, before the run.
         episodes: number of episodes, each on a fresh track.
         seed: the run's seed; episode i uses ``episode_seeds(seed, episodes)[i]``
             (``SeedSequence(seed).generate_state``), so the same seed means the same tracks and
-            initial speeds for every agent, and the same agent and seed the same metrics.
-        progress: show a tqdm progress bar (on stderr).
-        on_episode: called as ``on_episode(i, episode_result)`` after each episode (e.g. a
-            server worker's heartbeat or partial results).
+            initial speeds for every agent, and the same agent and seed the same metrics. The
+            tracks come from this process's track cache (`league.physics.episode_start`).
+        progress: show a tqdm progress bar (on stderr), one tick per finished episode.
+        on_episode: called as ``on_episode(i, episode_result)`` as each episode ends, in the
+            order they end (e.g. a server worker's heartbeat or partial results).
         **env_options: options of ``league.MicroRacerEnv`` (obstacles, chicanes, turn_limit,
             low_speed_termination, curves, track_width, n_obstacles, tstep, max_episode_steps).
+
+    A failing agent call (AgentError) fails the episodes it was asked for, as DNFs with the
+    reason; when the model itself failed on the batch (``isolable``), the step is asked again
+    row by row, so only the episodes whose observation makes it fail (or gives NaN actions) end.
 
     Returns:
         MetricsResult: per episode seed, steps, return, mean speed, outcome ("finished",
@@ -222,22 +238,89 @@ def metrics_run(agent: Agent | str | os.PathLike, episodes: int = 100, seed: int
         mean steps, mean speed; ``to_dict()`` and ``table()``.
     """
     agent = as_agent(agent)
-    options = _checked_options(env_options)
-    env = MicroRacerEnv(observation=observation_mode(agent.obs_dim), **options)
-    results = []
+    env_options = _checked_options(env_options)
+    options = RaceOptions.from_kwargs(observation=observation_mode(agent.obs_dim), **env_options)
+    seeds = episode_seeds(seed, episodes)
+    results: list[EpisodeResult | None] = [None] * episodes
     with tqdm(total=episodes, disable=not progress, desc=agent.name, unit="ep", dynamic_ncols=True) as bar:
-        for i, episode_seed in enumerate(episode_seeds(seed, episodes)):
-            result = run_episode(env, agent, episode_seed)
-            results.append(result)
+
+        def finish(i: int, result: EpisodeResult) -> None:
+            results[i] = result
             if on_episode is not None:
                 on_episode(i, result)
             bar.update(1)
-            bar.set_postfix(completed=sum(r.outcome == "finished" for r in results), refresh=False)
-    env.close()
+            bar.set_postfix(completed=sum(r is not None and r.outcome == "finished" for r in results), refresh=False)
+
+        try:
+            _reset(agent)
+        except AgentError as error:
+            for i, episode_seed in enumerate(seeds):
+                finish(i, EpisodeResult(episode_seed, 0, 0.0, 0.0, "dnf", error.reason))
+        else:
+            for first in range(0, episodes, LOCKSTEP_EPISODES):
+                chunk = seeds[first:first + LOCKSTEP_EPISODES]
+                _run_lockstep(agent, chunk, options, lambda i, result, first=first: finish(first + i, result))
     settings = {"agent": agent.name, "obs_dim": agent.obs_dim, "episodes": episodes, "seed": seed,
                 "seeding": "numpy.random.SeedSequence(seed).generate_state(episodes)",
-                "env_options": _full_options(options)}
+                "lockstep_episodes": LOCKSTEP_EPISODES,  # batched agent calls: tells these results from older ones
+                "env_options": _full_options(env_options)}
     return MetricsResult(results, settings)
+
+
+def _run_lockstep(agent: Agent, seeds: list[int], options: RaceOptions,
+                  finish: Callable[[int, EpisodeResult], None]) -> None:
+    """Every episode on its own car and track, advanced together until all have ended."""
+    n = len(seeds)
+    cars = new_cars(max(n, 1), options)
+    for i, episode_seed in enumerate(seeds):
+        place_car(cars, i, *episode_start(episode_seed, options))
+    steps, returns, speed_sums = np.zeros(n, dtype=np.int64), np.zeros(n), np.zeros(n)
+    actions = np.zeros((max(n, 1), 2), dtype=np.float32)
+
+    def end(i: int, outcome: str, reason: str | None) -> None:
+        cars.retire(i)  # a car out of time or whose agent failed stops where it is
+        finish(i, EpisodeResult(seeds[i], int(steps[i]), float(returns[i]),
+                                float(speed_sums[i] / max(steps[i], 1)), outcome, reason))
+
+    while True:
+        rows = np.flatnonzero(cars.outcome[:n] == RUNNING)
+        if not len(rows):
+            return
+        answers, failures = _ask(agent, cars.obs[rows])
+        for k, reason in failures.items():
+            end(int(rows[k]), "dnf", reason)
+        if len(failures) == len(rows):
+            continue
+        actions[rows] = answers
+        moving = cars.outcome == RUNNING
+        stopped, timed_out = cars.step_episodes(actions, options.max_episode_steps)
+        steps[moving] += 1
+        returns[moving] += cars.reward[moving]
+        driving = moving & ~stopped & ~timed_out
+        speed_sums[driving] += cars.speed[driving]  # SPEC: speeds of the non-final steps, divided by all steps
+        for i in np.flatnonzero(stopped | timed_out):
+            outcome = "timeout" if timed_out[i] else OUTCOMES[cars.outcome[i]]
+            end(int(i), outcome, None if cars.outcome[i] == FINISHED else OUTCOME_TEXT[outcome])
+
+
+def _ask(agent: Agent, obs: np.ndarray) -> tuple[np.ndarray, dict[int, str]]:
+    """The agent's actions for a batch of observations, and {row: reason} for the rows that failed.
+
+    One call for the batch; when the model itself failed on it (an isolable AgentError), the rows
+    are asked one by one, so that only those whose observation makes the model fail fail.
+    """
+    try:
+        return agent(obs), {}
+    except AgentError as error:
+        if not error.isolable or len(obs) == 1:
+            return np.zeros((len(obs), 2), dtype=np.float32), {k: error.reason for k in range(len(obs))}
+    actions, failures = np.zeros((len(obs), 2), dtype=np.float32), {}
+    for k in range(len(obs)):
+        try:
+            actions[k] = agent(obs[k:k + 1])[0]
+        except AgentError as error:
+            failures[k] = error.reason
+    return actions, failures
 
 
 # --------------------------------------------------------------------------- race

@@ -3,12 +3,16 @@ from __future__ import annotations
 
 import gymnasium as gym
 import numpy as np
+from gymnasium import spaces
 from pettingzoo import ParallelEnv
 from pettingzoo.utils import parallel_to_aec, wrappers
 
-from league.env import action_space, observation_space
+from league.env import MAX_SPEED, action_space, env_info, observation_space
 from league.physics import FINISHED, RUNNING, RaceOptions, as_actions, start_cars
-from league.track import Track
+from league.render import FRAME_SHAPE
+from league.track import CELLS_PER_UNIT, GRID, Track
+
+WORLD_EDGE = GRID / 2 / CELLS_PER_UNIT  # the map covers [-1.3, 1.3]^2 world units
 
 
 class MicroRacerParallelEnv(ParallelEnv):
@@ -20,12 +24,23 @@ class MicroRacerParallelEnv(ParallelEnv):
 
     ## Agents
     A car that is done (finished, crashed, or out of time) leaves `agents`; the episode ends
-    when every car is done.
+    when every car is done. Actions sent for a car that is done are ignored (as PettingZoo's
+    `aec_to_parallel` does); an agent name that is not one of `possible_agents` raises.
+
+    ## Spaces and state
+    `observation_spaces` / `action_spaces` (dicts, the same objects as `observation_space(agent)`
+    / `action_space(agent)`). `state()` is every car's `[x, y, heading, speed]` (done cars where
+    they stopped, heading in [-pi, pi)), flattened to a float32 array of `state_space`,
+    shape `(4 * n_cars,)`: the global view for centralised critics.
 
     ## Infos
-    Per car: "outcome", "progress", "time", "distance", "speed"; finishers also get
-    "position" (1-based finishing order) and "finish_time" (s), the time interpolated inside
-    the step in which the car crossed the line, so cars finishing in the same step are ordered.
+    Per car, the same keys and types at every step from `reset`: "outcome" (its name, as in
+    `league/MicroRacer-v0`) and "outcome_code" (its index in `league.physics.OUTCOMES`),
+    "progress", "time", "distance", "speed", "position" (1-based finishing order) and
+    "finish_time" (s), both 0 until the car finishes; the finish time is interpolated inside the
+    step in which the car crossed the line, so cars finishing in the same step are ordered.
+    `numeric_infos=True` leaves out the "outcome" string, for libraries that turn every info
+    value into a tensor (torchrl's `PettingZooWrapper`).
 
     ## Batched interface
     `step_arrays(actions)` takes a float32 `(n_cars, 2)` array and returns arrays
@@ -33,23 +48,27 @@ class MicroRacerParallelEnv(ParallelEnv):
 
     ## Arguments
     ```python
-    league.parallel_env(n_cars=4, render_mode=None, **options)  # options as league/MicroRacer-v0
+    league.parallel_env(n_cars=4, render_mode=None, numeric_infos=False, **options)  # options as league/MicroRacer-v0
     ```
+    Rendering and frames as `league/MicroRacer-v0` (`metadata["render_frame_shape"]`).
     """
 
-    metadata = {"name": "microracer_v0", "render_modes": ["human", "rgb_array"], "render_fps": 25, "is_parallelizable": True}
+    metadata = {"name": "microracer_v0", "render_modes": ["human", "rgb_array"], "render_fps": 25,
+                "is_parallelizable": True, "render_frame_shape": FRAME_SHAPE}
 
-    def __init__(self, n_cars: int = 4, render_mode: str | None = None, **options):
+    def __init__(self, n_cars: int = 4, render_mode: str | None = None, numeric_infos: bool = False, **options):
         if not isinstance(n_cars, (int, np.integer)) or n_cars < 1:
             raise ValueError(f"n_cars must be an integer >= 1, got {n_cars!r}")
         if render_mode is not None and render_mode not in self.metadata["render_modes"]:
             raise ValueError(f"render_mode must be one of {self.metadata['render_modes']} or None, got {render_mode!r}")
-        self.options = RaceOptions.from_kwargs(**options)
+        self.options = RaceOptions.from_kwargs("parallel_env", **options)
         self.render_mode = render_mode
+        self.numeric_infos = numeric_infos
         self.possible_agents = [f"car_{i}" for i in range(n_cars)]
         self.agents: list[str] = []
-        self._observation_spaces = {a: observation_space(self.options.observation) for a in self.possible_agents}
-        self._action_spaces = {a: action_space() for a in self.possible_agents}
+        self.observation_spaces = {a: observation_space(self.options.observation) for a in self.possible_agents}
+        self.action_spaces = {a: action_space() for a in self.possible_agents}
+        self.state_space = state_space(n_cars)
         self.n_cars = n_cars
         self.cars = None  # league.lidar.CarBatch, made at reset
         self.track: Track | None = None
@@ -59,10 +78,17 @@ class MicroRacerParallelEnv(ParallelEnv):
         self._window = None
 
     def observation_space(self, agent):
-        return self._observation_spaces[agent]
+        return self.observation_spaces[agent]
 
     def action_space(self, agent):
-        return self._action_spaces[agent]
+        return self.action_spaces[agent]
+
+    def state(self) -> np.ndarray:
+        if self.cars is None:
+            raise RuntimeError("call reset() before state()")
+        c = self.cars
+        heading = np.mod(c.heading + np.pi, 2 * np.pi) - np.pi
+        return np.column_stack([c.x, c.y, heading, c.speed]).astype(np.float32).ravel()
 
     def reset(self, seed: int | None = None, options: dict | None = None):
         if seed is not None:
@@ -77,7 +103,7 @@ class MicroRacerParallelEnv(ParallelEnv):
         self.position = np.zeros(self.n_cars, dtype=np.int64)
         self._finishers = 0
         self._trails = [[self.track.start_position] for _ in self.agents]
-        infos = {agent: self._info(i) for i, agent in enumerate(self.agents)}
+        infos = self._infos({agent: i for i, agent in enumerate(self.agents)})
         return {agent: obs[i].copy() for i, agent in enumerate(self.agents)}, infos
 
     def step_arrays(self, actions: np.ndarray):
@@ -101,9 +127,9 @@ class MicroRacerParallelEnv(ParallelEnv):
         return cars.obs, cars.reward, terminated, truncated
 
     def step(self, actions: dict):
-        unknown = set(actions) - set(self.agents)
+        unknown = set(actions) - set(self.possible_agents)
         if unknown:
-            raise ValueError(f"actions for agents that are not racing: {sorted(unknown)}; live agents: {self.agents}")
+            raise ValueError(f"actions for unknown agents {sorted(unknown)}; the agents are {self.possible_agents}")
         missing = [agent for agent in self.agents if agent not in actions]
         if missing:
             raise ValueError(f"missing actions for {missing}; every live agent needs an action")
@@ -116,7 +142,7 @@ class MicroRacerParallelEnv(ParallelEnv):
         reward_dict = {a: float(rewards[i]) for a, i in index.items()}
         terminations = {a: bool(terminated[i]) for a, i in index.items()}
         truncations = {a: bool(truncated[i]) for a, i in index.items()}
-        infos = {a: self._info(i) for a, i in index.items()}
+        infos = self._infos(index)
         self.agents = [a for a in self.agents if not (terminations[a] or truncations[a])]
         if self.render_mode == "human":
             self.render()
@@ -138,12 +164,18 @@ class MicroRacerParallelEnv(ParallelEnv):
             self._finishers += 1
             self.position[i] = self._finishers
 
-    def _info(self, i: int) -> dict:
-        info = self.cars.info(i)
-        if info["outcome"] == "finished":
-            info["position"] = int(self.position[i])
-            info["finish_time"] = float(self.cars.finish_time[i])
-        return info
+    def _infos(self, index: dict[str, int]) -> dict[str, dict]:
+        """Infos of the cars in `index` (agent -> car), with the same keys at every step."""
+        positions = self.position.tolist()
+        # 0 until a car finishes (not NaN: NaN != NaN breaks equality checks such as PettingZoo's seed test)
+        finish_times = np.where(self.position > 0, self.cars.finish_time, 0.0).tolist()
+        infos = {}
+        for agent, i in index.items():
+            info = infos[agent] = env_info(self.cars, i)
+            info["position"], info["finish_time"] = positions[i], finish_times[i]
+            if self.numeric_infos:
+                del info["outcome"]
+        return infos
 
     def car_states(self) -> dict[str, np.ndarray]:
         """Position, heading and speed of every car (done or not), as float64 arrays."""
@@ -157,7 +189,10 @@ class MicroRacerParallelEnv(ParallelEnv):
             gym.logger.warn('render() needs a render_mode: league.parallel_env(..., render_mode="rgb_array")')
             return None
         cars = self.cars
-        frame = render.render_frame(self.track, cars.x, cars.y, cars.heading, [np.array(t) for t in self._trails])
+        if cars is None:
+            frame = render.blank_frame()
+        else:
+            frame = render.render_frame(self.track, cars.x, cars.y, cars.heading, [np.array(t) for t in self._trails])
         if self.render_mode == "rgb_array":
             return frame
         self._window = render.show_frame(frame, self._window)
@@ -171,9 +206,17 @@ class MicroRacerParallelEnv(ParallelEnv):
             self._window = None
 
 
-def parallel_env(n_cars: int = 4, render_mode: str | None = None, **options) -> MicroRacerParallelEnv:
+def state_space(n_cars: int) -> spaces.Box:
+    """Bounds of `state()`: per car x and y in the map, heading in [-pi, pi], speed."""
+    high = np.tile(np.array([WORLD_EDGE, WORLD_EDGE, np.pi, MAX_SPEED], dtype=np.float32), n_cars)
+    low = np.tile(np.array([-WORLD_EDGE, -WORLD_EDGE, -np.pi, 0], dtype=np.float32), n_cars)
+    return spaces.Box(low, high, dtype=np.float32)
+
+
+def parallel_env(n_cars: int = 4, render_mode: str | None = None, numeric_infos: bool = False,
+                 **options) -> MicroRacerParallelEnv:
     """N cars on one shared track (PettingZoo Parallel API)."""
-    return MicroRacerParallelEnv(n_cars=n_cars, render_mode=render_mode, **options)
+    return MicroRacerParallelEnv(n_cars=n_cars, render_mode=render_mode, numeric_infos=numeric_infos, **options)
 
 
 def env(n_cars: int = 4, render_mode: str | None = None, **options):

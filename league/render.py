@@ -16,8 +16,8 @@ from typing import Any, Iterator, Sequence
 
 import numpy as np
 
-GRID = 1300  # map cells per side
-CELLS_PER_UNIT = 500  # map cells per world unit
+from league.constants import CELLS_PER_UNIT, GRID
+
 DOWNSAMPLE = 2  # map cells per frame pixel: a full map is 650 px wide
 MARGIN = 12  # px around the track's bounding box
 CAR_RADIUS = 4  # px
@@ -28,6 +28,8 @@ OFF_ROAD = (226, 236, 218)  # pale green
 ROAD = (168, 168, 168)  # grey
 OBSTACLE = (30, 30, 30)  # near black: distinct from every car colour
 HEADING_TICK = (20, 20, 20)
+START_COLOR = "white"  # the start line and arrow of the track pictures
+START_ARROW = 0.1  # world units, the arrow's length
 # matplotlib's "tab10" palette: the colours of the cars, in order.
 CAR_COLORS = [(31, 119, 180), (255, 127, 14), (44, 160, 44), (214, 39, 40), (148, 103, 189),
               (140, 86, 75), (227, 119, 194), (127, 127, 127), (188, 189, 34), (23, 190, 207)]
@@ -44,27 +46,39 @@ class RenderError(RuntimeError):
 # --------------------------------------------------------------------------- numpy frames
 
 
+FRAME_SIZE = GRID // DOWNSAMPLE  # px per side of every frame: the whole [-1.3, 1.3]^2 world
+FRAME_SHAPE = (FRAME_SIZE, FRAME_SIZE, 3)  # the envs declare it in metadata["render_frame_shape"]
+
+
 @dataclass(frozen=True)
 class TrackImage:
-    """A track's background at 1 px = 2 map cells, cropped to the track, and its world -> pixel map."""
+    """A track's background over the whole world at 1 px = 2 map cells, and its picture crop.
 
-    rgb: np.ndarray  # (H, W, 3) uint8
-    col0: int  # first column of the crop in the full 650 px image
-    row0: int  # first row of the crop
+    Frames use the whole image, so every track gives frames of the same size and scale (video
+    recorders and pixel observations need a fixed shape); pictures show only ``crop``, the
+    track's bounding box with a margin.
+    """
 
-    def to_pixels(self, x: np.ndarray, y: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """World coordinates -> (row, col) as floats in the cropped image (y axis up)."""
-        col = (np.asarray(x) * CELLS_PER_UNIT + GRID / 2) / DOWNSAMPLE - self.col0
-        row = (GRID / 2 - np.asarray(y) * CELLS_PER_UNIT) / DOWNSAMPLE - self.row0
+    rgb: np.ndarray  # FRAME_SHAPE uint8
+    crop: tuple[slice, slice]  # (rows, cols) of the track's bounding box and margin
+
+    @staticmethod
+    def to_pixels(x: np.ndarray, y: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """World coordinates -> (row, col) as floats in the frame (y axis up)."""
+        col = (np.asarray(x) * CELLS_PER_UNIT + GRID / 2) / DOWNSAMPLE
+        row = (GRID / 2 - np.asarray(y) * CELLS_PER_UNIT) / DOWNSAMPLE
         return row, col
 
+    def cropped(self) -> np.ndarray:
+        return self.rgb[self.crop]
+
     def extent(self) -> tuple[float, float, float, float]:
-        """(left, right, bottom, top) in world units, for matplotlib's imshow."""
-        height, width = self.rgb.shape[:2]
+        """(left, right, bottom, top) of the crop in world units, for matplotlib's imshow."""
+        rows, cols = self.crop
         scale = DOWNSAMPLE / CELLS_PER_UNIT
-        left = (self.col0 * DOWNSAMPLE - GRID / 2) / CELLS_PER_UNIT
-        top = (GRID / 2 - self.row0 * DOWNSAMPLE) / CELLS_PER_UNIT
-        return left, left + width * scale, top - height * scale, top
+        left = (cols.start * DOWNSAMPLE - GRID / 2) / CELLS_PER_UNIT
+        top = (GRID / 2 - rows.start * DOWNSAMPLE) / CELLS_PER_UNIT
+        return left, left + (cols.stop - cols.start) * scale, top - (rows.stop - rows.start) * scale, top
 
 
 _track_images: "weakref.WeakKeyDictionary[Any, TrackImage]" = weakref.WeakKeyDictionary()
@@ -85,14 +99,19 @@ def _draw_track_image(track: Any) -> TrackImage:
     rows, cols = np.nonzero(road_px)
     if rows.size == 0:
         raise RenderError("the track has no road cells to draw")
-    size = road_px.shape[0]
-    row0, row1 = max(rows.min() - MARGIN, 0), min(rows.max() + MARGIN + 1, size)
-    col0, col1 = max(cols.min() - MARGIN, 0), min(cols.max() + MARGIN + 1, size)
-    rgb = np.empty(road_px.shape + (3,), dtype=np.uint8)
-    rgb[...] = OFF_ROAD
+    crop = (slice(max(rows.min() - MARGIN, 0), min(rows.max() + MARGIN + 1, FRAME_SIZE)),
+            slice(max(cols.min() - MARGIN, 0), min(cols.max() + MARGIN + 1, FRAME_SIZE)))
+    rgb = blank_frame()
     rgb[road_px] = ROAD
     rgb[obstacle_px] = OBSTACLE
-    return TrackImage(np.ascontiguousarray(rgb[row0:row1, col0:col1]), int(col0), int(row0))
+    return TrackImage(rgb, crop)
+
+
+def blank_frame() -> np.ndarray:
+    """A frame of FRAME_SHAPE with nothing but the field (what an env renders before its first reset)."""
+    frame = np.empty(FRAME_SHAPE, dtype=np.uint8)
+    frame[...] = OFF_ROAD
+    return frame
 
 
 def _downsample(grid: np.ndarray) -> np.ndarray:
@@ -113,8 +132,8 @@ def render_frame(track: Any, xs: Sequence[float], ys: Sequence[float], headings:
         colors: per car, an RGB triple (0-255); default the "tab10" palette, cycled.
 
     Returns:
-        uint8 array (H, W, 3), about 650 px at most, cropped to the track's bounding box.
-        Pure numpy: a frame costs well under a millisecond per car.
+        uint8 array of FRAME_SHAPE (650, 650, 3): the whole world, whatever the track, at
+        1 px = 2 map cells. Pure numpy: a frame costs well under a millisecond per car.
     """
     image = track_image(track)
     frame = image.rgb.copy()
@@ -205,24 +224,43 @@ def _agg_figure(figsize: tuple[float, float], dpi: int = 100) -> Any:
 
 def _draw_track(axes: Any, track: Any) -> TrackImage:
     image = track_image(track)
-    axes.imshow(image.rgb, extent=image.extent(), interpolation="antialiased", origin="upper")
-    x, y = track.start_position
-    heading = track.start_heading
-    axes.annotate("", xy=(x + 0.08 * np.cos(heading), y + 0.08 * np.sin(heading)), xytext=(x, y),
-                  arrowprops={"arrowstyle": "->", "color": "black", "lw": 1.5})
-    axes.plot([x], [y], marker="s", color="black", markersize=4)
+    axes.imshow(image.cropped(), extent=image.extent(), interpolation="antialiased", origin="upper")
+    _draw_start(axes, track)
     axes.set_aspect("equal")
     axes.set_axis_off()
     return image
 
 
-def save_track_png(track: Any, path: str | os.PathLike, title: str | None = None, dpi: int = 100) -> Path:
-    """Save a picture of a track (road, obstacles, start and direction) as PNG, without a display."""
-    figure = _agg_figure((6.5, 6.5))
-    axes = figure.add_axes((0.02, 0.02, 0.96, 0.9 if title else 0.96))
-    _draw_track(axes, track)
+def _draw_start(axes: Any, track: Any) -> None:
+    """A line across the road and an arrow the way the race goes, white edged in black: unlike the
+    near-black obstacles (a small black arrow and square looked like one more obstacle)."""
+    x, y = track.start_position
+    along = np.array([np.cos(track.start_heading), np.sin(track.start_heading)])
+    across = np.array([-along[1], along[0]]) * track.width * 0.6
+    line = ([x - across[0], x + across[0]], [y - across[1], y + across[1]])
+    axes.plot(*line, color="black", lw=4.5, solid_capstyle="butt")
+    axes.plot(*line, color=START_COLOR, lw=3, solid_capstyle="butt")
+    axes.annotate("", xy=(x, y) + START_ARROW * along, xytext=(x, y),
+                  arrowprops={"arrowstyle": "simple", "fc": START_COLOR, "ec": "black", "lw": 0.8, "mutation_scale": 20})
+
+
+def _track_picture(figure: Any, track: Any, title: str | None) -> None:
+    """The track with a title and a legend of what is drawn."""
+    from matplotlib.lines import Line2D
+    from matplotlib.patches import Patch
+
+    _draw_track(figure.add_axes((0.02, 0.08, 0.96, 0.84 if title else 0.9)), track)
     if title:
         figure.suptitle(title)
+    handles = [Patch(fc=np.array(ROAD) / 255, label="road"), Patch(fc=np.array(OBSTACLE) / 255, label="obstacle"),
+               Line2D([], [], ls="none", marker=">", ms=10, mfc=START_COLOR, mec="black", label="start, and the way to race")]
+    figure.legend(handles=handles, loc="lower center", ncol=3, frameon=False)
+
+
+def save_track_png(track: Any, path: str | os.PathLike, title: str | None = None, dpi: int = 100) -> Path:
+    """Save a picture of a track (road, obstacles, start and direction, a legend) as PNG, without a display."""
+    figure = _agg_figure((6.5, 6.5))
+    _track_picture(figure, track, title)
     path = Path(path)
     figure.savefig(path, dpi=dpi)
     return path
@@ -233,10 +271,7 @@ def show_track(track: Any, title: str | None = None) -> None:
     require_display()
     import matplotlib.pyplot as plt
 
-    figure = plt.figure("MicroRacer track", figsize=(6.5, 6.5))
-    _draw_track(figure.add_axes((0.02, 0.02, 0.96, 0.9 if title else 0.96)), track)
-    if title:
-        figure.suptitle(title)
+    _track_picture(plt.figure("MicroRacer track", figsize=(6.5, 6.5)), track, title)
     plt.show()
 
 

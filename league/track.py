@@ -8,19 +8,17 @@ track rebuilds bit for bit (`Track.from_dict`).
 from __future__ import annotations
 
 from dataclasses import dataclass, field
-from functools import cached_property
+from functools import cache, cached_property
 
 import numpy as np
-from scipy.interpolate import CubicSpline
 
 from league import lidar
+from league.constants import CELLS_PER_UNIT, GRID, ORIGIN
 
 CURVES = 20  # control points of the mid-line
 TRACK_WIDTH = 0.04  # world units (1 unit = 1000 m)
 MAX_TRACK_WIDTH = 0.08  # wider borders fold on tight bends
 N_OBSTACLES = 6
-GRID = lidar.GRID_SIZE  # cells per side of the map
-CELLS_PER_UNIT = 500  # grid resolution
 BORDER_SAMPLES_PER_CURVE = 6  # mid-line samples per control point, for the borders
 RASTER_ANGLES = 2000  # inner -> outer segments drawn on the map
 OBSTACLE_LENGTH = np.pi / 150  # angular length of an obstacle (rad)
@@ -56,26 +54,31 @@ class Track:
 
     # -- geometry -------------------------------------------------------------------------
     @cached_property
-    def midline(self) -> CubicSpline:
+    def midline(self) -> PeriodicSpline:
         """Mid-line as a periodic spline of the control angle theta in [0, 2*pi]."""
-        return CubicSpline(self.control_theta, self.control_points, bc_type="periodic")
+        return PeriodicSpline(self.control_theta, self.control_points)
 
     @cached_property
     def _borders(self) -> tuple[np.ndarray, np.ndarray]:
-        theta = np.linspace(0, 2 * np.pi, BORDER_SAMPLES_PER_CURVE * (len(self.control_theta) - 1))
+        theta = _border_samples(len(self.control_theta))
         mid = self.midline(theta)
         normal = _unit_normals(self.midline(theta, 1))
         return mid + normal * self.width / 2, mid - normal * self.width / 2
 
     @cached_property
-    def inner(self) -> CubicSpline:
-        """Inner border as a periodic spline of its own polar angle."""
-        return _polar_spline(self._borders[0])
+    def _border_angles(self) -> tuple[np.ndarray, np.ndarray]:
+        """The border points' polar angles, unwrapped."""
+        return tuple(lidar.unwrap(np.arctan2(points[:, 1], points[:, 0])) for points in self._borders)
 
     @cached_property
-    def outer(self) -> CubicSpline:
+    def inner(self) -> PeriodicSpline:
+        """Inner border as a periodic spline of its own polar angle."""
+        return _polar_spline(self._border_angles[0], self._borders[0])
+
+    @cached_property
+    def outer(self) -> PeriodicSpline:
         """Outer border as a periodic spline of its own polar angle."""
-        return _polar_spline(self._borders[1])
+        return _polar_spline(self._border_angles[1], self._borders[1])
 
     @property
     def inner_border(self) -> np.ndarray:
@@ -88,8 +91,7 @@ class Track:
     @cached_property
     def raster_segments(self) -> tuple[np.ndarray, np.ndarray]:
         """Inner and outer border points at the map's rasterisation angles."""
-        phi = np.arange(RASTER_ANGLES) * (2 * np.pi / RASTER_ANGLES)
-        return _eval_polar(self.inner, phi), _eval_polar(self.outer, phi)
+        return self.inner(RASTER_PHI, polar=True), self.outer(RASTER_PHI, polar=True)
 
     @property
     def start_position(self) -> tuple[float, float]:
@@ -136,15 +138,14 @@ class Track:
     def with_obstacles(self, obstacles: np.ndarray) -> Track:
         """The same track with these obstacle segments (the mid-line and borders are reused)."""
         track = Track(self.control_theta, self.control_points, self.width, obstacles)
-        for name in ("midline", "_borders", "inner", "outer", "raster_segments"):
+        for name in ("midline", "_borders", "_border_angles", "inner", "outer", "raster_segments"):
             if name in self.__dict__:  # cached geometry does not depend on obstacles
                 track.__dict__[name] = self.__dict__[name]
         return track
 
     def fits_grid(self) -> bool:
         """True when every outer border point lies inside the map."""
-        cells = _cells(self.raster_segments[1])
-        return bool(np.all((cells >= 0) & (cells < GRID)))
+        return lidar.inside_grid(self.raster_segments[1])
 
     def is_valid_position(self, x: float, y: float) -> bool:
         i, j = cell_of(x, y)
@@ -180,9 +181,26 @@ class Track:
         return hash((self.control_points.tobytes(), self.obstacles.tobytes(), self.width))
 
 
+class PeriodicSpline:
+    """A periodic cubic spline through (x[k], y[k]), y[-1] == y[0], called like scipy's:
+    ``spline(t, nu=0)`` gives the values (or nu-th derivatives) at t, shape t.shape + (2,).
+
+    It is scipy.interpolate.CubicSpline(x, y, bc_type="periodic") bit for bit, built and
+    evaluated in the compiled core (league/lidar.pyx says how).
+    """
+
+    def __init__(self, x: np.ndarray, y: np.ndarray):
+        self.x = _read_only(np.array(x, dtype=np.float64))
+        self.c = _read_only(lidar.periodic_spline(self.x, np.ascontiguousarray(y, dtype=np.float64)))
+
+    def __call__(self, t, nu: int = 0, polar: bool = False) -> np.ndarray:
+        """polar: t are polar angles, taken modulo 2*pi from the spline's start (x[0]) first."""
+        return lidar.evaluate_spline(self.x, self.c, t, nu, polar)
+
+
 def cell_of(x, y):
     """World coordinates -> grid cell (i, j); int() truncates toward zero."""
-    return int(x * CELLS_PER_UNIT) + GRID // 2, int(y * CELLS_PER_UNIT) + GRID // 2
+    return int(x * CELLS_PER_UNIT) + ORIGIN, int(y * CELLS_PER_UNIT) + ORIGIN
 
 
 def obstacle_half_size(width: float) -> int:
@@ -222,43 +240,59 @@ def first_fitting(candidates) -> Track:
 
 # -- mid-line ------------------------------------------------------------------------------
 def _midline_controls(rng: np.random.Generator, curves: int, chicanes: bool):
-    theta = 2 * np.pi * np.linspace(0, 1, curves)
+    theta, unit = _control_angles(curves)
     radius = _smoothed_radii(rng.random(curves))
-    points = _polar(theta, radius)
+    points = unit * radius[:, None]
     if chicanes:
-        theta, points = _add_chicane(rng, theta, radius, points)
+        theta, points = _add_chicane(rng, curves, radius, points)
     points[-1] = points[0]  # exact periodicity for the spline
     return theta, points
 
 
-def _smoothed_radii(var: np.ndarray) -> np.ndarray:
+@cache
+def _control_angles(curves: int) -> tuple[np.ndarray, np.ndarray]:
+    """The control angles and their unit vectors (cos, sin): the same for every track."""
+    theta = 2 * np.pi * np.linspace(0, 1, curves)
+    return _read_only(theta), _read_only(_polar(theta, 1.0))
+
+
+@cache
+def _chicane_angles(curves: int, c: int) -> tuple[np.ndarray, np.ndarray]:
+    """The control angles with control point c replaced by the chicane's five, and their unit vectors."""
+    theta = _control_angles(curves)[0]
+    delta = abs(theta[c - 1] - theta[c])
+    offsets = np.array([-CHICANE_OUTER, -CHICANE_INNER, 0.0, CHICANE_INNER, CHICANE_OUTER]) * delta
+    new_theta = np.concatenate([theta[:c], theta[c] + offsets, theta[c + 1:]])
+    return _read_only(new_theta), _read_only(_polar(new_theta, 1.0))
+
+
+def _smoothed_radii(draws: np.ndarray) -> np.ndarray:
     """SPEC smoothing, in index order and cyclic (each step sees the ones before it)."""
+    var = draws.tolist()  # 20 scalars, sequentially dependent: Python floats are the fastest here
     n = len(var)
-    for i in range(n):  # 20 scalars, sequentially dependent: not worth vectorising
+    for i in range(n):
         prev, nxt = var[i - 1], var[(i + 1) % n]
         s = 2 * var[i] - (prev + nxt)
         if s > 1:
             var[i] = (1 + prev + nxt) / 2
         elif s < -1:
             var[i] = (prev + nxt - 1) / 2
-    var = 0.5 * var + 0.7
-    var[-1] = var[0]
-    return var
+    radius = 0.5 * np.array(var) + 0.7
+    radius[-1] = radius[0]
+    return radius
 
 
 def _polar(theta, radius) -> np.ndarray:
     return np.stack([np.cos(theta) * radius, np.sin(theta) * radius], axis=-1)
 
 
-def _add_chicane(rng, theta, radius, points):
+def _add_chicane(rng, curves, radius, points):
     """Replace control point c by five points on the chord from c-1 to c+1, inner pair pushed apart."""
-    c = int(rng.integers(1, len(theta) - 2))  # uniform in [1, curves - 3]
-    delta = abs(theta[c - 1] - theta[c])
-    offsets = np.array([-CHICANE_OUTER, -CHICANE_INNER, 0.0, CHICANE_INNER, CHICANE_OUTER]) * delta
-    new_theta = np.concatenate([theta[:c], theta[c] + offsets, theta[c + 1:]])
+    c = int(rng.integers(1, curves - 2))  # uniform in [1, curves - 3]
+    new_theta, unit = _chicane_angles(curves, c)
     new_radius = np.concatenate([radius[:c], np.full(5, radius[c]), radius[c + 1:]])
-    new_points = _polar(new_theta, new_radius)
-    chicane = _on_chord(theta[c] + offsets, points[c - 1], points[c + 1])
+    new_points = unit * new_radius[:, None]
+    chicane = _on_chord(unit[c:c + 5], points[c - 1], points[c + 1])
     push = np.array([1 + CHICANE_PUSH, 1 - CHICANE_PUSH])
     if rng.random() >= 0.5:
         push = push[::-1]
@@ -268,9 +302,8 @@ def _add_chicane(rng, theta, radius, points):
     return new_theta, new_points
 
 
-def _on_chord(angles, a, b) -> np.ndarray:
-    """Intersect the rays from the origin at `angles` with the line through a and b."""
-    direction = np.stack([np.cos(angles), np.sin(angles)], axis=-1)
+def _on_chord(direction, a, b) -> np.ndarray:
+    """Intersect the rays from the origin along the unit vectors `direction` with the line through a and b."""
     chord = b - a
     # Solve t * direction = a + s * chord for t: t = cross(a, chord) / cross(direction, chord).
     t = (a[0] * chord[1] - a[1] * chord[0]) / (direction[:, 0] * chord[1] - direction[:, 1] * chord[0])
@@ -283,34 +316,28 @@ def _unit_normals(derivative: np.ndarray) -> np.ndarray:
     return np.stack([-dy, dx], axis=-1) / np.hypot(dx, dy)[..., None]
 
 
-def _border_angles(points: np.ndarray) -> np.ndarray:
-    return np.unwrap(np.arctan2(points[:, 1], points[:, 0]))
-
-
 def _borders_are_star_shaped(track: Track) -> bool:
     """Each border must be a function of its polar angle (strictly increasing angles)."""
-    return all(bool(np.all(np.diff(_border_angles(b)) > 0)) for b in track._borders)
+    return all(bool(np.all(phi[1:] > phi[:-1])) for phi in track._border_angles)
 
 
-def _polar_spline(points: np.ndarray) -> CubicSpline:
-    phi = _border_angles(points)
+def _polar_spline(phi: np.ndarray, points: np.ndarray) -> PeriodicSpline:
     points = points.copy()
     points[-1] = points[0]
-    return CubicSpline(phi, points, bc_type="periodic")
+    return PeriodicSpline(phi, points)
 
 
-def _eval_polar(spline: CubicSpline, phi, nu: int = 0) -> np.ndarray:
-    """Evaluate a border spline at polar angles in [0, 2*pi), whatever its starting angle."""
-    start = spline.x[0]
-    return spline(start + np.mod(np.asarray(phi) - start, 2 * np.pi), nu)
+@cache
+def _border_samples(n_controls: int) -> np.ndarray:
+    """Mid-line angles at which the borders are placed (SPEC: 6 per control point)."""
+    return _read_only(np.linspace(0, 2 * np.pi, BORDER_SAMPLES_PER_CURVE * (n_controls - 1)))
 
 
-def _closed_polyline(spline: CubicSpline, samples: int = 720) -> np.ndarray:
-    return _eval_polar(spline, np.linspace(0, 2 * np.pi, samples + 1))
+RASTER_PHI = np.arange(RASTER_ANGLES) * (2 * np.pi / RASTER_ANGLES)  # polar angles of the map's segments
 
 
-def _cells(points: np.ndarray) -> np.ndarray:
-    return np.trunc(points * CELLS_PER_UNIT).astype(np.int64) + GRID // 2
+def _closed_polyline(spline: PeriodicSpline, samples: int = 720) -> np.ndarray:
+    return spline(np.linspace(0, 2 * np.pi, samples + 1), polar=True)
 
 
 # -- obstacles -----------------------------------------------------------------------------
@@ -318,15 +345,19 @@ def _draw_obstacles(rng: np.random.Generator, track: Track, count: int) -> np.nd
     """Obstacle segments along the track, offset inward from the outer border (SPEC 'Obstacles')."""
     slots = count + 2
     u = rng.uniform(2 * np.pi / (2 * slots), 2 * np.pi / slots, size=slots)
-    phi = np.arange(slots) * (2 * np.pi / slots) + u
-    phi = phi[1:count + 1]
+    phi = (_slot_starts(slots) + u)[1:count + 1]
     sides = rng.choice([0.85, 0.15], size=count) * track.width
     ends = []
     for angles in (phi, phi - OBSTACLE_LENGTH):
-        border = _eval_polar(track.outer, angles)
-        inward = _unit_normals(_eval_polar(track.outer, angles, 1))
+        border = track.outer(angles, polar=True)
+        inward = _unit_normals(track.outer(angles, 1, polar=True))
         ends.append(border + inward * sides[:, None])
     return np.stack(ends, axis=1)
+
+
+@cache
+def _slot_starts(slots: int) -> np.ndarray:
+    return _read_only(np.arange(slots) * (2 * np.pi / slots))
 
 
 def _read_only(array: np.ndarray) -> np.ndarray:

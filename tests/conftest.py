@@ -1,7 +1,20 @@
-"""Shared pytest fixtures."""
+"""Shared pytest fixtures, and the `slow` marker of tests that start league servers.
+
+    python -m pytest -m "not slow"     the quick loop: everything in this process or in sandboxes
+    python -m pytest                   the whole suite (what CI runs)
+"""
 from __future__ import annotations
 
 import pytest
+
+# Fixtures that start `league serve` / `league worker` processes: their tests are the slow tier.
+SERVER_FIXTURES = {"league_server", "web_server", "season"}
+
+
+def pytest_collection_modifyitems(items):
+    for item in items:
+        if SERVER_FIXTURES & set(getattr(item, "fixturenames", ())):
+            item.add_marker(pytest.mark.slow)
 
 # toolkit fixtures ------------------------------------------------------------------------
 # A thesis-size actor (5 -> 64 -> 64 -> 2) exported once per session to ONNX and TorchScript,

@@ -31,6 +31,8 @@ pytest.importorskip("onnxruntime")
 RNG = np.random.default_rng(0)
 OBS5 = RNG.uniform(0, 0.5, (8, 5)).astype(np.float32)
 OBS5[:, 0] = RNG.uniform(-math.pi / 6, math.pi / 6, 8)
+OBS5_LARGE = RNG.uniform(0, 0.5, (100, 5)).astype(np.float32)  # a batched evaluation's step
+OBS5_LARGE[:, 0] = RNG.uniform(-math.pi / 6, math.pi / 6, 100)
 
 
 def torch_actions(module, obs):
@@ -116,7 +118,47 @@ def test_onnx_exported_with_a_fixed_batch_of_one_runs_row_by_row(thesis_module, 
         warnings.simplefilter("ignore", DeprecationWarning)  # the legacy exporter needs no onnxscript
         torch.onnx.export(thesis_module, (torch.zeros(1, 5),), str(path), dynamo=False)
     agent = load_agent(path)
+    assert agent.fixed_batch
     np.testing.assert_allclose(agent(OBS5), torch_actions(thesis_module, OBS5), atol=1e-6)
+
+
+def row_by_row(agent, obs):
+    return np.concatenate([agent(obs[k:k + 1]) for k in range(len(obs))])
+
+
+@pytest.mark.parametrize("kind", ["onnx", "torchscript"])
+def test_dynamic_batch_models_answer_a_batch_in_one_call_as_row_by_row(kind, onnx_actor, torchscript_actor):
+    agent = load_agent(onnx_actor if kind == "onnx" else torchscript_actor)
+    assert not agent.fixed_batch
+    obs = OBS5_LARGE
+    # The same actions up to the last bits of float32 matmuls (the batched kernels sum in another order).
+    np.testing.assert_allclose(agent(obs), row_by_row(agent, obs), rtol=0, atol=1e-6)
+
+
+@pytest.mark.parametrize("kind", ["onnx", "torchscript"])
+def test_models_fixed_to_batch_one_are_found_and_called_row_by_row(kind, thesis_module, tmp_path):
+    module = models.BatchOfOne(thesis_module)
+    if kind == "onnx":  # a dynamic batch axis is declared, but the graph reshapes to (1, 5)
+        path = export_onnx(module, tmp_path / "one.onnx")
+    else:
+        path = export_torchscript(module, tmp_path / "one.pt")
+    agent = load_agent(path)
+    assert agent.fixed_batch and agent.obs_dim == 5
+    np.testing.assert_array_equal(agent(OBS5_LARGE), row_by_row(agent, OBS5_LARGE))
+    np.testing.assert_allclose(agent(OBS5_LARGE), torch_actions(thesis_module, OBS5_LARGE), atol=1e-6)
+
+
+def test_a_failure_on_a_batch_is_isolable_and_names_the_model():
+    def fails_on_fast_rows(obs):
+        if (obs[:, 4] > 0.45).any():
+            raise ValueError("bad input")
+        return np.zeros((len(obs), 2))
+
+    agent = callable_agent(fails_on_fast_rows, obs_dim=5)
+    with pytest.raises(AgentError) as caught:
+        agent(np.array([[0, 0.3, 0.3, 0.3, 0.2], [0, 0.3, 0.3, 0.3, 0.5]], dtype=np.float32))
+    assert caught.value.isolable and caught.value.reason == "the model raised ValueError: bad input"
+    assert not AgentError("the model did not answer within its 10 ms step deadline").isolable
 
 
 def test_several_outputs_use_the_first(thesis_module, tmp_path):
@@ -290,3 +332,12 @@ def test_onnx_agents_load_with_onnxruntimes_telemetry_off(onnx_actor, tmp_path):
     assert result.returncode == 0, result.stderr
     assert result.stdout.split()[0] == "1"
     assert not (tmp_path / ".cache").exists()
+
+
+def test_a_models_words_are_made_plain_before_anyone_shows_them():
+    from league.agents import plain_text
+
+    text = "bad\u202egnp.exe\nline two\x1b[31m \u200b" + "x" * 400
+    cleaned = plain_text(text, limit=40)
+    assert cleaned == "badgnp.exe line two[31m " + "x" * 13 + "..."
+    assert all(ord(char) >= 32 for char in cleaned) and "\u202e" not in cleaned and len(cleaned) == 40

@@ -91,13 +91,18 @@ def test_bad_actions_are_clear_errors_and_the_env_keeps_working(action, message)
     "options, message",
     [
         ({"observation": "pixels"}, "observation must be one of"),
-        ({"curves": 2}, "curves must be an integer >= 5"),
+        ({"curves": 2}, r"curves must be an integer in \[5, 60\]"),
         ({"track_width": 0}, "track_width"),
         ({"track_width": 1.0}, "track_width"),
         ({"obstacles": "yes"}, "obstacles must be True or False"),
         ({"n_obstacles": -2}, "n_obstacles"),
         ({"tstep": 0}, "tstep"),
         ({"max_episode_steps": 0}, "max_episode_steps"),
+        # what a course can use: a huge track takes minutes to draw, a tiny step a huge replay
+        ({"curves": 1_000_000}, "curves must be an integer in \\[5, 60\\], got 1000000"),
+        ({"n_obstacles": 21}, "n_obstacles must be an integer in \\[0, 20\\]"),
+        ({"tstep": 1e-9}, "tstep must be in \\[0.01, 0.2\\] seconds"),
+        ({"max_episode_steps": 10**9}, "max_episode_steps must be an integer in \\[1, 20000\\]"),
     ],
 )
 def test_bad_options_are_clear_errors(options, message):
@@ -105,9 +110,32 @@ def test_bad_options_are_clear_errors(options, message):
         league.MicroRacerEnv(**options)
 
 
-def test_unknown_option_names_the_valid_ones():
-    with pytest.raises(TypeError, match="unknown MicroRacer option.*obstacle.*valid options"):
+def test_unknown_option_is_pythons_own_error_and_names_the_valid_ones():
+    with pytest.raises(TypeError, match=r"^MicroRacerEnv.__init__\(\) got an unexpected keyword argument 'obstacle'; "
+                                        r"valid options: .*'obstacles'"):
         league.MicroRacerEnv(obstacle=False)
+    with pytest.raises(TypeError, match="unexpected keyword argument 'frameskip'"):  # what torchrl probes for
+        gym.make("league/MicroRacer-v0", frameskip=1)
+
+
+def test_time_limit_belongs_to_gymnasiums_registry():
+    env = gym.make("league/MicroRacer-v0", low_speed_termination=False)
+    assert env.spec.max_episode_steps == league.physics.MAX_EPISODE_STEPS
+    assert env.unwrapped.options.max_episode_steps is None  # the TimeLimit wrapper keeps time
+    short = gym.make("league/MicroRacer-v0", max_episode_steps=30, low_speed_termination=False)
+    assert short.spec.max_episode_steps == 30
+    obs, _ = short.reset(seed=0)
+    for step in range(1, 31):
+        obs, _, terminated, truncated, info = short.step(reference.heuristic(obs))
+        assert not terminated and truncated == (step == 30)
+    assert info["outcome"] == "running"
+    direct = league.MicroRacerEnv(max_episode_steps=5)  # built directly, the env keeps time itself
+    obs, _ = direct.reset(seed=0)
+    truncations = []
+    for _ in range(5):
+        obs, _, _, truncated, _ = direct.step(reference.heuristic(obs))
+        truncations.append(truncated)
+    assert truncations == [False] * 4 + [True]
 
 
 def test_step_before_reset_and_after_the_end_are_clear_errors():
@@ -140,12 +168,33 @@ def test_pickled_env_continues_identically():
 def test_info_fields():
     env = league.MicroRacerEnv()
     obs, info = env.reset(seed=0)
-    assert set(info) >= {"outcome", "progress", "time", "distance", "speed"}
-    assert info["outcome"] == "running" and info["progress"] == 0.0 and info["time"] == 0.0
+    assert set(info) == {"outcome", "outcome_code", "progress", "time", "distance", "speed"}
+    assert info["outcome"] == "running" and info["outcome_code"] == 0 and info["progress"] == 0.0 and info["time"] == 0.0
     obs, reward, *_, info = env.step(reference.heuristic(obs))
     assert info["time"] == pytest.approx(0.04) and info["distance"] == pytest.approx(reward)
     assert 0 < info["progress"] < 0.01
     json.dumps(info)  # plain Python types
+
+
+def test_info_has_the_same_keys_and_types_at_every_step_and_the_code_names_the_outcome():
+    env = league.MicroRacerEnv()
+    obs, first = env.reset(seed=1)
+    types = {key: type(value) for key, value in first.items()}
+    terminated = truncated = False
+    while not (terminated or truncated):
+        obs, _, terminated, truncated, info = env.step(np.array(reference.heuristic(obs)) * [1.6, 1])
+        assert {key: type(value) for key, value in info.items()} == types
+    assert info["outcome"] != "running" and league.physics.OUTCOMES[info["outcome_code"]] == info["outcome"]
+
+
+def test_rgb_array_frames_have_the_declared_shape_on_every_track_and_before_reset():
+    env = gym.make("league/MicroRacer-v0", render_mode="rgb_array")
+    shape = env.metadata["render_frame_shape"]
+    assert env.unwrapped.render().shape == shape  # Gymnasium's pixel wrappers render before the first reset
+    for seed in range(3):
+        env.reset(seed=seed)
+        frame = env.render()
+        assert frame.shape == shape and frame.dtype == np.uint8
 
 
 def test_rgb_array_render_draws_track_obstacles_car_and_trail_without_a_display():

@@ -5,7 +5,8 @@ import numpy as np
 import pytest
 
 import league
-from league.agents import AgentError, callable_agent, heuristic_agent, heuristic_actions, load_agent
+from league import evaluation
+from league.agents import Agent, AgentError, callable_agent, heuristic_agent, heuristic_actions, load_agent
 from league.evaluation import (
     MetricsResult,
     episode_seeds,
@@ -14,8 +15,10 @@ from league.evaluation import (
     race,
     race_again,
     replay_track,
+    run_episode,
     save_replay,
 )
+from league.physics import TRACK_CACHE_SIZE, RaceOptions, episode_start, set_track_cache_size, track_cache_info
 
 ALL_OFF = {"obstacles": False, "chicanes": False, "turn_limit": False, "low_speed_termination": False}
 
@@ -104,14 +107,78 @@ def test_compact_and_lidar_heuristics_drive_identically():
     assert lidar.settings["obs_dim"] == 20
 
 
-def test_an_agent_failure_ends_only_that_episode_as_dnf():
-    agent = failing_after(5)  # fails in the first episode, then works again (counter reset)
+def sequential(agent, seed, episodes, **options):
+    """The thesis' loop: each episode alone, one agent call per step (`run_episode`)."""
+    env = league.MicroRacerEnv(observation="compact" if agent.obs_dim == 5 else "lidar", **options)
+    return [run_episode(env, agent, episode_seed) for episode_seed in episode_seeds(seed, episodes)]
+
+
+def fails_near_walls(obs):
+    """A model that raises on some observations: something close ahead (a wall or an obstacle)."""
+    if (obs[:, 2] < 0.05).any():
+        raise RuntimeError("segfault in my layer")
+    return heuristic_actions(obs)
+
+
+def nan_when_fast(obs):
+    actions = heuristic_actions(obs)
+    actions[obs[:, 4] > 0.27] = np.nan
+    return actions
+
+
+@pytest.mark.parametrize("options", [{}, ALL_OFF, {"max_episode_steps": 200}])
+def test_lockstep_equals_one_episode_at_a_time_for_the_heuristic(options):
+    result = metrics_run("heuristic", episodes=12, seed=7, **options)
+    assert result.episodes == sequential(heuristic_agent(), 7, 12, **options)
+
+
+@pytest.mark.parametrize("model, reason", [(fails_near_walls, "the model raised RuntimeError: segfault in my layer"),
+                                           (nan_when_fast, "the model returned NaN or infinite actions")])
+def test_a_model_failing_on_some_observations_fails_only_those_episodes(model, reason):
+    agent = callable_agent(model, obs_dim=5, name="flaky")
+    result = metrics_run(agent, episodes=16, seed=1)
+    assert result.episodes == sequential(agent, 1, 16)  # episode by episode, bit for bit
+    failed = [e for e in result.episodes if e.outcome == "dnf"]
+    assert 0 < len(failed) < 16 and all(e.reason == reason for e in failed)
+
+
+class DiesAtCall(Agent):
+    """A heuristic driver whose process dies at its n-th call: not isolable, like a sandbox's."""
+
+    def __init__(self, n):
+        super().__init__(5, "dies")
+        self.calls, self.n, self.resets = 0, n, 0
+
+    def __call__(self, obs):
+        self.calls += 1
+        if self.calls == self.n:
+            raise AgentError("the model's process died", isolable=False)
+        return heuristic_actions(np.asarray(obs, dtype=np.float32))
+
+    def reset(self):
+        self.resets += 1
+
+
+def test_an_agent_failure_fails_every_episode_it_was_asked_for():
+    agent = DiesAtCall(400)
     seen = []
-    result = metrics_run(agent, episodes=3, seed=1, on_episode=lambda i, e: (seen.append(i), agent.reset_calls(n=-10**6)))
-    assert seen == [0, 1, 2]
-    first = result.episodes[0]
-    assert (first.outcome, first.steps) == ("dnf", 5) and "segfault in my layer" in first.reason
-    assert result.episodes[1:] == metrics_run("heuristic", episodes=3, seed=1).episodes[1:]
+    result = metrics_run(agent, episodes=10, seed=1, on_episode=lambda i, e: seen.append(i))
+    assert sorted(seen) == list(range(10)) and agent.resets == 1
+    alone = metrics_run("heuristic", episodes=10, seed=1).episodes
+    for episode, expected in zip(result.episodes, alone):
+        if expected.steps < 400:  # ended before the failing call
+            assert episode == expected
+        else:
+            assert (episode.outcome, episode.steps, episode.reason) == ("dnf", 399, "the model's process died")
+
+
+def test_an_agent_that_cannot_reset_fails_every_episode():
+    class NoReset(DiesAtCall):
+        def reset(self):
+            raise AgentError("the sandbox did not start")
+
+    result = metrics_run(NoReset(10**6), episodes=3, seed=1)
+    assert [(e.outcome, e.steps, e.reason) for e in result.episodes] == [("dnf", 0, "the sandbox did not start")] * 3
 
 
 def test_truncated_episodes_are_timeouts():
@@ -248,3 +315,39 @@ def test_names_are_unique_and_checked():
         race(["heuristic"], names=["a", "b"])
     with pytest.raises(AgentError):
         race(["missing.onnx"])
+
+
+# --------------------------------------------------------------------------- the track cache
+
+
+def test_episode_starts_are_those_of_a_seeded_reset_and_are_cached():
+    options = RaceOptions(obstacles=False, track_width=0.05)
+    track, speed = episode_start(123, options)
+    env = league.MicroRacerEnv(obstacles=False, track_width=0.05)
+    env.reset(seed=123)
+    assert (track, speed) == (env.track, env.cars.speed[0])
+    assert episode_start(123, options)[0] is track  # kept: the map is not derived again
+    assert episode_start(123, RaceOptions(observation="lidar", obstacles=False, track_width=0.05))[0] is track
+    assert episode_start(123, RaceOptions())[0] != track  # other track options: another track
+
+
+def test_the_track_cache_is_bounded_and_serves_every_evaluation():
+    try:
+        set_track_cache_size(4)
+        first = metrics_run("heuristic", episodes=3, seed=2)
+        assert track_cache_info().misses == 3 and track_cache_info().currsize == 3
+        assert metrics_run("heuristic-lidar", episodes=3, seed=2).episodes == first.episodes
+        assert track_cache_info().hits == 3
+        metrics_run("heuristic", episodes=3, seed=9)
+        assert track_cache_info().currsize == 4  # least recently used starts went out
+    finally:
+        set_track_cache_size(TRACK_CACHE_SIZE)
+
+
+def test_long_runs_go_in_lockstep_chunks_with_the_same_results(monkeypatch):
+    expected = metrics_run("heuristic", episodes=7, seed=4)
+    monkeypatch.setattr(evaluation, "LOCKSTEP_EPISODES", 3)  # bounds the maps alive at once
+    seen = []
+    result = metrics_run("heuristic", episodes=7, seed=4, on_episode=lambda i, e: seen.append((i, e)))
+    assert result.episodes == expected.episodes
+    assert sorted(seen, key=lambda pair: pair[0]) == list(enumerate(expected.episodes))

@@ -2,7 +2,7 @@ import pickle
 
 import numpy as np
 import pytest
-from pettingzoo.test import api_test, parallel_api_test, parallel_seed_test
+from pettingzoo.test import api_test, parallel_api_test, parallel_seed_test, render_test, state_test
 
 import league
 
@@ -23,6 +23,64 @@ def test_pettingzoo_parallel_seed(options):
 
 def test_aec_form():
     api_test(league.env(n_cars=2), num_cycles=100)
+
+
+def test_pettingzoo_state():
+    state_test(league.env(n_cars=3), league.parallel_env(n_cars=3), num_cycles=100)
+
+
+def test_pettingzoo_render():
+    render_test(lambda render_mode=None: league.env(n_cars=2, render_mode=render_mode))
+    penv = league.parallel_env(n_cars=2, render_mode="rgb_array")
+    assert penv.render().shape == penv.metadata["render_frame_shape"]  # before reset too
+
+
+def test_spaces_are_dict_attributes_too():
+    penv = league.parallel_env(n_cars=3)
+    for agent in penv.possible_agents:
+        assert penv.observation_spaces[agent] is penv.observation_space(agent)
+        assert penv.action_spaces[agent] is penv.action_space(agent)
+
+
+def test_state_is_every_cars_position_heading_and_speed():
+    penv = league.parallel_env(n_cars=3)
+    with pytest.raises(RuntimeError, match="reset"):
+        penv.state()
+    observations, _ = penv.reset(seed=4)
+    for _ in range(40):
+        actions = {a: np.array(reference.heuristic(observations[a])) * [1, 1 + int(a[4:])] for a in penv.agents}
+        observations, *_ = penv.step(actions)
+    state = penv.state()
+    assert state.shape == penv.state_space.shape == (12,) and penv.state_space.contains(state)
+    cars = penv.car_states()
+    per_car = state.reshape(3, 4)
+    np.testing.assert_allclose(per_car[:, [0, 1, 3]], np.column_stack([cars["x"], cars["y"], cars["speed"]]), rtol=1e-6)
+    np.testing.assert_allclose(np.cos(per_car[:, 2]), np.cos(cars["heading"]), atol=1e-6)
+    np.testing.assert_allclose(np.sin(per_car[:, 2]), np.sin(cars["heading"]), atol=1e-6)
+
+
+def test_infos_have_the_same_keys_and_types_from_reset_to_the_end():
+    penv = league.parallel_env(n_cars=4, **ALL_OFF)
+    observations, infos = penv.reset(seed=4)
+    types = {key: type(value) for key, value in infos["car_0"].items()}
+    assert set(types) == {"outcome", "outcome_code", "progress", "time", "distance", "speed", "position", "finish_time"}
+    assert infos["car_0"]["position"] == 0 and infos["car_0"]["finish_time"] == 0.0
+    last = {}
+    while penv.agents:
+        actions = {a: np.array(reference.heuristic(observations[a])) * [1 + 0.3 * int(a[4:]), 1] for a in penv.agents}
+        observations, _, _, _, infos = penv.step(actions)
+        for info in infos.values():
+            assert {key: type(value) for key, value in info.items()} == types
+        last.update(infos)
+    finishers = [i for i in last.values() if i["outcome"] == "finished"]
+    assert finishers and all(i["position"] >= 1 and i["finish_time"] > 0 for i in finishers)
+    assert all(league.physics.OUTCOMES[i["outcome_code"]] == i["outcome"] for i in last.values())
+
+
+def test_numeric_infos_leave_the_outcome_name_out():
+    penv = league.parallel_env(n_cars=2, numeric_infos=True)
+    _, infos = penv.reset(seed=0)
+    assert "outcome" not in infos["car_0"] and all(isinstance(v, (int, float)) for v in infos["car_0"].values())
 
 
 def drive(penv, seed, perturb=0.0):
@@ -64,7 +122,7 @@ def test_finishing_positions_follow_interpolated_finish_times():
     assert len({round(i["time"], 6) for i in finishers}) < len(finishers)
 
 
-def test_done_cars_leave_the_agents_and_get_no_more_actions():
+def test_done_cars_leave_the_agents_and_their_actions_are_ignored():
     penv = league.parallel_env(n_cars=2)
     observations, _ = penv.reset(seed=0)
     for _ in range(30):  # car_0 steers full right into the border, car_1 drives well
@@ -73,8 +131,11 @@ def test_done_cars_leave_the_agents_and_get_no_more_actions():
         if "car_0" not in penv.agents:
             break
     assert terminations["car_0"] and penv.agents == ["car_1"]
-    with pytest.raises(ValueError, match="not racing"):
-        penv.step({"car_0": [0, 0], "car_1": [0, 0]})
+    x, y = penv.cars.x[0], penv.cars.y[0]
+    observations, *_ = penv.step({"car_0": [1.0, 1.0], "car_1": reference.heuristic(observations["car_1"])})
+    assert set(observations) == {"car_1"} and (penv.cars.x[0], penv.cars.y[0]) == (x, y)  # ignored, as PettingZoo does
+    with pytest.raises(ValueError, match=r"unknown agents \['car_7'\]"):
+        penv.step({"car_7": [0, 0], "car_1": [0, 0]})
     with pytest.raises(ValueError, match="missing actions"):
         penv.step({})
     with pytest.raises(ValueError, match="NaN"):

@@ -159,3 +159,20 @@ def test_time_limit_truncates():
     for step in range(20):
         obs, _, terminated, truncated, info = env.step(reference.heuristic(obs))
     assert truncated and not terminated and info["outcome"] == "running"
+
+
+def test_the_compiled_core_uses_the_numbers_of_league_constants():
+    """setup.py compiles league/constants.py into the core: one home for every number."""
+    from league import constants, lidar
+
+    env = league.MicroRacerEnv(observation="lidar")
+    obs, _ = env.reset(seed=0)
+    assert obs.shape == (constants.LIDAR_DIM,) and len(lidar.lidar(env.track.grid, 0.9, 0.0, 0.0)) == constants.N_RAYS
+    assert env.track.grid.shape == (constants.GRID, constants.GRID)
+    env.unwrapped.cars.reset(*env.track.start_position, math.pi / 2, 0.3)  # backward: wrong direction
+    _, reward, terminated, _, info = env.step([0.0, 0.0])
+    assert terminated and reward == constants.CRASH_REWARD
+    assert constants.OUTCOMES[constants.WRONG_DIRECTION] == info["outcome"]
+    speed = env.reset(seed=1, options={"initial_speed": 0.2})[0][-1]
+    env.step([1.0, 0.0])
+    assert env.unwrapped.cars.speed[0] == pytest.approx(speed + constants.MAX_ACC * constants.TSTEP)

@@ -1,6 +1,4 @@
 """league.render: numpy frames, track pictures, race animations (all without a display)."""
-import time
-
 import numpy as np
 import pytest
 from PIL import Image
@@ -30,15 +28,26 @@ def pixel_of(track, x, y):
 # --------------------------------------------------------------------------- numpy frames
 
 
-def test_frame_is_a_cropped_rgb_image_of_the_track(track):
+def test_frame_is_the_whole_world_at_a_fixed_size(track):
     frame = render.render_frame(track, [], [], [], [])
-    assert frame.dtype == np.uint8 and frame.ndim == 3 and frame.shape[2] == 3
-    assert max(frame.shape[:2]) <= 650
+    assert frame.dtype == np.uint8 and frame.shape == render.FRAME_SHAPE == (650, 650, 3)
     road = np.asarray(track.valid).sum() / render.DOWNSAMPLE**2
     assert (frame == render.ROAD).all(axis=2).sum() == pytest.approx(road, rel=0.15)
     assert (frame == render.OBSTACLE).all(axis=2).any()
-    for edge in (frame[0], frame[-1], frame[:, 0], frame[:, -1]):  # the crop keeps a margin of field
+    for edge in (frame[0], frame[-1], frame[:, 0], frame[:, -1]):  # no track reaches the world's edge
         assert (edge == render.OFF_ROAD).all()
+    other = league.generate_track(np.random.default_rng(6))
+    assert render.render_frame(other, [], [], []).shape == frame.shape
+
+
+def test_pictures_crop_the_frame_to_the_track(track):
+    image = render.track_image(track)
+    picture = image.cropped()
+    assert picture.shape[0] < render.FRAME_SIZE and picture.shape[1] < render.FRAME_SIZE
+    for edge in (picture[0], picture[-1], picture[:, 0], picture[:, -1]):  # a margin of field around the road
+        assert (edge == render.OFF_ROAD).all()
+    left, right, bottom, top = image.extent()
+    assert (right - left) * 250 == pytest.approx(picture.shape[1]) and (top - bottom) * 250 == pytest.approx(picture.shape[0])
 
 
 def test_start_is_on_the_road_and_obstacles_where_the_map_says(track):
@@ -66,14 +75,14 @@ def test_cars_and_trails_are_drawn_in_their_colours(track):
     assert magenta > 100  # a line, not just the marker
 
 
-def test_frames_are_fast(track):
-    render.render_frame(track, [0.0], [0.0], [0.0], [])  # the background is drawn once per track
+def test_the_background_is_drawn_once_per_track_and_frames_do_not_change_it(track):
+    background = render.track_image(track).rgb.copy()
     trails = [track.midline(np.linspace(0, 2 * np.pi * k / 10, 600)) for k in range(1, 11)]
     xs, ys = [t[-1, 0] for t in trails], [t[-1, 1] for t in trails]
-    start = time.perf_counter()
-    for _ in range(20):
-        render.render_frame(track, xs, ys, np.zeros(10), trails)
-    assert (time.perf_counter() - start) / 20 < 0.03  # 10 cars with 600-point trails
+    frame = render.render_frame(track, xs, ys, np.zeros(10), trails)  # its speed: benchmarks/bench_simulator.py
+    assert render.track_image(track) is render.track_image(track)
+    np.testing.assert_array_equal(render.track_image(track).rgb, background)
+    assert (frame != background).any(axis=2).sum() > 1000  # 10 trails drawn
 
 
 def test_env_rgb_array_uses_the_frame(track):
@@ -92,6 +101,18 @@ def test_track_png(track, tmp_path):
     path = render.save_track_png(track, tmp_path / "track.png", title="seed 5")
     with Image.open(path) as image:
         assert image.format == "PNG" and image.size == (650, 650)
+
+
+def test_track_picture_has_a_legend_and_a_white_start_unlike_the_dark_obstacles(track):
+    figure = render._agg_figure((6.5, 6.5))
+    render._track_picture(figure, track, "seed 5")
+    assert [text.get_text() for text in figure.legends[0].get_texts()] == ["road", "obstacle", "start, and the way to race"]
+    figure.canvas.draw()
+    rgb = np.asarray(figure.canvas.buffer_rgba())[..., :3]
+    col, up = figure.axes[0].transData.transform(track.start_position)
+    row, col = round(rgb.shape[0] - up), round(col)
+    around_start = rgb[row - 3:row + 4, col - 3:col + 4]
+    assert (around_start == 255).all(axis=2).any(), "the start is not drawn in white (obstacles are near-black)"
 
 
 @pytest.mark.parametrize("acc, turn, speed, text", [

@@ -4,7 +4,9 @@ import sys
 
 import numpy as np
 import pytest
+from scipy.interpolate import CubicSpline
 
+from league import lidar
 from league.track import (
     GRID,
     Track,
@@ -15,6 +17,8 @@ from league.track import (
     generate_track,
     obstacle_half_size,
 )
+
+from . import reference
 
 
 def test_same_seed_same_track_bit_for_bit_in_another_process():
@@ -136,3 +140,44 @@ def test_statistics_match_the_reference_generator():
         assert abs(lengths.mean() - length_ref) < 0.1, lengths.mean()
         assert all(t.fits_grid() for t in tracks)
         assert all(0 <= min(cell_of(*t.start_position)) and max(cell_of(*t.start_position)) < GRID for t in tracks)
+
+
+@pytest.mark.parametrize("options", [{}, {"chicanes": False, "obstacles": False},
+                                     {"curves": 12, "track_width": 0.07, "n_obstacles": 3},
+                                     {"curves": 40, "track_width": 0.02}])
+def test_tracks_are_bit_for_bit_those_of_the_scipy_reference(options):
+    """Compiled splines and rasterisation: the same control points, obstacles and map as scipy's
+    CubicSpline and a plain numpy rasterisation (tracks stored by any version re-derive the same)."""
+    for seed in range(25):
+        expected, inner, outer = reference.track_dict(np.random.default_rng(seed), **options)
+        track = generate_track(np.random.default_rng(seed), **options)
+        assert track.to_dict() == expected
+        obstacles = np.array(expected["obstacles"]).reshape(-1, 2, 2)
+        np.testing.assert_array_equal(track.grid, reference.grid(inner, outer, obstacles, expected["width"]))
+
+
+def test_splines_evaluate_as_scipy_does_everywhere():
+    track = generate_track(np.random.default_rng(9))
+    scipy_midline = CubicSpline(track.control_theta, track.control_points, bc_type="periodic")
+    t = np.concatenate([np.random.default_rng(0).uniform(-20, 20, 2000), track.control_theta, [0.0, 2 * np.pi]])
+    for nu in range(4):
+        np.testing.assert_array_equal(track.midline(t, nu), scipy_midline(t, nu))
+    np.testing.assert_array_equal(track.midline(0.0, 1), scipy_midline(0.0, 1))
+    assert track.midline(t[:2000].reshape(40, 50), 1).shape == (40, 50, 2)
+
+
+def test_a_spline_needs_increasing_angles():
+    track = generate_track(np.random.default_rng(9))
+    with pytest.raises(ValueError, match="strictly increasing"):
+        Track(track.control_theta[::-1].copy(), track.control_points).midline
+
+
+def test_the_compiled_unwrap_is_numpys():
+    rng = np.random.default_rng(0)
+    for k in range(300):
+        angles = rng.uniform(-4 * np.pi, 4 * np.pi, rng.integers(1, 60))
+        if k % 2:
+            angles = np.cumsum(rng.choice([np.pi, -np.pi, 0.5, -0.0], len(angles)))  # ties at exactly pi
+        expected = np.unwrap(angles)
+        np.testing.assert_array_equal(lidar.unwrap(angles), expected)
+        assert (np.signbit(lidar.unwrap(angles)) == np.signbit(expected)).all()

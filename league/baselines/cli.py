@@ -5,25 +5,20 @@
     league train sac --help                               # every hyperparameter of SAC
     league export runs/sac-1 --format onnx --out sac.onnx
 
-`league.cli` calls `add_commands(subparsers)`; `python -m league.baselines.cli` runs the two
-commands on their own. Errors print one line and exit with status 2.
+`league.cli` calls `add_commands(subparsers)` and prints errors as one line (exit status 2).
+Each algorithm's options are the fields of its `Args` dataclass, with the help of their `option`.
 """
 from __future__ import annotations
 
 import argparse
-import ast
 import dataclasses
-import inspect
 import json
-import os
-import sys
-import textwrap
+import typing
 from pathlib import Path
-from typing import Any, Sequence
 
 from league.baselines import ALGORITHMS, canonical_name, load_algorithm
+from league.baselines.common.args import TrainError, check_args
 
-EXIT_ERROR = 2
 RUN_OPTIONS = ("out", "resume", "no_progress")  # options of the command, not of the algorithm
 
 
@@ -57,7 +52,7 @@ def add_commands(subparsers) -> None:
 
 
 def algorithm_parser(name: str, args_class: type) -> argparse.ArgumentParser:
-    """Options from the fields of the algorithm's `Args` dataclass; help from their docstrings.
+    """An option per field of the algorithm's `Args` dataclass, its help from the field's `option`.
 
     Defaults are SUPPRESSed so that only the options given on the command line override a
     resumed run's saved arguments.
@@ -67,37 +62,19 @@ def algorithm_parser(name: str, args_class: type) -> argparse.ArgumentParser:
     parser.add_argument("--out", metavar="FOLDER", help=f"the run folder (default runs/{name}-seedS)")
     parser.add_argument("--resume", action="store_true", help="continue the run in --out from its last checkpoint")
     parser.add_argument("--no-progress", action="store_true", help="hide the progress bar")
-    docs = field_docs(args_class)
-    defaults = args_class()
+    types = typing.get_type_hints(args_class)  # the annotations are strings (`from __future__ import annotations`)
     for field in dataclasses.fields(args_class):
         flag = "--" + field.name.replace("_", "-")
-        default = getattr(defaults, field.name)
-        text = f"{docs.get(field.name, '')} (default {default})"
-        if field.type in ("bool", bool):
+        text = f"{field.metadata['help']} (default {field.default})"
+        if types[field.name] is bool:
             parser.add_argument(flag, action=argparse.BooleanOptionalAction, help=text)
         else:
-            kind = {"int": int, "float": float, "str": str}.get(field.type, type(default))
-            parser.add_argument(flag, type=kind, metavar=field.name.upper(), help=text)
+            parser.add_argument(flag, type=types[field.name], metavar=field.name.upper(), help=text)
     return parser
 
 
-def field_docs(cls: type) -> dict[str, str]:
-    """The docstring under each field of a dataclass and of its bases (CleanRL's convention)."""
-    docs: dict[str, str] = {}
-    for klass in reversed(cls.__mro__):
-        if klass is object or not dataclasses.is_dataclass(klass):
-            continue
-        tree = ast.parse(textwrap.dedent(inspect.getsource(klass)))
-        body = tree.body[0].body
-        for node, after in zip(body, body[1:]):
-            if (isinstance(node, ast.AnnAssign) and isinstance(node.target, ast.Name) and isinstance(after, ast.Expr)
-                    and isinstance(after.value, ast.Constant) and isinstance(after.value.value, str)):
-                docs[node.target.id] = " ".join(after.value.value.split())
-    return docs
-
-
 def run_train(args: argparse.Namespace) -> int:
-    from league.baselines.common import Run, TrainError
+    from league.baselines.common.run import Run  # torch: only when a command runs
 
     name = canonical_name(args.algorithm)
     module = load_algorithm(name)
@@ -122,8 +99,6 @@ def run_train(args: argparse.Namespace) -> int:
 
 def saved_args(folder: Path, name: str) -> dict:
     """The arguments of the run to resume (checked further by `Run`)."""
-    from league.baselines.common import TrainError
-
     config = folder / "config.json"
     if not (folder / "checkpoint.pt").is_file() or not config.is_file():
         raise TrainError(f"no run to resume in {folder}: it has no checkpoint.pt and config.json "
@@ -132,21 +107,6 @@ def saved_args(folder: Path, name: str) -> dict:
     if saved.get("algorithm") != name:
         raise TrainError(f"{folder} holds a {saved.get('algorithm')} run, not {name}")
     return dict(saved["args"])
-
-
-def check_args(args: Any) -> None:
-    from league.baselines.common import TrainError
-
-    if args.observation not in ("compact", "lidar"):
-        raise TrainError(f"--observation must be 'compact' or 'lidar', got {args.observation!r}")
-    for name in ("steps", "envs"):
-        if getattr(args, name) < 1:
-            raise TrainError(f"--{name} must be at least 1, got {getattr(args, name)}")
-    if not 0 <= args.neutral_prob <= 1:
-        raise TrainError(f"--neutral-prob must be in [0, 1], got {args.neutral_prob}")
-    if args.normalize_obs and getattr(args, "learning_starts", 2) < 2:
-        raise TrainError("--normalize-obs fits its statistics on the warm-up data: give --learning-starts 2 or more, "
-                         "or --no-normalize-obs")
 
 
 def summary_text(folder: Path, summary: dict) -> str:
@@ -164,47 +124,8 @@ def summary_text(folder: Path, summary: dict) -> str:
 
 
 def run_export(args: argparse.Namespace) -> int:
+    from league.baselines.common.export import export_run
+
     path = export_run(args.run_folder, args.format, args.out, args.which)
     print(f"{args.which} actor of {args.run_folder} exported to {path}")
     return 0
-
-
-def export_run(folder: str | os.PathLike, fmt: str, out: str | os.PathLike, which: str = "best") -> Path:
-    """Load a run's actor weights into a fresh deterministic actor and export it (checked)."""
-    from league.baselines.common import TrainError, export_policy, load_state
-
-    folder = Path(folder)
-    config_path, weights = folder / "config.json", folder / f"policy_{which}.pt"
-    if not config_path.is_file():
-        raise TrainError(f"{folder} is not a training run (no config.json); train one with 'league train ALGO'")
-    if not weights.is_file():
-        raise TrainError(f"{folder} has no {weights.name} yet: the run has not finished (resume it with --resume)")
-    config = json.loads(config_path.read_text())
-    module = load_algorithm(config["algorithm"])
-    policy = module.make_policy(module.Args(**config["args"]))
-    policy.load_state_dict(load_state(weights))
-    return export_policy(policy, out, fmt, config["obs_dim"])
-
-
-# --------------------------------------------------------------------------- standalone
-
-
-def main(argv: Sequence[str] | None = None) -> int:
-    """`python -m league.baselines.cli train|export ...`, with the `league` command's error style."""
-    parser = argparse.ArgumentParser(prog="league", description="Train and export MicroRacer baselines.")
-    add_commands(parser.add_subparsers(dest="command", metavar="COMMAND", required=True))
-    args = parser.parse_args(argv)
-    try:
-        return args.run(args)
-    except KeyboardInterrupt:
-        print("league: interrupted", file=sys.stderr)
-        return 130
-    except (ValueError, OSError) as error:
-        if os.environ.get("LEAGUE_DEBUG"):
-            raise
-        print(f"league: error: {' '.join(str(error).split())}", file=sys.stderr)
-        return EXIT_ERROR
-
-
-if __name__ == "__main__":
-    sys.exit(main())

@@ -17,19 +17,17 @@ import torch
 from torch import nn
 
 from league.baselines import td3
-from league.baselines.common import ObservationNormalizer, Run, mlp, obs_dim_of
+from league.baselines.common.args import obs_dim_of, option
+from league.baselines.common.networks import ObservationNormalizer, mlp
+from league.baselines.common.run import Run
 
 
 @dataclass
 class Args(td3.Args):
-    policy_frequency: int = 1
-    """update the actor every this many critic updates (DDPG: every one)"""
-    policy_noise: float = 0.0
-    """no target policy smoothing in DDPG"""
-    n_critics: int = 1
-    """one critic, no clipped double-Q"""
-    hidden: int = 32
-    """units of the hidden layers of each actor tower (section 4.1)"""
+    policy_frequency: int = option(1, "update the actor every this many critic updates (DDPG: every one)")
+    policy_noise: float = option(0.0, "no target policy smoothing in DDPG")
+    n_critics: int = option(1, "one critic, no clipped double-Q")
+    hidden: int = option(32, "units of the hidden layers of each actor tower (section 4.1)")
 
 
 class Actor(nn.Module):

@@ -20,23 +20,20 @@ import numpy as np
 import torch
 
 from league.baselines import ddpg, td3
-from league.baselines.common import Run, fit_normalizers, obs_dim_of
+from league.baselines.common.args import obs_dim_of, option
+from league.baselines.common.networks import fit_normalizers
+from league.baselines.common.run import Run
 
 
 @dataclass
 class Args(ddpg.Args):
-    hidden: int = 64
-    """units of the actor's two hidden layers (section 4.1: as TD3's actor)"""
-    exploration_noise: float = 0.0
-    """no action noise: the perturbed weights explore"""
-    param_noise_std: float = 0.2
-    """initial standard deviation σ of the noise on the actor's weights (table 4.1)"""
-    desired_action_std: float = 0.2
-    """target distance δ between perturbed and unperturbed actions (adaptive σ)"""
-    adaptation_coefficient: float = 1.01
-    """σ ← σ·α when the distance is below δ, σ/α above (Plappert et al., section 3)"""
-    adapt_every: int = 50
-    """adapt σ every this many actor updates"""
+    hidden: int = option(64, "units of the actor's two hidden layers (section 4.1: as TD3's actor)")
+    exploration_noise: float = option(0.0, "no action noise: the perturbed weights explore")
+    param_noise_std: float = option(0.2, "initial standard deviation σ of the noise on the actor's weights (table 4.1)")
+    desired_action_std: float = option(0.2, "target distance δ between perturbed and unperturbed actions (adaptive σ)")
+    adaptation_coefficient: float = option(1.01, "σ ← σ·α when the distance is below δ, σ/α above (Plappert et al., "
+                                                 "section 3)")
+    adapt_every: int = option(50, "adapt σ every this many actor updates")
 
 
 class ParamNoiseDDPG(td3.TD3):

@@ -21,41 +21,34 @@ import torch
 import torch.nn.functional as F
 from torch import nn
 
-from league.baselines.common import (CommonArgs, ObservationNormalizer, ReplayBuffer, Run, adam, fit_normalizers,
-                                     make_cars, mlp, obs_dim_of, polyak_update, seed_everything)
+from league.baselines.common.args import CommonArgs, obs_dim_of, option
+from league.baselines.common.buffers import ReplayBuffer
+from league.baselines.common.cars import make_cars
+from league.baselines.common.networks import ObservationNormalizer, adam, fit_normalizers, mlp, polyak_update
+from league.baselines.common.run import Run
+from league.baselines.common.seeding import seed_everything
 from league.baselines.sac import ACT_DIM, Actor, DeterministicActor
 
 
 @dataclass
 class Args(CommonArgs):
-    gamma: float = 0.99
-    """discount factor (table 4.1)"""
-    tau: float = 0.005
-    """target network update rate (table 4.1)"""
-    buffer_size: int = 50_000
-    """replay buffer size (table 4.1)"""
-    batch_size: int = 64
-    """mini-batch size (table 4.1)"""
-    policy_lr: float = 1e-3
-    """actor learning rate (table 4.1)"""
-    q_lr: float = 1e-3
-    """critic and temperature learning rate (table 4.1)"""
-    learning_starts: int = 1_000
-    """steps of uniformly random actions before learning starts"""
-    policy_frequency: int = 2
-    """update the actor, the temperature and the targets every this many critic updates (table 4.1: 2)"""
-    min_sigma: float = 1.0
-    """lower bound σ_min of the critic's standard deviation (table 4.1)"""
-    td_bound: float = 10.0
-    """the sampled target is clipped to Q(s, a) ± td_bound (table 4.1: critic difference boundary)"""
-    alpha: float = 0.2
-    """entropy coefficient: the initial value when autotuned, else fixed"""
-    autotune: bool = True
-    """tune the entropy coefficient toward the target entropy -|A| (table 4.1)"""
-    hidden: int = 64
-    """units of the two hidden layers of the actor and the critic (section 4.1)"""
-    observation: str = "lidar"
-    """what the agent sees: 'compact' (5 numbers, as the thesis) or 'lidar' (19 rays + speed)"""
+    gamma: float = option(0.99, "discount factor (table 4.1)")
+    tau: float = option(0.005, "target network update rate (table 4.1)")
+    buffer_size: int = option(50_000, "replay buffer size (table 4.1)")
+    batch_size: int = option(64, "mini-batch size (table 4.1)")
+    policy_lr: float = option(1e-3, "actor learning rate (table 4.1)")
+    q_lr: float = option(1e-3, "critic and temperature learning rate (table 4.1)")
+    learning_starts: int = option(1_000, "steps of uniformly random actions before learning starts")
+    policy_frequency: int = option(2, "update the actor, the temperature and the targets every this many critic "
+                                      "updates (table 4.1: 2)")
+    min_sigma: float = option(1.0, "lower bound σ_min of the critic's standard deviation (table 4.1)")
+    td_bound: float = option(10.0, "the sampled target is clipped to Q(s, a) ± td_bound (table 4.1: critic difference "
+                                   "boundary)")
+    alpha: float = option(0.2, "entropy coefficient: the initial value when autotuned, else fixed")
+    autotune: bool = option(True, "tune the entropy coefficient toward the target entropy -|A| (table 4.1)")
+    hidden: int = option(64, "units of the two hidden layers of the actor and the critic (section 4.1)")
+    observation: str = option("lidar", "what the agent sees: 'compact' (5 numbers, as the thesis) or 'lidar' (19 rays "
+                                       "+ speed)")
 
 
 # --------------------------------------------------------------------------- networks (section 4.1)

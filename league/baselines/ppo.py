@@ -21,55 +21,40 @@ import torch
 from torch import nn
 from torch.distributions.normal import Normal
 
-from league.baselines.common import CommonArgs, ObservationNormalizer, Run, adam, make_cars, obs_dim_of, seed_everything
+from league.baselines.common.args import CommonArgs, obs_dim_of, option
+from league.baselines.common.cars import make_cars
+from league.baselines.common.networks import ObservationNormalizer, adam
+from league.baselines.common.run import Run
+from league.baselines.common.seeding import seed_everything
 
 ACT_DIM = 2  # [acceleration, turn]
 
 
 @dataclass
 class Args(CommonArgs):
-    steps: int = 1_000_000
-    """environment transitions (about the wall time of 50 000 off-policy iterations)"""
-    envs: int = 8
-    """cars collecting at once, each on its own tracks"""
-    num_steps: int = 256
-    """steps per car in each rollout (rollout = envs × num_steps transitions)"""
-    learning_rate: float = 3e-4
-    """actor and critic learning rate (table 4.1)"""
-    gamma: float = 0.99
-    """discount factor (table 4.1)"""
-    gae_lambda: float = 0.95
-    """λ of generalized advantage estimation (table 4.1)"""
-    minibatch_size: int = 64
-    """mini-batch size (table 4.1)"""
-    update_epochs: int = 10
-    """epochs over each rollout (table 4.1)"""
-    clip_coef: float = 0.25
-    """policy clip ε (table 4.1)"""
-    ent_coef: float = 0.01
-    """entropy bonus coefficient (table 4.1)"""
-    vf_coef: float = 0.5
-    """value loss coefficient"""
-    max_grad_norm: float = 0.5
-    """gradient clipping norm"""
-    target_kl: float = 0.01
-    """stop the epochs of a rollout once the approximate KL exceeds this (table 4.1)"""
-    norm_adv: bool = True
-    """normalise the advantages in each mini-batch"""
-    normalize_obs: bool = True
-    """standardise observations with statistics of the first rollout (frozen, exported with the actor)"""
-    anneal_lr: bool = False
-    """decay the learning rate linearly to 0"""
-    hidden: int = 64
-    """units of the two tanh hidden layers of the actor and the critic (section 4.1)"""
-    observation: str = "lidar"
-    """what the agent sees: 'compact' (5 numbers, as the thesis) or 'lidar' (19 rays + speed)"""
-    eval_every: int = 100_000
-    """evaluate the deterministic actor every this many steps (0: never)"""
-    checkpoint_every: int = 100_000
-    """save a resumable checkpoint every this many steps (0: only at the end)"""
-    log_every: int = 1
-    """write losses every this many rollouts"""
+    steps: int = option(1_000_000, "environment transitions (about the wall time of 50 000 off-policy iterations)")
+    envs: int = option(8, "cars collecting at once, each on its own tracks")
+    num_steps: int = option(256, "steps per car in each rollout (rollout = envs × num_steps transitions)")
+    learning_rate: float = option(3e-4, "actor and critic learning rate (table 4.1)")
+    gamma: float = option(0.99, "discount factor (table 4.1)")
+    gae_lambda: float = option(0.95, "λ of generalized advantage estimation (table 4.1)")
+    minibatch_size: int = option(64, "mini-batch size (table 4.1)")
+    update_epochs: int = option(10, "epochs over each rollout (table 4.1)")
+    clip_coef: float = option(0.25, "policy clip ε (table 4.1)")
+    ent_coef: float = option(0.01, "entropy bonus coefficient (table 4.1)")
+    vf_coef: float = option(0.5, "value loss coefficient")
+    max_grad_norm: float = option(0.5, "gradient clipping norm")
+    target_kl: float = option(0.01, "stop the epochs of a rollout once the approximate KL exceeds this (table 4.1)")
+    norm_adv: bool = option(True, "normalise the advantages in each mini-batch")
+    normalize_obs: bool = option(True, "standardise observations with statistics of the first rollout (frozen, "
+                                       "exported with the actor)")
+    anneal_lr: bool = option(False, "decay the learning rate linearly to 0")
+    hidden: int = option(64, "units of the two tanh hidden layers of the actor and the critic (section 4.1)")
+    observation: str = option("lidar", "what the agent sees: 'compact' (5 numbers, as the thesis) or 'lidar' (19 rays "
+                                       "+ speed)")
+    eval_every: int = option(100_000, "evaluate the deterministic actor every this many steps (0: never)")
+    checkpoint_every: int = option(100_000, "save a resumable checkpoint every this many steps (0: only at the end)")
+    log_every: int = option(1, "write losses every this many rollouts")
 
 
 # --------------------------------------------------------------------------- networks (section 4.1)

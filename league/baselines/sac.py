@@ -19,8 +19,12 @@ import torch
 import torch.nn.functional as F
 from torch import nn
 
-from league.baselines.common import (CommonArgs, ObservationNormalizer, ReplayBuffer, Run, adam, fit_normalizers,
-                                     make_cars, mlp, obs_dim_of, polyak_update, seed_everything)
+from league.baselines.common.args import CommonArgs, obs_dim_of, option
+from league.baselines.common.buffers import ReplayBuffer
+from league.baselines.common.cars import make_cars
+from league.baselines.common.networks import ObservationNormalizer, adam, fit_normalizers, mlp, polyak_update
+from league.baselines.common.run import Run
+from league.baselines.common.seeding import seed_everything
 
 ACT_DIM = 2  # [acceleration, turn]
 LOG_STD_MAX = 2  # bounds of the actor's log standard deviation (CleanRL, SpinningUp)
@@ -29,30 +33,20 @@ LOG_STD_MIN = -5
 
 @dataclass
 class Args(CommonArgs):
-    gamma: float = 0.99
-    """discount factor (table 4.1)"""
-    tau: float = 0.005
-    """target network update rate (table 4.1)"""
-    buffer_size: int = 50_000
-    """replay buffer size (table 4.1)"""
-    batch_size: int = 64
-    """mini-batch size (table 4.1)"""
-    policy_lr: float = 1e-3
-    """actor learning rate (table 4.1)"""
-    q_lr: float = 1e-3
-    """critic and temperature learning rate (table 4.1)"""
-    learning_starts: int = 1_000
-    """steps of uniformly random actions before learning starts"""
-    policy_frequency: int = 1
-    """update the actor and the temperature every this many critic updates (the thesis: every one)"""
-    alpha: float = 0.2
-    """entropy coefficient: the initial value when autotuned, else fixed"""
-    autotune: bool = True
-    """tune the entropy coefficient toward the target entropy -|A| (table 4.1)"""
-    hidden: int = 64
-    """units of the two hidden layers of the actor and the critics (section 4.1)"""
-    observation: str = "lidar"
-    """what the agent sees: 'compact' (5 numbers, as the thesis) or 'lidar' (19 rays + speed)"""
+    gamma: float = option(0.99, "discount factor (table 4.1)")
+    tau: float = option(0.005, "target network update rate (table 4.1)")
+    buffer_size: int = option(50_000, "replay buffer size (table 4.1)")
+    batch_size: int = option(64, "mini-batch size (table 4.1)")
+    policy_lr: float = option(1e-3, "actor learning rate (table 4.1)")
+    q_lr: float = option(1e-3, "critic and temperature learning rate (table 4.1)")
+    learning_starts: int = option(1_000, "steps of uniformly random actions before learning starts")
+    policy_frequency: int = option(1, "update the actor and the temperature every this many critic updates (the "
+                                      "thesis: every one)")
+    alpha: float = option(0.2, "entropy coefficient: the initial value when autotuned, else fixed")
+    autotune: bool = option(True, "tune the entropy coefficient toward the target entropy -|A| (table 4.1)")
+    hidden: int = option(64, "units of the two hidden layers of the actor and the critics (section 4.1)")
+    observation: str = option("lidar", "what the agent sees: 'compact' (5 numbers, as the thesis) or 'lidar' (19 rays "
+                                       "+ speed)")
 
 
 # --------------------------------------------------------------------------- networks (section 4.1)

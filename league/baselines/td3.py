@@ -19,40 +19,32 @@ import torch
 import torch.nn.functional as F
 from torch import nn
 
-from league.baselines.common import (CommonArgs, ObservationNormalizer, ReplayBuffer, Run, adam, fit_normalizers,
-                                     make_cars, mlp, obs_dim_of, polyak_update, seed_everything)
+from league.baselines.common.args import CommonArgs, obs_dim_of, option
+from league.baselines.common.buffers import ReplayBuffer
+from league.baselines.common.cars import make_cars
+from league.baselines.common.networks import ObservationNormalizer, adam, fit_normalizers, mlp, polyak_update
+from league.baselines.common.run import Run
+from league.baselines.common.seeding import seed_everything
 
 ACT_DIM = 2  # [acceleration, turn]
 
 
 @dataclass
 class Args(CommonArgs):
-    gamma: float = 0.99
-    """discount factor (table 4.1)"""
-    tau: float = 0.005
-    """target network update rate (table 4.1)"""
-    buffer_size: int = 50_000
-    """replay buffer size (table 4.1)"""
-    batch_size: int = 64
-    """mini-batch size (table 4.1)"""
-    learning_rate: float = 1e-3
-    """actor and critic learning rate (table 4.1)"""
-    learning_starts: int = 1_000
-    """steps of uniformly random actions before learning starts"""
-    exploration_noise: float = 0.1
-    """standard deviation of the Gaussian action noise N(0, σ) (table 4.1)"""
-    policy_frequency: int = 2
-    """update the actor and the targets every this many critic updates (table 4.1: 2)"""
-    policy_noise: float = 0.2
-    """standard deviation of the target policy smoothing noise (Fujimoto et al.)"""
-    noise_clip: float = 0.5
-    """the target policy smoothing noise is clipped to ±noise_clip (table 4.1)"""
-    n_critics: int = 2
-    """clipped double-Q: the target takes the minimum of this many critics"""
-    hidden: int = 64
-    """units of the two hidden layers of the actor and the critics (section 4.1)"""
-    observation: str = "lidar"
-    """what the agent sees: 'compact' (5 numbers, as the thesis) or 'lidar' (19 rays + speed)"""
+    gamma: float = option(0.99, "discount factor (table 4.1)")
+    tau: float = option(0.005, "target network update rate (table 4.1)")
+    buffer_size: int = option(50_000, "replay buffer size (table 4.1)")
+    batch_size: int = option(64, "mini-batch size (table 4.1)")
+    learning_rate: float = option(1e-3, "actor and critic learning rate (table 4.1)")
+    learning_starts: int = option(1_000, "steps of uniformly random actions before learning starts")
+    exploration_noise: float = option(0.1, "standard deviation of the Gaussian action noise N(0, σ) (table 4.1)")
+    policy_frequency: int = option(2, "update the actor and the targets every this many critic updates (table 4.1: 2)")
+    policy_noise: float = option(0.2, "standard deviation of the target policy smoothing noise (Fujimoto et al.)")
+    noise_clip: float = option(0.5, "the target policy smoothing noise is clipped to ±noise_clip (table 4.1)")
+    n_critics: int = option(2, "clipped double-Q: the target takes the minimum of this many critics")
+    hidden: int = option(64, "units of the two hidden layers of the actor and the critics (section 4.1)")
+    observation: str = option("lidar", "what the agent sees: 'compact' (5 numbers, as the thesis) or 'lidar' (19 rays "
+                                       "+ speed)")
 
 
 # --------------------------------------------------------------------------- networks (section 4.1)

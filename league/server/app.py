@@ -4,22 +4,27 @@ from __future__ import annotations
 from contextlib import asynccontextmanager
 from dataclasses import dataclass
 
-from league.server.api.routes.pages import mount_web
 from fastapi import FastAPI, Request
 from fastapi.concurrency import run_in_threadpool
 from fastapi.responses import JSONResponse
+from fastapi_offline import FastAPIOffline
 from sqlalchemy import Engine
 from sqlalchemy.orm import Session, sessionmaker
 from starlette.exceptions import HTTPException as StarletteHTTPException
 
 import league
 from league.server.api.cache import ResponseCache
-from league.server.api.main import api_router, upload_router
+from league.server.api.limits import KB, BodyLimits, Limit
+from league.server.api.main import api_router
+from league.server.api.routes.pages import MAX_TRACK_BYTES, mount_web
+from league.server.api.routes.users import MAX_ROSTER_BYTES
 from league.server.bootstrap import bootstrap
-from league.server.config import MB, Settings
+from league.server.config import Settings
 from league.server.db.session import make_engine, make_sessionmaker, migrate
+from league.server.jobs.queue import JobQueue, build_queue
+from league.server.jobs.worker import sweep_store
+from league.server.sandbox.process import sandbox_isolation
 from league.server.storage import BlobStore
-from league.server.taskqueue import JobQueue, build_queue
 
 MULTIPART_SLACK = 64 * 1024  # bytes of multipart framing and form fields allowed on top of the file
 
@@ -45,6 +50,8 @@ def prepare_league(league_: League) -> None:
     migrate(league_.engine)
     league_.store.ensure()
     bootstrap(league_.settings, league_.sessions, league_.queue, league_.store)
+    sweep_store(league_.sessions, league_.store)
+    sandbox_isolation(league_.settings.sandbox_uid_base)  # logged, and shown by /api/health
 
 
 @asynccontextmanager
@@ -57,21 +64,30 @@ async def lifespan(app: FastAPI):
 def create_app(settings: Settings | None = None, league_: League | None = None) -> FastAPI:
     settings = settings or Settings()
     league_ = league_ or open_league(settings)
-    app = FastAPI(title="MicroRacer League", version=league.__version__, lifespan=lifespan,
-                  description="Upload TorchScript or ONNX agents; they are validated in a sandbox and "
-                              "evaluated on the course's tracks.")
+    app = FastAPIOffline(title="MicroRacer League", version=league.__version__, lifespan=lifespan,  # /docs: no CDN
+                         description="Upload TorchScript or ONNX agents; they are validated in a sandbox and "
+                                     "evaluated on the course's tracks.")
     app.state.league, app.state.settings, app.state.sessions = league_, settings, league_.sessions
     app.state.queue, app.state.store = league_.queue, league_.store
     app.state.cache = ResponseCache(settings.public_cache_s)
     app.include_router(api_router, prefix="/api")
-    app.include_router(upload_router, prefix="/api", max_body_size=settings.max_upload_bytes + MULTIPART_SLACK)
     app.add_exception_handler(StarletteHTTPException, _http_error)
     mount_web(app)
+    app.add_middleware(BodyLimits, default=Limit.of(64 * KB), limits=body_limits(settings),
+                       read_timeout_s=settings.request_body_timeout_s)
     return app
 
 
+def body_limits(settings: Settings) -> dict[tuple[str, str], Limit]:
+    """The routes that take more than a small JSON body (multipart framing counted on top of files)."""
+    return {
+        ("POST", "/api/submissions"): Limit.of(settings.max_upload_bytes + MULTIPART_SLACK, "file",
+                                               shown=settings.max_upload_bytes),
+        ("POST", "/api/users/roster"): Limit.of(MAX_ROSTER_BYTES + MULTIPART_SLACK, "roster", shown=MAX_ROSTER_BYTES),
+        ("POST", "/api/tracks/geometry"): Limit.of(MAX_TRACK_BYTES, "track"),
+    }
+
+
 async def _http_error(request: Request, error: StarletteHTTPException) -> JSONResponse:
-    detail = error.detail
-    if error.status_code == 413 and detail == "Content Too Large":  # the framework's body limit, said plainly
-        detail = f"file too large: the limit is {request.app.state.settings.max_upload_bytes / MB:g} MB"
-    return JSONResponse({"detail": detail}, status_code=error.status_code, headers=getattr(error, "headers", None))
+    return JSONResponse({"detail": error.detail}, status_code=error.status_code,
+                        headers=getattr(error, "headers", None))

@@ -1,7 +1,7 @@
 """A populated league from the first start: the default course, and the bundled baseline agents
 (DATA_DIR/baselines/*.onnx|*.pt) registered under the `baselines` account and evaluated.
 
-Until the baselines issue ships trained agents, the heuristic driver is exported to ONNX there
+Without bundled agents there, the heuristic driver is exported to ONNX
 (league.agents.export_heuristic_onnx), so a new user sees a working leaderboard at once.
 """
 from __future__ import annotations
@@ -17,7 +17,7 @@ from league.server.config import Settings
 from league.server.db import crud
 from league.server.db.models import BASELINE, Course
 from league.server.storage import BlobStore, model_kind_of
-from league.server.taskqueue import JobQueue
+from league.server.jobs.queue import JobQueue
 
 log = logging.getLogger("league.server.bootstrap")
 

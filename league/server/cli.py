@@ -58,8 +58,9 @@ def run_serve(args: argparse.Namespace) -> int:
     import uvicorn
 
     from league.server.app import create_app, open_league, prepare_league
-    from league.server.jobs import WorkerContext
-    from league.server.worker import Worker
+    from league.server.jobs.handlers import HANDLERS
+    from league.server.jobs.runner import WorkerContext
+    from league.server.jobs.worker import Worker
 
     _logging()
     settings = Settings()
@@ -67,7 +68,7 @@ def run_serve(args: argparse.Namespace) -> int:
     prepare_league(league_)
     worker = None
     if not args.no_worker:
-        context = WorkerContext(settings, league_.sessions, league_.queue, league_.store)
+        context = WorkerContext(settings, league_.sessions, league_.queue, league_.store, HANDLERS)
         worker = Worker(context, threads=args.threads or settings.worker_threads, embedded=True)
         worker.start()
     try:
@@ -79,7 +80,7 @@ def run_serve(args: argparse.Namespace) -> int:
 
 
 def run_worker(args: argparse.Namespace) -> int:
-    from league.server.worker import Worker, pin_to_cpus, worker_context
+    from league.server.jobs.worker import Worker, pin_to_cpus, worker_context
 
     _logging()
     settings = Settings()

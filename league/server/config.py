@@ -33,7 +33,11 @@ class Settings(BaseSettings):
 
     # uploads and quotas
     max_upload_mb: float = Field(10.0, description="largest model file accepted")
+    request_body_timeout_s: float = Field(30.0, gt=0, description="a request body that stops arriving this long is "
+                                                                  "refused (408): slow clients cannot hold the API")
     quota_per_day: int = Field(10, description="submissions per student per rolling 24 h (rejected ones are free)")
+    max_jobs_in_flight: int = Field(3, ge=1, description="a student's uploads and races waiting or running at once; "
+                                                         "more are refused until one is done")
 
     # races and championships
     max_race_cars: int = Field(10, description="cars in one race or championship heat")
@@ -42,12 +46,20 @@ class Settings(BaseSettings):
 
     # sandbox limits
     sandbox_memory_mb: int = Field(512, description="address space a model may use on top of its runtime")
+    race_memory_mb: int = Field(2048, ge=64, description="what the cars of one race may use together, on top of "
+                                                          "their runtimes (each gets its share, at most "
+                                                          "sandbox_memory_mb)")
     sandbox_cpu_seconds: int = Field(600, description="CPU time of one sandbox process")
     step_deadline_ms: float = Field(20.0, description="wall-clock time of one agent call")
     first_call_allowance_ms: float = Field(1000.0, description="banked extra time for warm-up calls")
     episode_deadline_s: float = Field(60.0, description="model time within one episode")
     load_timeout_s: float = Field(30.0, description="starting the sandbox and loading the model")
-    sandbox_user: str | None = Field("nobody", description="user the sandbox runs as when the worker is root")
+    sandbox_uid_base: int = Field(0x5000_0000, ge=0, lt=2**31 - 2**22,
+                                  description="a root worker runs each sandbox as user id sandbox_uid_base + its pid "
+                                              "(no account needed); 0: as root without capabilities")
+    sandbox_require_isolation: bool = Field(True, description="run no uploaded model unless sandboxes get Landlock "
+                                                              "and seccomp (the start-up log and /api/health say "
+                                                              "what they get)")
     sandbox_max_restarts: int = Field(3, description="sandbox crashes tolerated in one evaluation")
     log_limit_kb: int = Field(16, description="sandbox output kept per run")
 
@@ -63,7 +75,7 @@ class Settings(BaseSettings):
                                              "than one CPU)")
     cpu_placement: bool = Field(True, description="place job threads and their sandboxes on CPUs: an "
                                                    "evaluation on one CPU, the job threads of a machine on "
-                                                   "CPUs of their own (see league/server/placement.py)")
+                                                   "CPUs of their own (see league/server/jobs/placement.py)")
     cpu_slots_dir: str = Field(str(Path(tempfile.gettempdir()) / "league-cpu-slots"),
                                description="directory the workers of one machine share to split its CPUs; "
                                            "empty: each worker splits only its own CPUs between its threads")

@@ -2,13 +2,11 @@
 from __future__ import annotations
 
 from datetime import datetime
-from typing import Any, Literal
+from typing import Annotated, Any, Literal
 
 from pydantic import BaseModel, ConfigDict, Field
 
-
-class Message(BaseModel):
-    detail: str
+DbId = Annotated[int, Field(ge=1, le=2**63 - 1)]  # a row's id: a 64-bit integer
 
 
 class UserOut(BaseModel):
@@ -102,7 +100,7 @@ class EvaluationSettings(BaseModel):
 
 
 class RerunRequest(BaseModel):
-    submission_id: int | None = Field(None, description="re-run this submission's evaluation")
+    submission_id: DbId | None = Field(None, description="re-run this submission's evaluation")
     all: bool = Field(False, description="re-run every ready submission of the course (baselines included)")
 
 
@@ -128,11 +126,22 @@ class JobOut(BaseModel):
     finished_at: datetime | None
 
 
+class SandboxIsolation(BaseModel):
+    full: bool = Field(description="Landlock and seccomp: uploaded models run only then, unless not required")
+    required: bool
+    network: str = Field(description="namespace, user-namespace or unavailable (seccomp refuses sockets anyway)")
+    user: str = Field(description="own user id, root without capabilities, or the server's user")
+    landlock: int = Field(description="the kernel's Landlock ABI version (0: none)")
+    seccomp: bool
+    problem: str | None = Field(description="why a probe sandbox failed, if one did")
+
+
 class Health(BaseModel):
     status: str
     database: str
     queue: str
     queued_jobs: int
+    sandbox: SandboxIsolation = Field(description="how this machine's sandboxes are isolated")
 
 
 class SubmissionUpdate(BaseModel):
@@ -148,7 +157,7 @@ class Page(BaseModel):
 
 
 class RaceCreate(BaseModel):
-    submission_ids: list[int] = Field(min_length=2, description="one car each, in this order (car_0 first)")
+    submission_ids: list[DbId] = Field(min_length=2, max_length=100, description="one car each, in this order (car_0 first)")
     seed: int | None = Field(None, ge=0, lt=2**63, description="the track and start; default: drawn and stored")
     env_options: dict[str, Any] = Field(default_factory=dict, description="options of league.MicroRacerEnv")
 

@@ -8,10 +8,12 @@ from __future__ import annotations
 import hashlib
 import os
 import tempfile
+import time
 from pathlib import Path
 from typing import BinaryIO
 
 CHUNK = 1024 * 1024
+SWEEP_GRACE_S = 600.0  # a file younger than this may be an upload whose row is not committed yet
 MODEL_KINDS = {".onnx": "onnx", ".pt": "torchscript", ".pth": "torchscript", ".ts": "torchscript",
                ".jit": "torchscript", ".torchscript": "torchscript"}
 
@@ -38,9 +40,10 @@ class BlobStore:
         self.tmp = self.root / "tmp"
 
     def ensure(self) -> None:
+        """The store's directories, the server's alone: no other user of the machine reads a model."""
         for directory in (self.root, self.blobs, self.tmp):
             directory.mkdir(parents=True, exist_ok=True)
-        os.chmod(self.blobs, 0o700)  # sandboxes run as another user and must not read the store
+            os.chmod(directory, 0o700)
 
     def path(self, sha256: str) -> Path:
         return self.blobs / sha256[:2] / sha256
@@ -85,6 +88,20 @@ class BlobStore:
         finally:
             Path(tmp_name).unlink(missing_ok=True)
         return self.path(sha256)
+
+    def remove(self, sha256: str) -> None:
+        """Forget a file (its bytes are no longer kept: a refused or rejected upload)."""
+        self.path(sha256).unlink(missing_ok=True)
+
+    def sweep(self, kept: set[str], older_than_s: float = SWEEP_GRACE_S) -> list[str]:
+        """Remove the files whose digest is not in `kept` (the database's record), but for the newest
+        (an upload is stored before its row is committed); return them."""
+        cutoff = time.time() - older_than_s
+        removed = [path.name for path in self.blobs.glob("??/*") if path.name not in kept
+                   and path.stat().st_mtime < cutoff]
+        for sha256 in removed:
+            self.remove(sha256)
+        return removed
 
     def add_file(self, path: Path) -> tuple[str, int]:
         with open(path, "rb") as source:

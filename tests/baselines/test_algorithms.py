@@ -14,7 +14,9 @@ pytest.importorskip("onnxruntime")
 
 from league.agents import load_agent  # noqa: E402
 from league.baselines import ALGORITHMS, load_algorithm  # noqa: E402
-from league.baselines.common import ObservationNormalizer, Run, export_policy, probe_observations  # noqa: E402
+from league.baselines.common.export import export_policy, probe_observations  # noqa: E402
+from league.baselines.common.networks import ObservationNormalizer  # noqa: E402
+from league.baselines.common.run import Run  # noqa: E402
 
 # a few hundred steps, learning from step 100, no long evaluations
 TINY = {"steps": 300, "learning_starts": 100, "eval_every": 0, "final_eval_episodes": 0, "checkpoint_every": 0,
@@ -30,8 +32,8 @@ def tiny_args(algorithm, **overrides):
 
 def cli(*args, timeout=120):
     env = {k: v for k, v in os.environ.items() if k not in ("DISPLAY", "MPLBACKEND", "LEAGUE_DEBUG")}
-    return subprocess.run([sys.executable, "-m", "league.baselines.cli", *map(str, args)], capture_output=True,
-                          text=True, env=env, timeout=timeout)
+    return subprocess.run([sys.executable, "-m", "league.cli", *map(str, args)], capture_output=True, text=True,
+                          env=env, timeout=timeout)
 
 
 @pytest.mark.parametrize("algorithm", list(ALGORITHMS))
@@ -80,10 +82,8 @@ def test_same_seed_same_first_updates(algorithm, tmp_path):
     assert not all(torch.equal(weights_a[k], weights_c[k]) for k in weights_a)
 
 
-@pytest.mark.filterwarnings("ignore:`torch.jit.load` is deprecated:DeprecationWarning")
-@pytest.mark.parametrize("fmt", ["onnx", "torchscript"])
-@pytest.mark.parametrize("algorithm", list(ALGORITHMS))
-def test_exported_actor_acts_as_the_torch_actor(algorithm, fmt, tmp_path):
+def export_random_actor(algorithm, fmt, tmp_path):
+    """The algorithm's deterministic actor with large random weights and fitted observation statistics, exported."""
     module, args = tiny_args(algorithm)
     torch.manual_seed(0)
     policy = module.make_policy(args)
@@ -93,7 +93,26 @@ def test_exported_actor_acts_as_the_torch_actor(algorithm, fmt, tmp_path):
     for module in policy.modules():  # and fitted observation statistics, which are exported too
         if isinstance(module, ObservationNormalizer):
             module.fit(probe_observations(20, batch=64, seed=1))
-    path = export_policy(policy, tmp_path / f"actor{'.onnx' if fmt == 'onnx' else '.pt'}", fmt, obs_dim=20)
+    return policy, export_policy(policy, tmp_path / f"actor{'.onnx' if fmt == 'onnx' else '.pt'}", fmt, obs_dim=20)
+
+
+@pytest.fixture(scope="module")
+def exported_actor(tmp_path_factory):
+    """`export_random_actor`, once per algorithm and format for the tests that read the file."""
+    cache = {}
+
+    def get(algorithm, fmt):
+        if (algorithm, fmt) not in cache:
+            cache[algorithm, fmt] = export_random_actor(algorithm, fmt, tmp_path_factory.mktemp(f"{algorithm}-{fmt}"))
+        return cache[algorithm, fmt]
+    return get
+
+
+@pytest.mark.filterwarnings("ignore:`torch.jit.load` is deprecated:DeprecationWarning")
+@pytest.mark.parametrize("fmt", ["onnx", "torchscript"])
+@pytest.mark.parametrize("algorithm", list(ALGORITHMS))
+def test_exported_actor_acts_as_the_torch_actor(algorithm, fmt, exported_actor):
+    policy, path = exported_actor(algorithm, fmt)
     agent = load_agent(path)
     assert agent.kind == fmt and agent.obs_dim == 20
     obs = probe_observations(20, batch=200)
@@ -101,15 +120,17 @@ def test_exported_actor_acts_as_the_torch_actor(algorithm, fmt, tmp_path):
         expected = policy(torch.from_numpy(obs)).numpy()
     assert np.abs(expected).max() > 0.5  # a meaningful comparison, not of near-zero actions
     np.testing.assert_allclose(agent(obs), expected, atol=1e-5, rtol=0)
-    assert_the_server_accepts(path, fmt)
 
 
-def assert_the_server_accepts(path, fmt):
+@pytest.mark.filterwarnings("ignore:`torch.jit.load` is deprecated:DeprecationWarning")
+@pytest.mark.parametrize("fmt", ["onnx", "torchscript"])
+@pytest.mark.parametrize("algorithm", list(ALGORITHMS))
+def test_the_server_accepts_the_exported_actor(algorithm, fmt, exported_actor):
     """The league server's static checks (allow-listed ONNX operators / TorchScript ops) pass."""
-    try:
-        from league.server import model_checks
-    except ImportError:  # the server extra is not installed
-        return
+    pytest.importorskip("fastapi", reason="the server extra is not installed")
+    from league.server.sandbox import checks as model_checks
+
+    _, path = exported_actor(algorithm, fmt)
     if fmt == "onnx":
         model_checks.check_onnx(path)
     else:

@@ -6,7 +6,9 @@ import pytest
 
 torch = pytest.importorskip("torch")
 
-from league.baselines.common import ReplayBuffer, moving_average, polyak_update  # noqa: E402
+from league.baselines.common.buffers import ReplayBuffer  # noqa: E402
+from league.baselines.common.networks import polyak_update  # noqa: E402
+from league.baselines.common.plots import moving_average  # noqa: E402
 from league.baselines.dsac import critic_loss, critic_targets  # noqa: E402
 from league.baselines.ppo import compute_gae  # noqa: E402
 

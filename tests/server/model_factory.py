@@ -193,6 +193,76 @@ def torchscript_reads_file(path: Path) -> Path:
     return path
 
 
+LOAD_HOOK_SPELLINGS = {  # how "def __setstate__(" may be written in an archive's code, all the same to Python
+    "plain": "def __setstate__(",
+    "two spaces": "def  __setstate__(",
+    "tab": "def\t__setstate__(",
+    "space before parenthesis": "def __setstate__ (",
+    "line continuation": "def \\\n    __setstate__(",
+}
+
+
+def torchscript_runs_code_at_load(path: Path, spelling: str = "plain", target: str = "/tmp/league-loaded") -> Path:
+    """A loadable module whose __setstate__ (run by torch.jit.load) maps a file of its own choosing
+    with aten::from_file, written in the archive's code as LOAD_HOOK_SPELLINGS[spelling]."""
+    torch = _torch()
+    from typing import Tuple
+
+    class LoadTimeWriter(torch.nn.Module):
+        def __init__(self, target: str):
+            super().__init__()
+            self.target = target
+
+        def forward(self, obs: torch.Tensor) -> torch.Tensor:
+            return torch.tanh(obs[:, 0:2])
+
+        @torch.jit.export
+        def __getstate__(self) -> Tuple[str, bool]:
+            return (self.target, self.training)
+
+        @torch.jit.export
+        def __setstate__(self, state: Tuple[str, bool]) -> None:
+            self.target = state[0]
+            mapped = torch.from_file(self.target, shared=True, size=1, dtype=torch.uint8)  # creates the file
+            self.training = state[1] or bool(mapped[0] > 1)  # used, so the compiler keeps the call
+
+    torch.jit.script(LoadTimeWriter(target)).save(str(path))
+    return _respell(path, "def __setstate__(", LOAD_HOOK_SPELLINGS[spelling])
+
+
+def _respell(path: Path, old: str, new: str) -> Path:
+    """Rewrite the archive's code files, keeping every other entry as it is."""
+    import zipfile
+
+    entries = []
+    with zipfile.ZipFile(path) as archive:
+        for info in archive.infolist():
+            data = archive.read(info)
+            if info.filename.endswith(".py") and old.encode() in data:
+                data = data.replace(old.encode(), new.encode())
+            entries.append((info, data))
+    with zipfile.ZipFile(path, "w", zipfile.ZIP_STORED) as archive:
+        for info, data in entries:
+            archive.writestr(info, data)
+    return path
+
+
+def torchscript_forbidden_op_beside_forward(path: Path) -> Path:
+    """forward is plain; an exported method reads /etc/passwd (aten::from_file)."""
+    torch = _torch()
+
+    class SideReader(torch.nn.Module):
+        def forward(self, obs: torch.Tensor) -> torch.Tensor:
+            return torch.tanh(obs[:, 0:2])
+
+        @torch.jit.export
+        def peek(self) -> torch.Tensor:
+            return torch.from_file("/etc/passwd", size=16, dtype=torch.uint8)
+
+    torch.jit.script(SideReader()).save(str(path))
+    return path
+
+
 def torchscript_memory_hog(path: Path) -> Path:
     torch = _torch()
 
@@ -235,3 +305,4 @@ def onnx_nan_when_straight(path: Path, threshold: float = 0.001) -> Path:
     onnx.checker.check_model(model)
     onnx.save(model, str(path))
     return path
+

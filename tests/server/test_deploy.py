@@ -6,8 +6,10 @@ import json
 from pathlib import Path
 
 import yaml
+from sqlalchemy.engine import make_url
 
 from league.cli import build_parser
+from league.server.config import Settings
 
 REPO = Path(__file__).resolve().parents[2]
 
@@ -16,15 +18,30 @@ def compose() -> dict:
     return yaml.safe_load((REPO / "docker-compose.yml").read_text())
 
 
-def test_compose_has_the_api_a_scalable_worker_postgres_and_redis():
+def league_settings(service: dict) -> Settings:
+    """The settings a service's container starts with (its LEAGUE_* variables, nothing else)."""
+    environment = service["environment"]
+    unknown = [key for key in environment if key.removeprefix("LEAGUE_").lower() not in Settings.model_fields]
+    assert not unknown, f"variables no setting reads (misspelt?): {unknown}"
+    return Settings(_env_file=None, **{key.removeprefix("LEAGUE_").lower(): value
+                                       for key, value in environment.items()})
+
+
+def test_the_api_and_scalable_workers_share_the_database_and_queue_of_compose_services():
+    """What a deployment needs: every LEAGUE_ variable is a real setting, the API and the workers
+    use one PostgreSQL database and one Redis queue, served by services they wait for, and the
+    worker can be scaled (no fixed port or name)."""
     services = compose()["services"]
-    assert set(services) == {"api", "worker", "postgres", "redis"}
+    api, worker = league_settings(services["api"]), league_settings(services["worker"])
+    assert (api.resolved_database_url, api.resolved_queue_url) == (worker.resolved_database_url,
+                                                                   worker.resolved_queue_url)
+    database, queue = make_url(api.resolved_database_url), make_url(api.resolved_queue_url)
+    assert database.get_backend_name() == "postgresql" and queue.drivername == "redis"
     for name in ("api", "worker"):
-        environment = services[name]["environment"]
-        assert environment["LEAGUE_DATABASE_URL"].startswith("postgresql+psycopg://league:league@postgres:5432/")
-        assert environment["LEAGUE_QUEUE_URL"] == "redis://redis:6379/0"
-        assert set(services[name]["depends_on"]) == {"postgres", "redis"}
-    assert "ports" not in services["worker"] and "container_name" not in services["worker"]  # --scale worker=N
+        waits_for = set(services[name]["depends_on"])
+        assert {database.host, queue.host} <= waits_for <= set(services), name
+        assert all(services[name]["depends_on"][host]["condition"] == "service_healthy" for host in waits_for)
+    assert "ports" not in services["worker"] and "container_name" not in services["worker"]
 
 
 def test_compose_and_dockerfile_commands_are_league_commands():

@@ -13,6 +13,8 @@ from .conftest import TEST_SETTINGS, create_student, make_server, submission, up
 LONG_EPISODES = "40"  # an evaluation of a few seconds: long enough to be killed in the middle
 LEASE_S = float(TEST_SETTINGS["LEAGUE_LEASE_TIMEOUT_S"])
 
+pytestmark = pytest.mark.slow  # league servers in subprocesses, killed and restarted
+
 
 def evaluation_status(client, submission_id: int) -> str | None:
     return (submission(client, submission_id)["evaluation"] or {}).get("status")

@@ -16,7 +16,7 @@ from urllib.parse import urlsplit
 import httpx
 import pytest
 
-from ..server.conftest import REPO, fresh_backend, make_server
+from ..server.conftest import REPO, fresh_backend, make_server, settled, wait_for
 
 CHROMIUM = os.environ.get("LEAGUE_TEST_CHROMIUM", "/usr/bin/chromium")
 CHROMIUM_ARGS = ["--no-sandbox", "--disable-gpu", "--disable-background-networking", "--disable-component-update",
@@ -47,9 +47,18 @@ def web_server(tmp_path_factory):
             if home.status_code != 200 or "text/html" not in home.headers.get("content-type", ""):
                 pytest.fail("the web pages are not served: create_app must call "
                             "league.server.api.routes.pages.mount_web(app)")
+            wait_for_the_baselines(server)
             yield server
         finally:
             server.stop_all()
+
+
+def wait_for_the_baselines(server) -> None:
+    """Until the first start's baselines are evaluated, as users find the league after `league serve`:
+    a test that came first would otherwise see (and the public cache keep) a league without them."""
+    with server.client(server.instructor_token) as instructor:
+        wait_for(lambda: instructor.get("/api/submissions?all=true").json(),
+                 lambda submissions: submissions and all(settled(s) for s in submissions))
 
 
 @pytest.fixture(scope="package")

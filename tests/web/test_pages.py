@@ -5,6 +5,7 @@ nothing of any host but the server and threw no script error. Screenshots: test-
 """
 from __future__ import annotations
 
+import itertools
 import json
 import math
 import re
@@ -12,14 +13,20 @@ import uuid
 
 import pytest
 
-from ..server.conftest import upload, wait_for, wait_settled
+from league import render
+
+from ..server.conftest import add_user_in_new_course, upload, wait_for, wait_settled
+from .colours import DEFICIENCIES, delta_e, hex_rgb
 from .conftest import require_browser
 
 require_browser()
 
-# Okabe–Ito colours of the first cars and of a finished episode (web/static/js/palette.js).
-CAR_COLORS = [(0xE6, 0x9F, 0x00), (0x56, 0xB4, 0xE9), (0x00, 0x9E, 0x73), (0xF0, 0xE4, 0x42)]
+# The first cars' colours (the toolkit's, league/render.py) and a finished episode's (Okabe–Ito,
+# web/static/js/palette.js).
+CAR_COLORS = [tuple(color) for color in render.CAR_COLORS[:4]]
 FINISHED_COLOR = (0x00, 0x9E, 0x73)
+# CIEDE2000 above 10: two colours are clearly different at a glance.
+CLEARLY_DIFFERENT = 10
 
 CANVAS_PIXELS = """([selector, colors]) => {
   const canvas = document.querySelector(selector);
@@ -161,9 +168,23 @@ def test_student_uploads_an_agent_and_sees_it_ready_with_its_chart(web, web_serv
     web.screenshot("submissions-ready-with-chart")
 
 
-def test_bad_uploads_show_the_servers_error(web, web_server, agent_files):
+def test_bad_uploads_show_the_servers_error(web, web_server, agent_files, tmp_path):
     token = student_token(web_server, unique("bob"))
     web.login(token)
+
+    # the page states the server's upload limit, and keeps a bigger file at home
+    limit_mb = float(web_server.env["LEAGUE_MAX_UPLOAD_MB"])
+    assert f"of at most {limit_mb:g} MB" in web.page.inner_text("#drop-zone")
+    big = tmp_path / "big.onnx"
+    big.write_bytes(bytes(int((limit_mb + 1) * 2**20)))
+    posts = []
+    web.page.on("request", lambda request: posts.append(request.url) if request.method == "POST" else None)
+    web.page.set_input_files("#model-file", str(big))
+    web.page.click("#upload-button")
+    web.page.wait_for_selector("#upload-message.error")
+    assert web.page.inner_text("#upload-message") == \
+        f"big.onnx is {limit_mb + 1:.1f} MB, over the {limit_mb:g} MB limit: upload a smaller model file."
+    assert posts == []
 
     # refused at once (4xx): the server's detail, word for word
     expected = upload(web_server.client(token), agent_files["text"]).json()["detail"]
@@ -195,10 +216,11 @@ def test_bad_uploads_show_the_servers_error(web, web_server, agent_files):
 
 @pytest.fixture(scope="module")
 def replay_file(agent_files, tmp_path_factory):
-    """A real 4-car race: the heuristic driver and three ONNX drivers at different speeds."""
+    """A real 4-car race: the heuristic driver reading lidar, and three compact ONNX drivers at
+    different speeds (the race's observation is then lidar, the drivers get their compact view)."""
     from league.evaluation import race, save_replay
 
-    agents = ["heuristic", agent_files["driver_0.2"], agent_files["driver_0.25"], agent_files["driver_0.3"]]
+    agents = ["heuristic-lidar", agent_files["driver_0.2"], agent_files["driver_0.25"], agent_files["driver_0.3"]]
     result = race(agents, seed=1, names=["heuristic", "slow", "steady", "quick"])
     return save_replay(result, tmp_path_factory.mktemp("replays") / "race.json"), result
 
@@ -243,11 +265,29 @@ def test_replay_viewer_draws_and_plays_a_race(web, replay_file):
             if row["outcome"] == "finished" else row["reason"]
         assert finals[car] == expected
     assert web.page.locator("#classification tbody tr").count() == 4
+    # the race's lidar observation is not every car's
+    assert "lidar observations (compact agents get their 5-number view)" in web.page.inner_text("#race-facts")
     web.screenshot("replay-finish")
 
     # scrubbing
     web.page.locator("#scrubber").fill(str(total // 2))
     assert viewer_step(web) == total // 2
+
+
+def test_the_first_ten_cars_are_told_apart(web):
+    web.goto("/replay")
+    styles = web.page.evaluate("""async () => {
+        const { carStyle } = await import("/static/js/palette.js");
+        return [...Array(50).keys()].map(carStyle);
+    }""")
+    first = [(hex_rgb(style["color"]), style["shape"]) for style in styles[:10]]
+    assert [color for color, _ in first] == [tuple(c) for c in render.CAR_COLORS]  # the toolkit's, as in its GIFs
+    for (color1, shape1), (color2, shape2) in itertools.combinations(first, 2):
+        assert delta_e(color1, color2) > CLEARLY_DIFFERENT, (color1, color2)
+        if shape1 == shape2:  # then colour alone tells the cars apart: for red-green deficient eyes too
+            for deficiency in DEFICIENCIES:
+                assert delta_e(color1, color2, deficiency) > CLEARLY_DIFFERENT, (color1, color2, deficiency)
+    assert len({(style["color"], style["shape"]) for style in styles}) == 50  # fifty cars, fifty markers
 
 
 def test_replay_viewer_refuses_a_file_that_is_not_a_replay(web, tmp_path):
@@ -264,19 +304,39 @@ def test_replay_viewer_refuses_a_file_that_is_not_a_replay(web, tmp_path):
 # --------------------------------------------------------------------------- instructor console
 
 
+def instructor_of_a_new_course(server) -> str:
+    """An instructor of a course of their own: their students, settings and re-runs change nothing
+    another test sees (re-running the shared course's evaluations kept the worker busy for later tests)."""
+    return add_user_in_new_course(server, unique("prof"), unique("course"), role="instructor")
+
+
 def test_instructor_creates_students_changes_settings_and_reruns(web, web_server, tmp_path):
-    with web_server.client(web_server.instructor_token) as instructor:
+    token = instructor_of_a_new_course(web_server)
+    with web_server.client(token) as instructor:
         original = instructor.get("/api/settings/evaluation").json()
-    web.login(web_server.instructor_token)
+    web.login(token)
     assert web.page.url.endswith("/instructor")
+
+    # Until the console knows who is logged in, its forms cannot be submitted. (They could: on a
+    # busy machine a click came before the script was ready, the browser submitted the form
+    # itself, reloaded the page as /instructor? and the token never appeared.)
+    held = []
+    web.page.route("**/api/users/me", lambda route: held.append(route))
+    web.page.reload()
+    assert web.page.is_disabled("#student-form button[type=submit]")
+    assert web.page.is_disabled("#settings-form button[type=submit]")
+    for route in held:
+        route.continue_()
+    web.page.unroute("**/api/users/me")  # lets through what it still held
 
     # one student: the token shown works
     name = unique("carol")
     web.page.fill("#student-name", name)
     web.page.click("#student-form button[type=submit]")
     web.page.wait_for_selector("#tokens:not([hidden])")
-    token = web.page.inner_text("#token-table tbody tr .token")
-    assert web_server.client(token).get("/api/users/me").json()["name"] == name
+    token_shown = web.page.inner_text("#token-table tbody tr .token")
+    assert web_server.client(token_shown).get("/api/users/me").json()["name"] == name
+    assert web.page.url.endswith("/instructor")  # the script handled the form, not the browser
 
     # a roster
     roster = tmp_path / "roster.csv"
@@ -296,21 +356,35 @@ def test_instructor_creates_students_changes_settings_and_reruns(web, web_server
     assert web.page.inner_text("#students-message") == "The roster was not created: the roster names a student twice"
 
     # evaluation settings
-    try:
-        web.page.fill("#eval-episodes", "2")
-        web.page.uncheck("#eval-obstacles")
-        web.page.click("#settings-form button[type=submit]")
-        web.page.wait_for_selector("#settings-message.success")
-        with web_server.client(web_server.instructor_token) as instructor:
-            saved = instructor.get("/api/settings/evaluation").json()
-        assert saved == {**original, "episodes": 2, "env_options": {"obstacles": False}}
-        web.page.click("#rerun-all")
-        web.page.wait_for_function("() => /Queued \\d+ evaluations/.test(document.querySelector('#settings-message').textContent)")
-        web.page.wait_for_selector("#all-submissions tbody tr")
-        web.screenshot("instructor-console")
-    finally:
-        with web_server.client(web_server.instructor_token) as instructor:
-            instructor.put("/api/settings/evaluation", json=original)
+    web.page.fill("#eval-episodes", "2")
+    web.page.uncheck("#eval-obstacles")
+    web.page.click("#settings-form button[type=submit]")
+    web.page.wait_for_selector("#settings-message.success")
+    with web_server.client(token) as instructor:
+        saved = instructor.get("/api/settings/evaluation").json()
+    assert saved == {**original, "episodes": 2, "env_options": {"obstacles": False}}
+
+    # re-running every evaluation asks first, saying how many jobs and with which settings
+    with web_server.client(token) as instructor:
+        ready = sum(s["status"] == "ready" for s in instructor.get("/api/submissions?all=true").json())
+    posts = []
+    web.page.on("request", lambda request: posts.append(request.url) if request.method == "POST" else None)
+    web.page.click("#rerun-all")
+    web.page.wait_for_selector("#rerun-dialog[open]")
+    submissions, jobs, evaluations = (f"{ready} {noun}{'s' if ready != 1 else ''}" for noun in
+                                      ("ready submission", "job", "evaluation"))
+    assert web.page.inner_text("#rerun-summary") == (
+        f"This evaluates the {submissions} of the course again (the baselines' too), with the saved "
+        f"settings: seed {saved['seed']}, 2 episodes, no obstacles. That is {jobs} for the workers.")
+    web.screenshot("instructor-rerun-confirmation", full_page=False)
+    web.page.click("#rerun-cancel")
+    assert web.page.is_hidden("#rerun-dialog") and posts == []
+    web.page.click("#rerun-all")
+    web.page.locator("#rerun-confirm", has_text=f"Re-run {evaluations}").click()
+    web.page.wait_for_function("() => /Queued \\d+ evaluations?/.test(document.querySelector('#settings-message').textContent)")
+    assert web.page.inner_text("#settings-message") == f"Queued {evaluations} with the current settings."
+    web.page.wait_for_selector("#all-submissions tbody tr")
+    web.screenshot("instructor-console")
 
 
 def test_a_student_cannot_use_the_instructor_console(web, web_server):
@@ -348,7 +422,7 @@ def test_controls_have_accessible_names(web):
     assert unnamed == []
 
 
-# --------------------------------------------------------------------------- issue 6: leaderboard, races, rounds
+# --------------------------------------------------------------------------- leaderboard, races, rounds
 
 
 def ready_submission(server, token: str, path) -> int:
@@ -364,6 +438,10 @@ def test_student_sees_their_agent_on_the_leaderboard(web, web_server, agent_file
     name = unique("gina")
     token = student_token(web_server, name)
     ready_submission(web_server, token, agent_files["driver_0.3"])
+    # The public cache first serves what it kept, then refreshes (league/server/api/cache.py): after
+    # another test loaded the page, the new row came only with the page's refresh 15 s later.
+    wait_for(lambda: web_server.client().get("/api/leaderboard?page=1&size=50").json()["items"],
+             lambda rows: any(row["owner"] == name for row in rows))
     web.login(token)
 
     web.goto("/")
@@ -373,14 +451,25 @@ def test_student_sees_their_agent_on_the_leaderboard(web, web_server, agent_file
     # sortable, best first on the first click, and saying which way is better
     header = web.page.locator("#leaderboard th", has_text="Mean return")
     assert "higher is better" in header.inner_text()
-    header.locator("button").click()
+    header.locator(".better").click()  # the hint is part of the header's button, not a chip beside it
     assert header.get_attribute("aria-sort") == "descending"
     returns = [float(t) for t in web.page.locator("#leaderboard tbody tr td:nth-child(5)").all_inner_texts()]
     assert returns == sorted(returns, reverse=True)
     web.screenshot("leaderboard-own-row")
 
 
-def test_instructor_runs_a_round_and_opens_a_replay(web, web_server, agent_files):
+def tie_break(row: dict, above: dict | None) -> str | None:
+    """What ranks `row` below `above` when their points are level: wins, then 2nd places, ..."""
+    if above is None or above["points"] != row["points"]:
+        return None
+    for position in range(1, max(row["finishes"] + above["finishes"]) + 1):
+        if row["finishes"].count(position) != above["finishes"].count(position):
+            what = "wins" if position == 1 else f"{render.ordinal(position)} places"
+            return f"level on points with rank {above['rank']}: fewer {what}"
+    return f"level with rank {above['rank']} on points and finishes"
+
+
+def test_instructor_runs_a_round_opens_a_replay_and_the_standings_break_ties(web, web_server, agent_files):
     for speed in ("0.2", "0.25"):
         ready_submission(web_server, student_token(web_server, unique("racer")), agent_files[f"driver_{speed}"])
     web.login(web_server.instructor_token)
@@ -390,8 +479,10 @@ def test_instructor_runs_a_round_and_opens_a_replay(web, web_server, agent_files
     web.page.fill("#champ-name", championship)
     web.page.fill("#champ-heat", "4")
     web.page.fill("#champ-seed", "11")  # reproducible tracks and heats
+    web.page.fill("#champ-points", "10, 10")  # every heat's first two level on points: ties to break
     web.page.click("#championship-form button[type=submit]")
     card = web.page.locator("[data-championship]", has_text=championship)
+    championship_id = card.get_attribute("data-championship")
     card.locator("button", has_text="Run round 1").click()
     card.locator("[data-round='1'] progress").wait_for()
     web.screenshot("instructor-round-running")
@@ -403,6 +494,10 @@ def test_instructor_runs_a_round_and_opens_a_replay(web, web_server, agent_files
     web.page.wait_for_selector("#viewer:not([hidden])")
     first = canvas_pixels(web, "#race-canvas")
     web.page.wait_for_function("() => Number(document.querySelector('#viewer').dataset.step) > 30")
+    # "Link to this moment" follows the step on screen while it plays
+    step, link = web.page.evaluate("() => [document.querySelector('#viewer').dataset.step, "
+                                   "document.querySelector('#share-link').value]")
+    assert web.page.is_visible("#share-link") and link.endswith(f"?step={step}"), (step, link)
     web.page.click("#play-button")  # pause
     on_track = colors_on_track(web_server, web.page.url, viewer_step(web))
     assert on_track, "no car of the first four is still racing: the heat does not show the viewer"
@@ -417,6 +512,17 @@ def test_instructor_runs_a_round_and_opens_a_replay(web, web_server, agent_files
     assert viewer_step(web) == 50
     web.page.wait_for_timeout(300)
     assert viewer_step(web) == 50 and web.page.inner_text("#play-button") == "Play"
+
+    # the standings say what broke each tie on points
+    web.goto(f"/?championship={championship_id}")
+    rows = web_server.client().get(f"/api/championships/{championship_id}/standings").json()["items"]
+    web.page.wait_for_selector(f"#standings tbody tr[data-key='{rows[-1]['submission_id']}']")
+    notes = [tie_break(row, above) for above, row in zip([None] + rows, rows)]
+    for row, note in zip(rows, notes):
+        points = web.page.inner_text(f"#standings tbody tr[data-key='{row['submission_id']}'] td:nth-child(4)")
+        assert points.split("\n") == [str(row["points"])] + ([note] if note else []), (row, points)
+    assert any(notes), f"no tie on points in {rows}"
+    web.screenshot("standings-tie-breaks")
 
 
 def test_student_starts_a_friendly_race_against_the_baselines(web, web_server, agent_files):

@@ -17,8 +17,8 @@ log = logging.getLogger("league.server.cache")
 
 
 class ResponseCache:
-    def __init__(self, ttl_s: float, maxsize: int = 4096):
-        self.ttl_s = ttl_s
+    def __init__(self, ttl_s: float, maxsize: int = 4096, clock: Callable[[], float] = time.monotonic):
+        self.ttl_s, self.clock = ttl_s, clock
         self._entries: LRUCache = LRUCache(maxsize)  # key -> (computed at, body)
         self._lock = threading.Lock()
         self._gates: dict[Hashable, threading.Lock] = {}  # one computation per key at a time
@@ -30,7 +30,7 @@ class ResponseCache:
             entry = self._entries.get(key)
         if entry is None:
             return None, False
-        return entry[1], time.monotonic() - entry[0] < self.ttl_s
+        return entry[1], self.clock() - entry[0] < self.ttl_s
 
     def compute(self, key: Hashable, compute: Callable[[], bytes]) -> bytes:
         """`compute()`'s body, kept; callers arriving meanwhile wait for it instead of computing too."""
@@ -40,7 +40,7 @@ class ResponseCache:
             body, fresh = self.lookup(key)
             if fresh:
                 return body
-            started = time.monotonic()
+            started = self.clock()
             body = compute()
             with self._lock:
                 self._entries[key] = (started, body)

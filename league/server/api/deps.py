@@ -1,19 +1,22 @@
-"""Shared dependencies of the routes, as Annotated aliases."""
+"""What the routes share: dependencies as Annotated aliases, paging parameters, and checks that
+several resources make (a user's course, environment options)."""
 from __future__ import annotations
 
 from collections.abc import AsyncIterator
 from typing import Annotated
 
-from fastapi import Depends, HTTPException, Request, status
+from fastapi import Depends, HTTPException, Path, Query, Request, status
 from fastapi.security import HTTPAuthorizationCredentials, HTTPBearer
 from sqlalchemy.orm import Session
 
+import league
 from league.server.config import Settings
 from league.server.db import crud
-from league.server.db.models import INSTRUCTOR, User
+from league.server.db.models import INSTRUCTOR, Course, User
 from league.server.storage import BlobStore
-from league.server.taskqueue import JobQueue
+from league.server.jobs.queue import JobQueue
 
+MAX_ID = 2**63 - 1  # ids are 64-bit integers in the database: a larger number names nothing
 bearer = HTTPBearer(auto_error=False, description="the API token printed by `league users add` or the roster")
 
 
@@ -71,3 +74,43 @@ async def get_instructor(user: CurrentUser) -> User:
 
 
 InstructorUser = Annotated[User, Depends(get_instructor)]
+
+
+Id = Annotated[int, Path(ge=1, le=MAX_ID, description="an id (a 64-bit integer)")]
+PageNumber = Annotated[int, Query(ge=1, description="1-based")]
+PageSize = Annotated[int, Query(ge=1, le=100)]
+
+
+def user_course(session: Session, user: User) -> Course:
+    """The user's course (the baselines' account has none: the first course)."""
+    course = user.course or crud.first_course(session)
+    if course is None:
+        raise HTTPException(status.HTTP_404_NOT_FOUND, "no course yet")
+    return course
+
+
+def check_env_options(options: dict) -> None:
+    """Options of an evaluation, a race or a championship, as the simulator accepts them (422 if not)."""
+    if "observation" in options:
+        raise HTTPException(status.HTTP_422_UNPROCESSABLE_CONTENT,
+                            "observation is not an evaluation setting: it follows each agent's input size")
+    try:
+        league.RaceOptions.from_kwargs(**options)
+    except (TypeError, ValueError) as error:
+        raise HTTPException(status.HTTP_422_UNPROCESSABLE_CONTENT, f"invalid env_options: {error}") from error
+
+
+def check_upload_quota(session: Session, user: User, limit: int) -> None:
+    usage = crud.quota_usage(session, owner=user, limit=limit)
+    if usage.exhausted:
+        raise HTTPException(status.HTTP_429_TOO_MANY_REQUESTS,
+                            f"quota reached: {limit} submissions per 24 hours (rejected ones do not count); "
+                            f"next free slot at {usage.next_free_at.isoformat(timespec='seconds')}")
+
+
+def check_jobs_in_flight(session: Session, user: User, limit: int) -> None:
+    waiting = crud.jobs_in_flight(session, owner_id=user.id)
+    if waiting >= limit:
+        raise HTTPException(status.HTTP_429_TOO_MANY_REQUESTS,
+                            f"{waiting} of your uploads or races are still waiting or running (at most {limit} at "
+                            "once): upload again when one of them is done")

@@ -1,4 +1,4 @@
-"""The API's routers, one per resource; the submissions router gets the upload size limit."""
+"""The API's routers, one per resource (their body limits: league.server.api.limits, set in create_app)."""
 from __future__ import annotations
 
 from fastapi import APIRouter
@@ -8,7 +8,5 @@ from league.server.api.routes import (
 )
 
 api_router = APIRouter()
-for module in (health, users, evaluations, jobs, races, championships, leaderboard):
+for module in (health, users, submissions, evaluations, jobs, races, championships, leaderboard):
     api_router.include_router(module.router)
-
-upload_router = submissions.router  # included by create_app with max_body_size from the settings

@@ -1,17 +1,20 @@
 """Database functions (keyword-only arguments). They add and flush; callers commit."""
 from __future__ import annotations
 
+import gzip
 import re
 from dataclasses import dataclass
 from datetime import datetime, timedelta
 from typing import Any
 
-from sqlalchemy import func, select
+from sqlalchemy import delete, func, select, update
+from sqlalchemy.dialects.postgresql import insert as postgresql_insert
+from sqlalchemy.dialects.sqlite import insert as sqlite_insert
 from sqlalchemy.orm import Session
 
 from league.server.db.models import (
-    EVALUATE, FAILED, QUEUED, REJECTED, VALIDATE, Blob, Course, Evaluation, Job, Submission, User,
-    utcnow,
+    BASELINE, EVALUATE, FAILED, QUEUED, READY, REJECTED, RUNNING, STUDENT, VALIDATE, Blob, Championship, ChampionshipRound,
+    Course, Evaluation, Job, Race, RaceReplay, Submission, User, utcnow,
 )
 from league.server.security import hash_token, new_token
 
@@ -20,6 +23,7 @@ BASELINES_USER = "baselines"
 QUOTA_WINDOW = timedelta(hours=24)
 NAME_PATTERN = re.compile(r"^[\w.@+-][\w .@+-]{0,99}$")
 NOT_COUNTED = (REJECTED, FAILED)  # a student's quota is not eaten by uploads the league refused or lost
+NOT_KEPT = (REJECTED,)  # a rejected upload's bytes are deleted (it can never race or be evaluated)
 
 
 class InvalidName(ValueError):
@@ -114,6 +118,18 @@ class QuotaUsage:
         return self.used >= self.limit
 
 
+def lock_user(session: Session, *, user_id: int) -> None:
+    """Hold the user's row until the transaction ends (PostgreSQL: a row lock; SQLite: the database's
+    write lock), so that checking a quota and using it are one step for concurrent requests."""
+    session.execute(update(User).where(User.id == user_id).values(id=User.id))
+
+
+def jobs_in_flight(session: Session, *, owner_id: int) -> int:
+    """The owner's jobs waiting or running."""
+    return session.scalar(select(func.count(Job.id)).where(Job.owner_id == owner_id,
+                                                          Job.status.in_((QUEUED, RUNNING)))) or 0
+
+
 def quota_usage(session: Session, *, owner: User, limit: int, now: datetime | None = None) -> QuotaUsage:
     now = now or utcnow()
     counted = select(Submission.created_at).where(
@@ -128,16 +144,33 @@ def quota_usage(session: Session, *, owner: User, limit: int, now: datetime | No
 
 
 def save_blob(session: Session, *, sha256: str, data: bytes) -> None:
-    """Keep a file's bytes once (callers commit; an IntegrityError means another upload stored them)."""
-    if session.get(Blob, sha256) is None:
-        session.add(Blob(sha256=sha256, size=len(data), data=data))
-        session.flush()
+    """Keep a file's bytes once: an upload of the same bytes at the same moment finds them kept."""
+    insert = {"sqlite": sqlite_insert, "postgresql": postgresql_insert}[session.get_bind().dialect.name]
+    session.execute(insert(Blob).values(sha256=sha256, size=len(data), data=data, created_at=utcnow())
+                    .on_conflict_do_nothing(index_elements=["sha256"]))
+
+
+def forget_blob_unless_used(session: Session, *, sha256: str) -> bool:
+    """Delete a file's bytes when no submission but rejected ones refers to them; True if deleted."""
+    used = session.scalar(select(func.count(Submission.id)).where(Submission.sha256 == sha256,
+                                                                  Submission.status.not_in(NOT_KEPT)))
+    if used:
+        return False
+    session.execute(delete(Blob).where(Blob.sha256 == sha256))
+    return True
+
+
+def kept_blobs(session: Session, *, sha256s: list[str] | None = None) -> set[str]:
+    """The digests whose bytes are kept (of `sha256s`, or all)."""
+    query = select(Blob.sha256)
+    if sha256s is not None:
+        query = query.where(Blob.sha256.in_(sha256s))
+    return set(session.scalars(query))
 
 
 def blob_data(session: Session, *, sha256: str) -> bytes | None:
     blob = session.get(Blob, sha256)
     return None if blob is None else blob.data
-
 
 
 def create_submission(session: Session, *, owner: User, name: str, filename: str, kind: str, sha256: str,
@@ -146,14 +179,15 @@ def create_submission(session: Session, *, owner: User, name: str, filename: str
     submission = Submission(owner_id=owner.id, name=name, filename=filename, kind=kind, sha256=sha256, size=size)
     session.add(submission)
     session.flush()
-    job = create_job(session, kind=VALIDATE, submission_id=submission.id, max_attempts=max_attempts)
+    job = create_job(session, kind=VALIDATE, owner_id=owner.id, submission_id=submission.id,
+                     max_attempts=max_attempts)
     return submission, job
 
 
-def create_job(session: Session, *, kind: str, submission_id: int | None = None, evaluation_id: int | None = None,
-               race_id: int | None = None, payload: dict[str, Any] | None = None, max_attempts: int = 3) -> Job:
-    job = Job(kind=kind, submission_id=submission_id, evaluation_id=evaluation_id, race_id=race_id,
-              payload=payload or {}, status=QUEUED, max_attempts=max_attempts)
+def create_job(session: Session, *, kind: str, owner_id: int | None, submission_id: int | None = None,
+               evaluation_id: int | None = None, race_id: int | None = None, max_attempts: int = 3) -> Job:
+    job = Job(kind=kind, owner_id=owner_id, submission_id=submission_id, evaluation_id=evaluation_id,
+              race_id=race_id, status=QUEUED, max_attempts=max_attempts)
     session.add(job)
     session.flush()
     return job
@@ -165,8 +199,8 @@ def create_evaluation(session: Session, *, submission: Submission, course: Cours
                             settings=settings, status=QUEUED)
     session.add(evaluation)
     session.flush()
-    job = create_job(session, kind=EVALUATE, submission_id=submission.id, evaluation_id=evaluation.id,
-                     max_attempts=max_attempts)
+    job = create_job(session, kind=EVALUATE, owner_id=submission.owner_id, submission_id=submission.id,
+                     evaluation_id=evaluation.id, max_attempts=max_attempts)
     return evaluation, job
 
 
@@ -200,3 +234,94 @@ def course_submissions(session: Session, *, course_id: int | None, status: str |
     if status:
         query = query.where(Submission.status == status)
     return list(session.scalars(query.order_by(Submission.id)))
+
+
+def ready_submissions(session: Session, *, owner_ids: list[int]) -> list[Submission]:
+    query = select(Submission).where(Submission.owner_id.in_(owner_ids), Submission.status == READY)
+    return list(session.scalars(query.order_by(Submission.id.desc())))
+
+
+def ready_submission_of(session: Session, *, owner_id: int, submission_id: int) -> Submission | None:
+    submission = session.get(Submission, submission_id)
+    return submission if submission is not None and submission.owner_id == owner_id and \
+        submission.status == READY else None
+
+
+def latest_ready_submission(session: Session, *, owner_id: int) -> Submission | None:
+    return session.scalar(select(Submission).where(Submission.owner_id == owner_id, Submission.status == READY)
+                          .order_by(Submission.id.desc()).limit(1))
+
+
+def ready_baseline_submissions(session: Session) -> list[Submission]:
+    return list(session.scalars(select(Submission).join(User, Submission.owner_id == User.id).where(
+        User.role == BASELINE, Submission.status == READY)))
+
+
+def submissions_by_id(session: Session, *, ids: list[int]) -> dict[int, Submission]:
+    if not ids:
+        return {}
+    return {s.id: s for s in session.scalars(select(Submission).where(Submission.id.in_(ids)))}
+
+
+# --------------------------------------------------------------------------- people of a course
+
+
+def active_students(session: Session, *, course_id: int | None) -> list[User]:
+    return list(session.scalars(select(User).where(User.course_id == course_id, User.role == STUDENT,
+                                                   User.revoked_at.is_(None)).order_by(User.id)))
+
+
+def leaderboard_owners(session: Session, *, course_id: int | None) -> list[User]:
+    """The course's active students and the baselines' account (its agents are on every board)."""
+    return list(session.scalars(select(User).where(
+        ((User.course_id == course_id) & (User.role == STUDENT) & User.revoked_at.is_(None)) | (User.role == BASELINE))))
+
+
+# --------------------------------------------------------------------------- races and championships
+
+
+def races_started_since(session: Session, *, user: User, since: datetime) -> int:
+    """Friendly races a user started in the window (the daily quota)."""
+    return session.scalar(select(func.count(Race.id)).where(
+        Race.created_by_id == user.id, Race.championship_id.is_(None), Race.created_at > since)) or 0
+
+
+def races_page(session: Session, *, page: int, size: int, championship_id: int | None) -> tuple[list[Race], int]:
+    """Races, newest first, and how many there are."""
+    query = select(Race)
+    if championship_id is not None:
+        query = query.where(Race.championship_id == championship_id)
+    total = session.scalar(select(func.count()).select_from(query.subquery()))
+    races = list(session.scalars(query.order_by(Race.id.desc()).offset((page - 1) * size).limit(size)))
+    return races, total
+
+
+def replay_json(session: Session, *, race_id: int) -> bytes | None:
+    replay = session.get(RaceReplay, race_id)
+    return None if replay is None else gzip.decompress(replay.data)
+
+
+def course_championships(session: Session, *, course_id: int | None) -> list[Championship]:
+    return list(session.scalars(select(Championship).where(Championship.course_id == course_id)
+                                .order_by(Championship.id)))
+
+
+def championship_round(session: Session, *, championship_id: int, number: int) -> ChampionshipRound | None:
+    return session.scalar(select(ChampionshipRound).where(ChampionshipRound.championship_id == championship_id,
+                                                          ChampionshipRound.number == number))
+
+
+def course_jobs(session: Session, *, course_id: int | None, status: str | None, limit: int) -> list[Job]:
+    """The latest jobs of a course's people (and of the baselines, which every course evaluates)."""
+    query = select(Job).where(Job.owner_id.in_(_course_people(course_id))).order_by(Job.id.desc()).limit(limit)
+    if status:
+        query = query.where(Job.status == status)
+    return list(session.scalars(query))
+
+
+def course_job(session: Session, *, course_id: int | None, job_id: int) -> Job | None:
+    return session.scalar(select(Job).where(Job.id == job_id, Job.owner_id.in_(_course_people(course_id))))
+
+
+def _course_people(course_id: int | None):
+    return select(User.id).where((User.course_id == course_id) | (User.role == BASELINE))

@@ -172,18 +172,20 @@ class Job(Base):
     A worker claims a queued job (status -> running, its worker_id, attempts + 1), heart-beats
     while it works, and writes the results in the same transaction that marks the job done,
     only if it still holds the lease. The reaper gives jobs whose heartbeat stopped to another
-    worker (fishtest's dead-task scavenging).
+    worker (fishtest's dead-task scavenging). `owner_id` is whose job it is: the queue serves
+    owners in turn, and limits how many jobs each has waiting.
     """
 
     __tablename__ = "jobs"
-    __table_args__ = (Index("ix_jobs_status_heartbeat", "status", "heartbeat_at"),)
+    __table_args__ = (Index("ix_jobs_status_heartbeat", "status", "heartbeat_at"),
+                      Index("ix_jobs_status_owner", "status", "owner_id"))
 
     id: Mapped[int] = mapped_column(primary_key=True)
     kind: Mapped[str] = mapped_column(String(20))
+    owner_id: Mapped[int | None] = mapped_column(ForeignKey("users.id", name="fk_jobs_owner_id_users"), default=None)
     submission_id: Mapped[int | None] = mapped_column(ForeignKey("submissions.id"), index=True)
     evaluation_id: Mapped[int | None] = mapped_column(ForeignKey("evaluations.id"))
     race_id: Mapped[int | None] = mapped_column(ForeignKey("races.id"), index=True, default=None)
-    payload: Mapped[dict[str, Any]] = mapped_column(default=dict)
     status: Mapped[str] = mapped_column(String(20), default=QUEUED)
     attempts: Mapped[int] = mapped_column(Integer, default=0)
     max_attempts: Mapped[int] = mapped_column(Integer, default=3)
@@ -230,6 +232,19 @@ class ChampionshipRound(Base):
     created_at: Mapped[datetime] = mapped_column(default=utcnow)
 
     races: Mapped[list[Race]] = relationship(order_by="Race.heat", lazy="selectin")
+
+    @property
+    def status(self) -> str:
+        """pending, running, done or failed (once no heat is left to race and one failed): what its
+        heats' races are."""
+        statuses = [r.status for r in self.races]
+        if statuses and all(s == DONE for s in statuses):
+            return DONE
+        if not any(s in (PENDING, RUNNING) for s in statuses):
+            return FAILED
+        if any(s in (RUNNING, DONE, FAILED) for s in statuses):
+            return RUNNING
+        return PENDING
 
 
 class Race(Base):

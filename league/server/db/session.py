@@ -3,6 +3,7 @@ from __future__ import annotations
 
 import contextlib
 import fcntl
+import os
 from collections.abc import Iterator
 from pathlib import Path
 
@@ -25,7 +26,7 @@ def make_engine(url: str) -> Engine:
 def _sqlite_engine(url: str) -> Engine:
     database = make_url(url).database
     if database and database != ":memory:":
-        Path(database).parent.mkdir(parents=True, exist_ok=True)
+        create_private_file(Path(database))
     engine = create_engine(url, connect_args={"timeout": 30, "check_same_thread": False})
 
     @event.listens_for(engine, "connect")
@@ -38,6 +39,13 @@ def _sqlite_engine(url: str) -> Engine:
         cursor.close()
 
     return engine
+
+
+def create_private_file(path: Path) -> None:
+    """Create an SQLite file readable by its owner only, before SQLite does: its -wal and -shm files
+    take the database file's permissions, so they are private too."""
+    path.parent.mkdir(parents=True, exist_ok=True)
+    os.close(os.open(path, os.O_CREAT | os.O_RDWR, 0o600))
 
 
 def make_sessionmaker(engine: Engine) -> sessionmaker[Session]:
@@ -72,6 +80,7 @@ def _migration_lock(engine: Engine) -> Iterator:
                 connection.commit()
         return
     lock_path = Path(engine.url.database or "league.db").with_suffix(".migrate.lock")
+    create_private_file(lock_path)
     with open(lock_path, "w") as lock_file, engine.connect() as connection:
         fcntl.flock(lock_file, fcntl.LOCK_EX)
         yield connection

@@ -8,6 +8,16 @@ import time
 from league.server.api.cache import ResponseCache
 
 
+class Clock:
+    """Time that moves only when told to."""
+
+    def __init__(self):
+        self.now = 1000.0
+
+    def __call__(self) -> float:
+        return self.now
+
+
 class Counter:
     def __init__(self, delay: float = 0.0):
         self.calls, self.delay = 0, delay
@@ -35,9 +45,12 @@ def test_concurrent_misses_compute_once():
 
 
 def test_a_stale_answer_is_served_while_one_refresh_runs():
-    cache, compute = ResponseCache(ttl_s=0.05), Counter()
+    clock = Clock()
+    cache, compute = ResponseCache(ttl_s=2, clock=clock), Counter()
     cache.compute("k", compute)
-    time.sleep(0.06)
+    clock.now += 1.9
+    assert cache.lookup("k") == (b"1", True)
+    clock.now += 0.2
     assert cache.lookup("k") == (b"1", False)
     assert cache.claim_refresh("k") and not cache.claim_refresh("k")  # one refresher only
     cache.refresh("k", compute)
@@ -45,9 +58,10 @@ def test_a_stale_answer_is_served_while_one_refresh_runs():
 
 
 def test_a_failed_refresh_keeps_the_stale_answer():
-    cache = ResponseCache(ttl_s=0.01)
+    clock = Clock()
+    cache = ResponseCache(ttl_s=2, clock=clock)
     cache.compute("k", lambda: b"old")
-    time.sleep(0.02)
+    clock.now += 3
 
     def broken() -> bytes:
         raise RuntimeError("database down")

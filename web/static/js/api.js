@@ -92,9 +92,3 @@ function errorText(response, data) {
   }
   return `${response.status} ${response.statusText || "error"}`;
 }
-
-/** True when the server answered that this endpoint does not exist (not deployed yet). */
-export function isMissingEndpoint(error) {
-  return error instanceof ApiError && (error.status === 404 || error.status === 405) &&
-    /^(Not Found|Method Not Allowed)$/.test(error.message);
-}

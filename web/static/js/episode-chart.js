@@ -1,7 +1,8 @@
 // The per-episode chart of an evaluation on a <canvas>: one bar per episode for its return,
 // coloured by outcome, and the episode's mean speed as a line on the right-hand axis.
 
-import { element, number, outcomeText } from "./format.js";
+import { element } from "./dom.js";
+import { number, outcomeText } from "./format.js";
 import { OUTCOME_COLORS, SPEED_COLOR } from "./palette.js";
 
 const MARGIN = { left: 52, right: 56, top: 14, bottom: 36 }; // CSS px

@@ -14,6 +14,11 @@ export function dateTime(iso) {
   return Number.isNaN(date.getTime()) ? iso : date.toLocaleString([], { dateStyle: "medium", timeStyle: "short" });
 }
 
+/** "1 job", "2 jobs". */
+export function count(n, noun, plural = `${noun}s`) {
+  return `${n} ${n === 1 ? noun : plural}`;
+}
+
 export function ordinal(n) {
   const suffix = n % 100 >= 10 && n % 100 <= 20 ? "th" : { 1: "st", 2: "nd", 3: "rd" }[n % 10] || "th";
   return `${n}${suffix}`;
@@ -45,25 +50,4 @@ export function finalText(row) {
   if (row.outcome === "finished") return `${ordinal(row.position)}  ${row.time.toFixed(1)} s`;
   if (row.outcome === "dnf") return `DNF: ${row.reason || "agent failed"}`;
   return outcomeText(row.outcome);
-}
-
-export function element(tag, { className, text, attrs } = {}, ...children) {
-  const node = document.createElement(tag);
-  if (className) node.className = className;
-  if (text !== undefined && text !== null) node.textContent = text;
-  for (const [name, value] of Object.entries(attrs || {})) {
-    if (value !== undefined && value !== null && value !== false) node.setAttribute(name, value === true ? "" : value);
-  }
-  node.append(...children.filter((child) => child !== null && child !== undefined));
-  return node;
-}
-
-export function badge(status, label = status) {
-  return element("span", { className: `badge ${status}`, text: label });
-}
-
-/** Show a message in a message box (role="alert" boxes are read out by screen readers). */
-export function say(box, text, kind = "error") {
-  box.className = `message ${kind}`;
-  box.textContent = text || "";
 }

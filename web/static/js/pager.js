@@ -1,6 +1,6 @@
 // "Previous / Page 2 of 5 / Next" for the API's paginated lists ({items, total}, ?page=&size=).
 
-import { element } from "./format.js";
+import { element } from "./dom.js";
 
 export class Pager {
   constructor(container, { size = 50, label, onChange }) {

@@ -1,11 +1,16 @@
-// Colours from the Okabe–Ito palette, told apart by people with any common colour-vision
-// deficiency; cars also differ by marker shape, so ten cars stay distinguishable.
+// The cars' colours are the toolkit's (league.render.CAR_COLORS, matplotlib's "tab10": ten
+// distinct colours), which the server writes into every page, so that a car looks here as in
+// `league race --save race.gif`. Cars also differ by marker shape: the two cars of a shape (car i
+// and car i + 5) keep colours apart for people with a red-green colour-vision deficiency too.
+// Outcomes and the speed line use the Okabe–Ito palette, as the pages' CSS does.
 
-export const CAR_COLORS = ["#E69F00", "#56B4E9", "#009E73", "#F0E442", "#0072B2", "#D55E00", "#CC79A7", "#000000"];
-export const CAR_SHAPES = ["circle", "square", "triangle", "diamond", "pentagon"];
+const CAR_COLORS = document.body.dataset.carColors.split(" ");
+const CAR_SHAPES = ["circle", "square", "triangle", "diamond", "pentagon"];
 
+/** Car `index`'s colour and shape; past the tenth car the shapes shift, so 50 cars have 50 pairs. */
 export function carStyle(index) {
-  return { color: CAR_COLORS[index % CAR_COLORS.length], shape: CAR_SHAPES[index % CAR_SHAPES.length] };
+  const lap = Math.floor(index / CAR_COLORS.length);
+  return { color: CAR_COLORS[index % CAR_COLORS.length], shape: CAR_SHAPES[(index + lap) % CAR_SHAPES.length] };
 }
 
 export const OUTCOME_COLORS = {

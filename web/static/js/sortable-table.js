@@ -1,7 +1,8 @@
-// A table sorted by clicking (or pressing Enter on) a column header. Each numeric column says
-// which way is better ("↑ better": higher is better); a first click sorts best first.
+// A table sorted by clicking (or pressing Enter on) a column header. Each numeric column says,
+// under its name and as part of the same button, which way is better ("↑ better": higher is
+// better); a first click sorts best first.
 
-import { element } from "./format.js";
+import { element } from "./dom.js";
 
 /**
  * columns: [{key, label, value(row) -> sortable value, render(row) -> Node|string,
@@ -33,10 +34,10 @@ export class SortableTable {
       const th = element("th", { attrs: { scope: "col" }, className: column.numeric ? "num" : "" });
       const button = element("button", { className: "sort-button", attrs: { type: "button" } },
         element("span", { text: column.label }),
-        element("span", { className: "sort-mark", attrs: { "aria-hidden": "true" } }));
+        element("span", { className: "sort-mark", attrs: { "aria-hidden": "true" } }),
+        column.better ? betterHint(column.better) : null);
       button.addEventListener("click", () => this.sortBy(column));
       th.append(button);
-      if (column.better) th.append(" ", betterHint(column.better));
       column.th = th;
       row.append(th);
     }

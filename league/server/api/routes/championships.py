@@ -4,17 +4,17 @@ from __future__ import annotations
 import secrets
 
 from fastapi import APIRouter, HTTPException, Request, Response, status
-from sqlalchemy import select
 from sqlalchemy.exc import IntegrityError
 from sqlalchemy.orm import Session
 
 from league.server.api.cache import cached_json
-from league.server.api.deps import InstructorUser, QueueDep, SessionDep, SettingsDep
-from league.server.api.routes.evaluations import check_env_options, user_course
-from league.server.api.routes.races import PageNumber, PageSize
+from league.server.api.deps import (
+    Id, InstructorUser, PageNumber, PageSize, QueueDep, SessionDep, SettingsDep, check_env_options, user_course,
+)
 from league.server.db import crud
 from league.server.db.models import Championship, ChampionshipRound
-from league.server.racing import RoundRefused, retry_round, round_summary, standings_rows, start_round
+from league.server.rounds import RoundRefused, retry_round, round_summary, start_round
+from league.server.standings import standings_rows
 from league.server.schemas import ChampionshipCreate, ChampionshipOut, RoundOut, StandingsPage
 
 router = APIRouter(prefix="/championships", tags=["championships"])
@@ -43,19 +43,17 @@ def create_championship(body: ChampionshipCreate, instructor: InstructorUser, se
 def read_championships(session: SessionDep) -> list[ChampionshipOut]:
     """The course's championships, oldest first (public)."""
     course = crud.first_course(session)
-    championships = session.scalars(select(Championship).where(Championship.course_id == (course and course.id))
-                                    .order_by(Championship.id))
-    return [championship_out(c) for c in championships]
+    return [championship_out(c) for c in crud.course_championships(session, course_id=course and course.id)]
 
 
 @router.get("/{championship_id}", response_model=ChampionshipOut)
-def read_championship(championship_id: int, session: SessionDep) -> ChampionshipOut:
+def read_championship(championship_id: Id, session: SessionDep) -> ChampionshipOut:
     """A championship and its rounds (public)."""
     return championship_out(existing_championship(session, championship_id))
 
 
 @router.post("/{championship_id}/rounds", response_model=RoundOut, status_code=status.HTTP_202_ACCEPTED)
-def create_round(championship_id: int, instructor: InstructorUser, session: SessionDep, settings: SettingsDep,
+def create_round(championship_id: Id, instructor: InstructorUser, session: SessionDep, settings: SettingsDep,
                  queue: QueueDep) -> RoundOut:
     """Run the next round: every student's active submission, in heats on a new track."""
     championship = existing_championship(session, championship_id)
@@ -75,14 +73,14 @@ def create_round(championship_id: int, instructor: InstructorUser, session: Sess
 
 
 @router.get("/{championship_id}/rounds/{number}", response_model=RoundOut)
-def read_round(championship_id: int, number: int, session: SessionDep) -> RoundOut:
+def read_round(championship_id: Id, number: Id, session: SessionDep) -> RoundOut:
     """A round's progress: heats done out of the total, and its races (public)."""
     return RoundOut(**round_summary(existing_round(session, championship_id, number)))
 
 
 @router.post("/{championship_id}/rounds/{number}/retry", response_model=RoundOut,
              status_code=status.HTTP_202_ACCEPTED)
-def retry_failed_round(championship_id: int, number: int, instructor: InstructorUser, session: SessionDep,
+def retry_failed_round(championship_id: Id, number: Id, instructor: InstructorUser, session: SessionDep,
                        settings: SettingsDep, queue: QueueDep) -> RoundOut:
     """Race the failed heats of the latest round again (e.g. after its workers failed for good)."""
     championship = existing_championship(session, championship_id)
@@ -101,15 +99,14 @@ def retry_failed_round(championship_id: int, number: int, instructor: Instructor
 
 
 def existing_round(session: SessionDep, championship_id: int, number: int) -> ChampionshipRound:
-    championship_round = session.scalar(select(ChampionshipRound).where(
-        ChampionshipRound.championship_id == championship_id, ChampionshipRound.number == number))
+    championship_round = crud.championship_round(session, championship_id=championship_id, number=number)
     if championship_round is None:
         raise HTTPException(status.HTTP_404_NOT_FOUND, f"championship {championship_id} has no round {number}")
     return championship_round
 
 
 @router.get("/{championship_id}/standings", response_model=StandingsPage)
-async def read_standings(championship_id: int, request: Request, page: PageNumber = 1, size: PageSize = 50) -> Response:
+async def read_standings(championship_id: Id, request: Request, page: PageNumber = 1, size: PageSize = 50) -> Response:
     """Points (ties: wins, then best finishes) and OpenSkill ratings after the finished rounds (public)."""
 
     def compute() -> bytes:

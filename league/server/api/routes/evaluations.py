@@ -3,21 +3,15 @@ from __future__ import annotations
 
 from fastapi import APIRouter, HTTPException, status
 
-import league
-from league.server.api.deps import CurrentUser, InstructorUser, QueueDep, SessionDep, SettingsDep
+from league.server.api.deps import (
+    CurrentUser, InstructorUser, QueueDep, SessionDep, SettingsDep, check_env_options, user_course,
+)
 from league.server.db import crud
-from league.server.db.models import READY, Course, Submission, User
+from league.server.db.models import READY, Submission, User
 from league.server.schemas import EvaluationSettings, RerunOut, RerunRequest
-from league.server.tasks import queue_evaluation
+from league.server.jobs.evaluate import queue_evaluation
 
 router = APIRouter(tags=["evaluations"])
-
-
-def user_course(session: SessionDep, user: User) -> Course:
-    course = user.course or crud.first_course(session)
-    if course is None:
-        raise HTTPException(status.HTTP_404_NOT_FOUND, "no course yet")
-    return course
 
 
 @router.get("/settings/evaluation", response_model=EvaluationSettings)
@@ -35,16 +29,6 @@ def update_evaluation_settings(body: EvaluationSettings, instructor: InstructorU
                                           episodes=body.episodes, env_options=body.env_options)
     session.commit()
     return EvaluationSettings(**course.evaluation_settings())
-
-
-def check_env_options(options: dict) -> None:
-    if "observation" in options:
-        raise HTTPException(status.HTTP_422_UNPROCESSABLE_CONTENT,
-                            "observation is not an evaluation setting: it follows each agent's input size")
-    try:
-        league.RaceOptions.from_kwargs(**options)
-    except (TypeError, ValueError) as error:
-        raise HTTPException(status.HTTP_422_UNPROCESSABLE_CONTENT, f"invalid env_options: {error}") from error
 
 
 @router.post("/evaluations/rerun", response_model=RerunOut, status_code=status.HTTP_202_ACCEPTED)

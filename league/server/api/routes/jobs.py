@@ -1,20 +1,36 @@
-"""Jobs, for instructors watching the workers."""
+"""Jobs, for instructors watching the workers: the course's jobs, and cancelling one."""
 from __future__ import annotations
 
-from fastapi import APIRouter
-from sqlalchemy import select
+from typing import Literal
 
-from league.server.api.deps import InstructorUser, SessionDep
+from fastapi import APIRouter, HTTPException, Query, Request, status
+
+from league.server.api.deps import Id, InstructorUser, SessionDep
+from league.server.db import crud
 from league.server.db.models import Job
+from league.server.jobs import leases
+from league.server.jobs.handlers import HANDLERS
 from league.server.schemas import JobOut
 
 router = APIRouter(prefix="/jobs", tags=["jobs"])
+JobStatus = Literal["queued", "running", "done", "failed"]
 
 
 @router.get("", response_model=list[JobOut])
-def read_jobs(_: InstructorUser, session: SessionDep, status: str | None = None, limit: int = 100) -> list[Job]:
-    """The latest jobs, newest first, optionally of one status (queued, running, done, failed)."""
-    query = select(Job).order_by(Job.id.desc()).limit(min(max(limit, 1), 1000))
-    if status:
-        query = query.where(Job.status == status)
-    return list(session.scalars(query))
+def read_jobs(instructor: InstructorUser, session: SessionDep, status: JobStatus | None = None,
+              limit: int = Query(100, ge=1, le=1000)) -> list[Job]:
+    """The course's latest jobs, newest first, optionally of one status."""
+    return crud.course_jobs(session, course_id=instructor.course_id, status=status, limit=limit)
+
+
+@router.post("/{job_id}/cancel", response_model=JobOut)
+def cancel_job(job_id: Id, instructor: InstructorUser, session: SessionDep, request: Request) -> Job:
+    """Stop a queued or running job of your course: it fails as cancelled, and so does what it was for
+    (a running job's worker stops at its next heartbeat)."""
+    if crud.course_job(session, course_id=instructor.course_id, job_id=job_id) is None:
+        raise HTTPException(status.HTTP_404_NOT_FOUND, f"no job {job_id} in your course")
+    if not leases.cancel(request.app.state.sessions, HANDLERS, job_id=job_id,
+                         reason=f"cancelled by {instructor.name}"):
+        raise HTTPException(status.HTTP_409_CONFLICT, f"job {job_id} is already over")
+    session.expire_all()
+    return crud.course_job(session, course_id=instructor.course_id, job_id=job_id)

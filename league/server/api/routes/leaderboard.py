@@ -4,9 +4,9 @@ from __future__ import annotations
 from fastapi import APIRouter, Request, Response
 
 from league.server.api.cache import cached_json
-from league.server.api.routes.races import PageNumber, PageSize
+from league.server.api.deps import PageNumber, PageSize
 from league.server.db import crud
-from league.server.racing import leaderboard_rows
+from league.server.standings import leaderboard_rows
 from league.server.schemas import LeaderboardPage
 
 router = APIRouter(tags=["leaderboard"])

@@ -1,9 +1,10 @@
 """The web pages (web/): HTML for the leaderboard, login, submissions, race viewer and instructor
 console, their assets under /static, and the track geometry the race viewer draws.
 
-`mount_web(app)` adds all of it to the FastAPI app. The pages are plain HTML and JavaScript
-modules talking to the JSON API; they load nothing from any other host, which the
-Content-Security-Policy sent with every page enforces in the browser.
+`mount_web(app)` adds all of it to the FastAPI app. Each page is a Jinja2 template extending
+web/layout.html (the head and header they share), filled with a few facts from the settings; the
+pages are otherwise plain HTML and JavaScript modules talking to the JSON API. They load nothing
+from any other host, which the Content-Security-Policy sent with every page enforces in the browser.
 """
 from __future__ import annotations
 
@@ -11,10 +12,12 @@ import os
 from pathlib import Path
 from typing import Any
 
-from fastapi import APIRouter, Body, FastAPI, HTTPException, status
-from fastapi.responses import FileResponse
+from fastapi import APIRouter, Body, FastAPI, HTTPException, Request, status
 from fastapi.staticfiles import StaticFiles
+from starlette.templating import Jinja2Templates
 
+from league.render import CAR_COLORS
+from league.server.config import MB
 from league.web_geometry import track_geometry
 
 MAX_TRACK_BYTES = 256 * 1024  # a track dict is a few KB
@@ -51,17 +54,24 @@ def read_track_geometry(track: dict[str, Any] = Body(description="a track as in 
         raise HTTPException(status.HTTP_422_UNPROCESSABLE_CONTENT, f"not a track: {error}") from error
 
 
+def page_facts(request: Request) -> dict[str, Any]:
+    """What the templates show of the server: its upload limit, and the toolkit's car colours (the
+    race viewer's cars look as in `league race --save race.gif`)."""
+    settings = request.app.state.settings
+    return {"upload_limit": f"{settings.max_upload_bytes / MB:g} MB", "max_upload_bytes": settings.max_upload_bytes,
+            "car_colors": " ".join("#{:02x}{:02x}{:02x}".format(*color) for color in CAR_COLORS)}
+
+
 def mount_web(app: FastAPI, directory: Path | None = None) -> None:
     """Serve the pages of `directory` (default `web_dir()`) and the geometry endpoint on `app`."""
     directory = directory or web_dir()
+    templates = Jinja2Templates(directory=directory, context_processors=[page_facts])
 
     def page(name: str):
-        path = directory / name
+        async def serve_page(request: Request):
+            return templates.TemplateResponse(request, name, headers=PAGE_HEADERS)
 
-        async def serve_page() -> FileResponse:
-            return FileResponse(path, media_type="text/html", headers=PAGE_HEADERS)
-
-        serve_page.__name__ = f"page_{path.stem}"
+        serve_page.__name__ = f"page_{Path(name).stem}"
         return serve_page
 
     pages = APIRouter(include_in_schema=False)

@@ -6,22 +6,20 @@ from typing import Annotated
 
 from fastapi import APIRouter, HTTPException, Query, Request, Response, status
 from fastapi.responses import PlainTextResponse
-from sqlalchemy import func, select
 from sqlalchemy.orm import Session
 
-from league.server.api.deps import CurrentUser, InstructorUser, QueueDep, SessionDep, SettingsDep
-from league.server.api.routes.evaluations import check_env_options
+from league.server.api.deps import (
+    MAX_ID, CurrentUser, Id, InstructorUser, PageNumber, PageSize, QueueDep, SessionDep, SettingsDep, check_env_options,
+    check_jobs_in_flight,
+)
 from league.server.db import crud
 from league.server.db.models import (
     BASELINE, DONE, FAILED, READY, STUDENT, ChampionshipRound, Race, RaceReplay, Submission, User, utcnow,
 )
-from league.server.racing import create_race, races_started_since, replay_json
+from league.server.rounds import create_race
 from league.server.schemas import RaceCreate, RaceCreated, RaceOut, RacePage
 
 router = APIRouter(prefix="/races", tags=["races"])
-
-PageNumber = Annotated[int, Query(ge=1, description="1-based")]
-PageSize = Annotated[int, Query(ge=1, le=100)]
 
 
 @router.post("", response_model=RaceCreated, status_code=status.HTTP_201_CREATED)
@@ -37,8 +35,10 @@ def create_friendly_race(body: RaceCreate, user: CurrentUser, session: SessionDe
         raise HTTPException(status.HTTP_422_UNPROCESSABLE_CONTENT,
                             f"submission {repeated[0]} is listed twice: each car races a different submission")
     entrants = [raceable(session, user, submission_id) for submission_id in body.submission_ids]
+    crud.lock_user(session, user_id=user.id)  # checking the quotas and creating the race: one step
     if user.role == STUDENT:
         check_friendly_race(session, user, entrants, settings.race_quota_per_day)
+        check_jobs_in_flight(session, user, settings.max_jobs_in_flight)
     seed = body.seed if body.seed is not None else secrets.randbelow(2**31)
     race, job = create_race(session, entrants=entrants, seed=seed, env_options=body.env_options, created_by=user,
                             course_id=user.course_id, max_attempts=settings.max_job_attempts)
@@ -50,15 +50,13 @@ def create_friendly_race(body: RaceCreate, user: CurrentUser, session: SessionDe
 def raceable(session: Session, user: User, submission_id: int) -> Submission:
     """A submission `user` may put on the grid, or the 4xx that says why not."""
     submission = session.get(Submission, submission_id)
-    if submission is None:
-        raise HTTPException(status.HTTP_404_NOT_FOUND, f"submission {submission_id} does not exist")
-    owner = submission.owner
-    if owner.role != BASELINE and owner.course_id != user.course_id:
-        raise HTTPException(status.HTTP_403_FORBIDDEN, f"submission {submission_id} belongs to another course")
-    if user.role == STUDENT and owner.id != user.id and owner.role != BASELINE and not submission.public:
-        raise HTTPException(status.HTTP_403_FORBIDDEN,
-                            f"submission {submission_id} is another student's private agent: you may race it "
-                            "once its owner makes it public")
+    owner = submission.owner if submission is not None else None
+    visible = owner is not None and (owner.role == BASELINE or (
+        owner.course_id == user.course_id and (user.role != STUDENT or owner.id == user.id or submission.public)))
+    if not visible:  # one answer whether it does not exist or is not yours to see: ids tell nothing
+        raise HTTPException(status.HTTP_404_NOT_FOUND,
+                            f"no submission {submission_id} you may race: your own, the baselines, or another "
+                            "student's agent once its owner makes it public")
     if submission.status != READY:
         raise HTTPException(status.HTTP_409_CONFLICT,
                             f"submission {submission_id} is not ready (status: {submission.status}); "
@@ -69,7 +67,7 @@ def raceable(session: Session, user: User, submission_id: int) -> Submission:
 def check_friendly_race(session: Session, user: User, entrants: list[Submission], quota: int) -> None:
     if not any(s.owner_id == user.id for s in entrants):
         raise HTTPException(status.HTTP_403_FORBIDDEN, "a friendly race needs one of your own submissions")
-    used = races_started_since(session, user=user, since=utcnow() - crud.QUOTA_WINDOW)
+    used = crud.races_started_since(session, user=user, since=utcnow() - crud.QUOTA_WINDOW)
     if used >= quota:
         raise HTTPException(status.HTTP_429_TOO_MANY_REQUESTS,
                             f"race quota reached: {quota} friendly races per 24 hours; try again later")
@@ -77,25 +75,21 @@ def check_friendly_race(session: Session, user: User, entrants: list[Submission]
 
 @router.get("", response_model=RacePage)
 def read_races(session: SessionDep, page: PageNumber = 1, size: PageSize = 50,
-               championship_id: int | None = None) -> RacePage:
+               championship_id: Annotated[int | None, Query(ge=1, le=MAX_ID)] = None) -> RacePage:
     """Races, newest first (public)."""
-    query = select(Race)
-    if championship_id is not None:
-        query = query.where(Race.championship_id == championship_id)
-    total = session.scalar(select(func.count()).select_from(query.subquery()))
-    races = session.scalars(query.order_by(Race.id.desc()).offset((page - 1) * size).limit(size))
+    races, total = crud.races_page(session, page=page, size=size, championship_id=championship_id)
     return RacePage(items=[race_out(session, race) for race in races], total=total)
 
 
 @router.get("/{race_id}", response_model=RaceOut)
-def read_race(race_id: int, session: SessionDep) -> RaceOut:
+def read_race(race_id: Id, session: SessionDep) -> RaceOut:
     """A race: status, entrants and, once done, its classification (public)."""
     return race_out(session, existing_race(session, race_id))
 
 
 @router.get("/{race_id}/replay", responses={200: {"content": {"application/json": {}},
                                                    "description": "the toolkit's replay (microracer-replay v1)"}})
-def read_replay(race_id: int, request: Request, session: SessionDep) -> Response:
+def read_replay(race_id: Id, request: Request, session: SessionDep) -> Response:
     """The race's replay, as `league race --replay` writes it: what the race viewer plays (public)."""
     race = existing_race(session, race_id)
     replay = session.get(RaceReplay, race.id)
@@ -105,11 +99,11 @@ def read_replay(race_id: int, request: Request, session: SessionDep) -> Response
         raise HTTPException(status.HTTP_409_CONFLICT, f"race {race_id} is {race.status}: its replay exists once it is done")
     if "gzip" in request.headers.get("accept-encoding", ""):  # stored compressed: sent as it is
         return Response(replay.data, media_type="application/json", headers={"Content-Encoding": "gzip"})
-    return Response(replay_json(session, race.id), media_type="application/json")
+    return Response(crud.replay_json(session, race_id=race.id), media_type="application/json")
 
 
 @router.get("/{race_id}/log", response_class=PlainTextResponse)
-def read_race_log(race_id: int, instructor: InstructorUser, session: SessionDep) -> str:
+def read_race_log(race_id: Id, instructor: InstructorUser, session: SessionDep) -> str:
     """What the cars' sandboxes printed, car by car (instructors only: it holds every student's
     model output; a student reads their own in their submission's log)."""
     race = existing_race(session, race_id)

@@ -2,15 +2,15 @@
 from __future__ import annotations
 
 from pathlib import PurePath
-from typing import Annotated
 
-from fastapi import APIRouter, File, Form, HTTPException, UploadFile, status
-from sqlalchemy.exc import IntegrityError
+from fastapi import APIRouter, HTTPException, Request, status
+from fastapi.concurrency import run_in_threadpool
+from starlette.datastructures import UploadFile  # what a parsed form holds
 
-from league.server.api.deps import CurrentUser, QueueDep, SessionDep, SettingsDep, StoreDep
+from league.server.api.deps import CurrentUser, Id, SessionDep, check_jobs_in_flight, check_upload_quota
 from league.server.db import crud
 from league.server.db.models import INSTRUCTOR, READY, STUDENT, Submission, User
-from league.server.racing import active_submission_ids
+from league.server.rounds import active_submission_ids
 from league.server.schemas import (
     EvaluationDetail, EvaluationOut, SubmissionCreated, SubmissionDetail, SubmissionOut, SubmissionUpdate,
 )
@@ -28,47 +28,57 @@ def model_kind(filename: str | None) -> str:
     return kind
 
 
-@router.post("", response_model=SubmissionCreated, status_code=status.HTTP_201_CREATED)
-def create_submission(file: Annotated[UploadFile, File(description="an ONNX (.onnx) or TorchScript (.pt) model")],
-                      user: CurrentUser, session: SessionDep, settings: SettingsDep, store: StoreDep,
-                      queue: QueueDep,
-                      name: Annotated[str | None, Form(max_length=100, description="default: the file name")] = None,
-                      ) -> SubmissionCreated:
-    """Upload a model; it is validated in a sandbox, then evaluated on the course's tracks."""
-    kind = model_kind(file.filename)
-    if user.role == STUDENT:
-        check_quota(session, user, settings.quota_per_day)
+UPLOAD_FORM = {"requestBody": {"required": True, "content": {"multipart/form-data": {"schema": {
+    "type": "object", "required": ["file"], "properties": {
+        "file": {"type": "string", "format": "binary", "description": "an ONNX (.onnx) or TorchScript (.pt) model"},
+        "name": {"type": "string", "maxLength": 100, "description": "default: the file name"}}}}}}}
+
+
+@router.post("", response_model=SubmissionCreated, status_code=status.HTTP_201_CREATED, openapi_extra=UPLOAD_FORM)
+async def create_submission(request: Request, user: CurrentUser) -> SubmissionCreated:
+    """Upload a model (multipart `file`, optional `name`): it is validated in a sandbox, then evaluated
+    on the course's tracks. The body is read only once the token is accepted."""
+    async with request.form(max_files=1, max_fields=1) as form:
+        file, name = form.get("file"), form.get("name")
+        if not isinstance(file, UploadFile) or not file.filename:
+            raise HTTPException(status.HTTP_422_UNPROCESSABLE_CONTENT,
+                                "send the model as the multipart field `file` (with its file name)")
+        if name is not None and (not isinstance(name, str) or len(name) > 100):
+            raise HTTPException(status.HTTP_422_UNPROCESSABLE_CONTENT, "name: at most 100 characters")
+        kind = model_kind(file.filename)
+        return await run_in_threadpool(submit, request.app.state.league, user, file, name, kind)
+
+
+def submit(league_, user: User, file: UploadFile, name: str | None, kind: str) -> SubmissionCreated:
+    """Store the file, then, in one transaction holding the student's row, check their quota and
+    jobs in flight and add the submission: parallel uploads never pass a limit. A refused upload's
+    file is not kept."""
+    settings, store = league_.settings, league_.store
     try:
         sha256, size = store.save(file.file, max_bytes=settings.max_upload_bytes)
     except FileTooLarge as error:
         raise HTTPException(status.HTTP_413_CONTENT_TOO_LARGE, str(error)) from error
     except EmptyFile as error:
         raise HTTPException(status.HTTP_400_BAD_REQUEST, "the file is empty") from error
-    keep_blob(session, sha256, store)
     display_name = (name or "").strip() or PurePath(file.filename).stem
-    submission, job = crud.create_submission(session, owner=user, name=display_name[:100],
-                                             filename=PurePath(file.filename).name[:255], kind=kind, sha256=sha256,
-                                             size=size, max_attempts=settings.max_job_attempts)
-    session.commit()
-    queue.enqueue(job.id)
-    return SubmissionCreated(id=submission.id, status=submission.status)
-
-
-def keep_blob(session: SessionDep, sha256: str, store: StoreDep) -> None:
-    """The bytes go to the database too, for workers on other machines."""
     try:
-        crud.save_blob(session, sha256=sha256, data=store.path(sha256).read_bytes())
-        session.commit()
-    except IntegrityError:  # the same file, uploaded at the same moment by someone else
-        session.rollback()
-
-
-def check_quota(session: SessionDep, user: User, limit: int) -> None:
-    usage = crud.quota_usage(session, owner=user, limit=limit)
-    if usage.exhausted:
-        raise HTTPException(status.HTTP_429_TOO_MANY_REQUESTS,
-                            f"quota reached: {limit} submissions per 24 hours (rejected ones do not count); "
-                            f"next free slot at {usage.next_free_at.isoformat(timespec='seconds')}")
+        with league_.sessions.begin() as session:
+            crud.lock_user(session, user_id=user.id)
+            if user.role == STUDENT:
+                check_upload_quota(session, user, settings.quota_per_day)
+                check_jobs_in_flight(session, user, settings.max_jobs_in_flight)
+            crud.save_blob(session, sha256=sha256, data=store.path(sha256).read_bytes())  # for other machines' workers
+            submission, job = crud.create_submission(session, owner=user, name=display_name[:100],
+                                                     filename=PurePath(file.filename).name[:255], kind=kind,
+                                                     sha256=sha256, size=size, max_attempts=settings.max_job_attempts)
+            created, job_id = SubmissionCreated(id=submission.id, status=submission.status), job.id
+    except HTTPException:
+        with league_.sessions() as session:
+            if sha256 not in crud.kept_blobs(session, sha256s=[sha256]):
+                store.remove(sha256)
+        raise
+    league_.queue.enqueue(job_id)
+    return created
 
 
 @router.get("", response_model=list[SubmissionOut])
@@ -84,7 +94,7 @@ def read_submissions(user: CurrentUser, session: SessionDep, all: bool = False) 
 
 
 @router.get("/{submission_id}", response_model=SubmissionDetail)
-def read_submission(submission_id: int, user: CurrentUser, session: SessionDep) -> SubmissionDetail:
+def read_submission(submission_id: Id, user: CurrentUser, session: SessionDep) -> SubmissionDetail:
     """One submission in full: status, error, sandbox log and its latest evaluation with every episode."""
     submission = session.get(Submission, submission_id)
     if submission is None or not may_read(user, submission):
@@ -97,7 +107,7 @@ def read_submission(submission_id: int, user: CurrentUser, session: SessionDep) 
 
 
 @router.patch("/{submission_id}", response_model=SubmissionOut)
-def update_submission(submission_id: int, body: SubmissionUpdate, user: CurrentUser,
+def update_submission(submission_id: Id, body: SubmissionUpdate, user: CurrentUser,
                       session: SessionDep) -> SubmissionOut:
     """Pick the submission that races in championships, or let other students race against it."""
     submission = session.get(Submission, submission_id)

@@ -3,11 +3,12 @@ from __future__ import annotations
 
 import csv
 import io
-from typing import Annotated
 
-from fastapi import APIRouter, File, HTTPException, UploadFile, status
+from fastapi import APIRouter, HTTPException, Request, status
+from fastapi.concurrency import run_in_threadpool
+from starlette.datastructures import UploadFile  # what a parsed form holds
 
-from league.server.api.deps import CurrentUser, InstructorUser, SessionDep
+from league.server.api.deps import CurrentUser, Id, InstructorUser, SessionDep
 from league.server.db import crud
 from league.server.db.models import STUDENT, User
 from league.server.schemas import UserCreate, UserCreated, UserOut
@@ -48,23 +49,40 @@ def create_student(body: UserCreate, session: SessionDep, instructor: Instructor
     return created_out(user, token)
 
 
-@router.post("/roster", response_model=list[UserCreated], status_code=status.HTTP_201_CREATED)
-def create_roster(file: Annotated[UploadFile, File(description="CSV with a `name` column (or one name a line)")],
-                  session: SessionDep, instructor: InstructorUser) -> list[UserCreated]:
-    """Create the students of a CSV roster, all or none; the response holds their tokens (shown once)."""
-    names = roster_names(file.file.read(MAX_ROSTER_BYTES + 1))
-    created, problems = [], []
-    for name in names:
-        try:
-            created.append(crud.create_user(session, name=name, role=STUDENT, course=instructor.course,
-                                            created_by=instructor))
-        except crud.InvalidName as error:
-            problems.append(str(error))
-    if problems:
-        session.rollback()
-        raise HTTPException(status.HTTP_409_CONFLICT, "no student was created: " + "; ".join(problems[:20]))
-    session.commit()
-    return [created_out(user, token) for user, token in created]
+ROSTER_FORM = {"requestBody": {"required": True, "content": {"multipart/form-data": {"schema": {
+    "type": "object", "required": ["file"], "properties": {
+        "file": {"type": "string", "format": "binary", "description": "CSV with a `name` column (or one name a line)"}
+    }}}}}}
+
+
+@router.post("/roster", response_model=list[UserCreated], status_code=status.HTTP_201_CREATED, openapi_extra=ROSTER_FORM)
+async def create_roster(request: Request, instructor: InstructorUser) -> list[UserCreated]:
+    """Create the students of a CSV roster, all or none; the response holds their tokens (shown once).
+    The body is read only once the instructor's token is accepted."""
+    async with request.form(max_files=1, max_fields=0) as form:
+        file = form.get("file")
+        if not isinstance(file, UploadFile):
+            raise HTTPException(status.HTTP_422_UNPROCESSABLE_CONTENT, "send the roster as the multipart field `file`")
+        data = await file.read(MAX_ROSTER_BYTES + 1)
+    return await run_in_threadpool(create_students, request.app.state.sessions, instructor.id, roster_names(data))
+
+
+def create_students(sessions, instructor_id: int, names: list[str]) -> list[UserCreated]:
+    """Every student of the list, or none (the 409 names what was wrong)."""
+    with sessions() as session:
+        instructor = session.get(User, instructor_id)
+        created, problems = [], []
+        for name in names:
+            try:
+                created.append(crud.create_user(session, name=name, role=STUDENT, course=instructor.course,
+                                                created_by=instructor))
+            except crud.InvalidName as error:
+                problems.append(str(error))
+        if problems:
+            session.rollback()
+            raise HTTPException(status.HTTP_409_CONFLICT, "no student was created: " + "; ".join(problems[:20]))
+        session.commit()
+        return [created_out(user, token) for user, token in created]
 
 
 def roster_names(data: bytes) -> list[str]:
@@ -84,28 +102,27 @@ def roster_names(data: bytes) -> list[str]:
     return names
 
 
-def course_user(session: SessionDep, instructor: User, user_id: int) -> User:
+def course_student(session: SessionDep, instructor: User, user_id: int) -> User:
+    """A student of the instructor's course (another instructor's account is theirs to manage)."""
     user = session.get(User, user_id)
-    if user is None or user.course_id != instructor.course_id:
-        raise HTTPException(status.HTTP_404_NOT_FOUND, "no such user in your course")
+    if user is None or user.course_id != instructor.course_id or user.role != STUDENT:
+        raise HTTPException(status.HTTP_404_NOT_FOUND, "no such student in your course")
     return user
 
 
 @router.post("/{user_id}/revoke", response_model=UserOut)
-def revoke_user(user_id: int, session: SessionDep, instructor: InstructorUser) -> UserOut:
-    """Revoke an account: its token stops working; its submissions and results stay."""
-    user = course_user(session, instructor, user_id)
-    if user.id == instructor.id:
-        raise HTTPException(status.HTTP_409_CONFLICT, "you cannot revoke your own account")
+def revoke_user(user_id: Id, session: SessionDep, instructor: InstructorUser) -> UserOut:
+    """Revoke a student's account: its token stops working; its submissions and results stay."""
+    user = course_student(session, instructor, user_id)
     crud.revoke_user(session, user=user)
     session.commit()
     return user_out(user)
 
 
 @router.post("/{user_id}/token", response_model=UserCreated)
-def reissue_token(user_id: int, session: SessionDep, instructor: InstructorUser) -> UserCreated:
+def reissue_token(user_id: Id, session: SessionDep, instructor: InstructorUser) -> UserCreated:
     """Give a student a new token (the old one stops working; a revoked account is restored)."""
-    user = course_user(session, instructor, user_id)
+    user = course_student(session, instructor, user_id)
     token = crud.reissue_token(session, user=user)
     session.commit()
     return created_out(user, token)

@@ -1,6 +1,7 @@
-"""Championships over real HTTP: who may run them, what a bad one is refused with, which agent
-races for a student, and a whole season -- two rounds in heats with students, the baseline and a
-broken agent -- checked against the points table and raced again locally from what is stored."""
+"""Championships: who may run them and what a bad one is refused with (in process); over real HTTP,
+which agent races for a student, and a whole season -- two rounds in heats with students, the
+baseline and a broken agent -- checked against the points table and raced again locally from what
+is stored."""
 from __future__ import annotations
 
 import threading
@@ -34,12 +35,12 @@ def create(client, **body):
     return client.post("/api/championships", json={"name": unique("cup"), **body})
 
 
-# --------------------------------------------------------------------------- on the shared servers
+# --------------------------------------------------------------------------- in process, and on the shared servers
 
 
-def test_only_instructors_create_championships_and_start_rounds(league_server):
-    student = create_student(league_server, unique("sam"))
-    with league_server.client(league_server.instructor_token) as instructor, league_server.client() as anonymous:
+def test_only_instructors_create_championships_and_start_rounds(app_league):
+    student = create_student(app_league, unique("sam"))
+    with app_league.client(app_league.instructor_token) as instructor, app_league.client() as anonymous:
         by_student = create(student)
         by_nobody = create(anonymous)
         championship = create(instructor).json()
@@ -52,8 +53,8 @@ def test_only_instructors_create_championships_and_start_rounds(league_server):
     assert shown["rounds"] == []
 
 
-def test_an_instructor_creates_a_championship_with_the_defaults(league_server):
-    with league_server.client(league_server.instructor_token) as instructor, league_server.client() as anonymous:
+def test_an_instructor_creates_a_championship_with_the_defaults(app_league):
+    with app_league.client(app_league.instructor_token) as instructor, app_league.client() as anonymous:
         response = instructor.post("/api/championships", json={"name": "  Spring cup  "})
         seeded = create(instructor, seed=77, heat_size=4, points=[3, 2, 1], include_baselines=False,
                         env_options={"obstacles": False})
@@ -84,13 +85,13 @@ def test_an_instructor_creates_a_championship_with_the_defaults(league_server):
 @pytest.mark.parametrize("body, detail", [
     ({"heat_size": 11}, "heat_size 11 is too large: a race takes at most 10 cars"),
     ({"points": [25, 18, -1]}, "points must not be negative"),
-    ({"env_options": {"curves": 2}}, "invalid env_options: curves must be an integer >= 5, got 2"),
-    ({"env_options": {"bogus": True}}, "invalid env_options: unknown MicroRacer option(s) ['bogus']; valid options: "),
+    ({"env_options": {"curves": 2}}, "invalid env_options: curves must be an integer in [5, 60], got 2"),
+    ({"env_options": {"bogus": True}}, "invalid env_options: RaceOptions() got an unexpected keyword argument 'bogus'; valid options: "),
     ({"env_options": {"observation": "lidar"}},
      "observation is not an evaluation setting: it follows each agent's input size"),
 ])
-def test_a_bad_championship_is_refused(league_server, body, detail):
-    with league_server.client(league_server.instructor_token) as instructor:
+def test_a_bad_championship_is_refused(app_league, body, detail):
+    with app_league.client(app_league.instructor_token) as instructor:
         before = len(instructor.get("/api/championships").json())
         response = create(instructor, **body)
         after = len(instructor.get("/api/championships").json())
@@ -100,15 +101,15 @@ def test_a_bad_championship_is_refused(league_server, body, detail):
 
 
 @pytest.mark.parametrize("body", [{"heat_size": 1}, {"points": []}, {"name": ""}, {"seed": -1}])
-def test_a_championship_outside_the_schema_is_refused(league_server, body):
-    with league_server.client(league_server.instructor_token) as instructor:
+def test_a_championship_outside_the_schema_is_refused(app_league, body):
+    with app_league.client(app_league.instructor_token) as instructor:
         response = create(instructor, **body)
     assert response.status_code == 422
     assert isinstance(response.json()["detail"], list)
 
 
-def test_unknown_championships_are_404(league_server):
-    with league_server.client(league_server.instructor_token) as instructor:
+def test_unknown_championships_are_404(app_league):
+    with app_league.client(app_league.instructor_token) as instructor:
         responses = [instructor.get("/api/championships/999999"), instructor.post("/api/championships/999999/rounds"),
                      instructor.get("/api/championships/999999/standings")]
     for response in responses:
@@ -116,11 +117,11 @@ def test_unknown_championships_are_404(league_server):
         assert response.json() == {"detail": "championship 999999 does not exist"}
 
 
-def test_an_instructor_of_another_course_cannot_start_a_round(league_server):
-    with league_server.client(league_server.instructor_token) as instructor:
+def test_an_instructor_of_another_course_cannot_start_a_round(app_league):
+    with app_league.client(app_league.instructor_token) as instructor:
         championship = create(instructor).json()
-    token = add_user_in_new_course(league_server, unique("prof"), unique("other course"), role="instructor")
-    with league_server.client(token) as stranger:
+    _, token = app_league.user("prof", role="instructor", course_name=unique("other course"))
+    with app_league.client(token) as stranger:
         response = stranger.post(f"/api/championships/{championship['id']}/rounds")
     assert response.status_code == 403
     assert response.json() == {"detail": "this championship belongs to another course"}
@@ -343,7 +344,7 @@ def test_a_round_waits_for_the_previous_one(season):
 
 
 def test_a_round_with_students_baselines_and_a_broken_agent_completes(season):
-    """Issue 6's acceptance test: the broken agent is a DNF with its reason, points and standings
+    """The acceptance test of championships: the broken agent is a DNF with its reason, points and standings
     follow the points table, and every heat raced again from what is stored classifies the same."""
     broken_id = season.students["dnf"]["id"]
     assert season.students["dnf"]["evaluation"]["completed"] == 0  # it validated, then crashed on every track
@@ -406,7 +407,7 @@ def test_instructors_read_what_the_cars_sandboxes_printed(season):
     sections = response.text.split("== ")[1:]
     assert sorted(section.split(" ==\n")[0] for section in sections) == \
         sorted(f"{e['name']} ({e['owner']})" for e in season.dnf_heat["entrants"])
-    assert all("started: network" in section for section in sections)
+    assert all("started: Landlock ABI" in section for section in sections)
     assert season.student_reads_log.status_code == 403
     assert season.student_reads_log.json() == {"detail": "only instructors may do this"}
     assert season.other_course_reads_log.status_code == 403

@@ -1,4 +1,4 @@
-"""Evaluation settings and re-runs over real HTTP."""
+"""Evaluation settings and re-runs: over real HTTP with a worker, and the refusals in process."""
 from __future__ import annotations
 
 import uuid
@@ -7,6 +7,7 @@ import pytest
 
 from league.agents import load_agent
 from league.evaluation import metrics_run
+from league.server.db.models import REJECTED
 
 from ...conftest import create_student, submission, upload, wait_for, wait_settled
 
@@ -51,21 +52,20 @@ def test_rerun_all_queues_every_ready_submission_including_the_baselines(league_
 
 @pytest.mark.parametrize("options, message", [
     ({"observation": "lidar"}, "observation is not an evaluation setting: it follows each agent's input size"),
-    ({"warp_drive": True}, "invalid env_options: unknown MicroRacer option(s) ['warp_drive']"),
+    ({"warp_drive": True}, "invalid env_options: RaceOptions() got an unexpected keyword argument 'warp_drive'; valid options: "),
     ({"track_width": 5.0}, "invalid env_options: track_width must be in (0, "),
 ])
-def test_invalid_env_options_are_refused(league_server, options, message):
-    with league_server.client(league_server.instructor_token) as instructor:
+def test_invalid_env_options_are_refused(app_league, options, message):
+    with app_league.client(app_league.instructor_token) as instructor:
         response = instructor.put("/api/settings/evaluation", json={"seed": 1, "episodes": 3, "env_options": options})
     assert response.status_code == 422
     assert response.json()["detail"].startswith(message)
 
 
-def test_rerun_of_a_rejected_submission_is_a_conflict(league_server, models):
-    student = create_student(league_server, f"jay-{uuid.uuid4().hex[:6]}")
-    rejected = upload(student, models["random_bytes"]).json()["id"]
-    wait_settled(student, rejected)
-    with league_server.client(league_server.instructor_token) as instructor:
+def test_rerun_of_a_rejected_submission_is_a_conflict(app_league):
+    user, _ = app_league.student("jay")
+    rejected = app_league.submission(user, status=REJECTED).id
+    with app_league.client(app_league.instructor_token) as instructor:
         response = instructor.post("/api/evaluations/rerun", json={"submission_id": rejected})
         assert response.status_code == 409
         assert response.json() == {"detail": f"submission {rejected} is rejected: only ready submissions are evaluated"}

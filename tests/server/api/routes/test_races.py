@@ -1,10 +1,12 @@
-"""Friendly races over real HTTP, on SQLite + SQLite queue and on PostgreSQL + Redis: a student
-races their agent against the baseline, the race is reproducible from what is stored, and every
-race the API must refuse is refused with a clear reason."""
+"""Friendly races, on SQLite + SQLite queue and on PostgreSQL + Redis: a student races their agent
+against the baseline over real HTTP, the race is reproducible from what is stored; every race the
+API must refuse is refused with a clear reason (in process)."""
 from __future__ import annotations
 
 import json
+import threading
 import uuid
+from concurrent.futures import ThreadPoolExecutor
 from types import SimpleNamespace
 
 import pytest
@@ -34,7 +36,7 @@ def grid(league_server, models):
     rejected = wait_settled(alice, upload(alice, models["random_bytes"]).json()["id"])
     assert rejected["status"] == "rejected"
     return SimpleNamespace(server=league_server, alice=alice, alice_name=alice_name, mine=mine, rejected=rejected,
-                           baseline=baseline_submission(league_server))
+                           baseline=baseline_submission(league_server), models=models)
 
 
 @pytest.fixture(scope="module")
@@ -43,6 +45,27 @@ def finished_race(grid):
                                                    "seed": RACE_SEED, "env_options": RACE_OPTIONS})
     assert created.status_code == 201, created.text
     return SimpleNamespace(created=created.json(), race=wait_race(grid.alice, created.json()["id"]))
+
+
+@pytest.fixture(scope="module")
+def app_grid(app_league):
+    """The same grid, in process: alice's ready agent and rejected upload, a ready baseline."""
+    from league.server.db import crud
+    from league.server.db.models import REJECTED
+
+    alice_user, alice = app_league.student("alice")
+    with app_league.sessions() as session:
+        baselines = crud.user_by_name(session, name=crud.BASELINES_USER)
+    as_dict = lambda submission: {"id": submission.id}  # noqa: E731  (what these tests read of a submission)
+    return SimpleNamespace(server=app_league, alice=alice, mine=as_dict(app_league.submission(alice_user)),
+                           rejected=as_dict(app_league.submission(alice_user, status=REJECTED)),
+                           baseline=as_dict(app_league.submission(baselines, public=True)))
+
+
+def not_raceable(submission_id: int) -> dict:
+    """The one answer for a submission that does not exist, is private, or is of another course."""
+    return {"detail": f"no submission {submission_id} you may race: your own, the baselines, or another student's "
+                      "agent once its owner makes it public"}
 
 
 def post_race(client, ids: list[int], **body):
@@ -143,30 +166,25 @@ def test_races_are_listed_publicly_newest_first_and_paginated(grid, finished_rac
     assert bad_page.status_code == 422
 
 
-def test_unknown_races_are_404(grid):
-    with grid.server.client() as anonymous:
+def test_unknown_races_are_404(app_grid):
+    with app_grid.server.client() as anonymous:
         for path in ("/api/races/999999", "/api/races/999999/replay"):
             response = anonymous.get(path)
             assert response.status_code == 404
             assert response.json() == {"detail": "race 999999 does not exist"}
 
 
-def test_a_failed_race_has_no_replay_and_says_why(grid):
+def test_a_failed_race_has_no_replay_and_says_why(app_league):
     """A race whose job failed for good (stored as the job machinery's give_up stores it)."""
     from league.server.db.models import FAILED, Race
-    from league.server.db.session import make_engine, make_sessionmaker
 
-    engine = make_engine(grid.server.env["LEAGUE_DATABASE_URL"])
-    try:
-        with make_sessionmaker(engine).begin() as session:
-            race = Race(seed=1, env_options={}, entrants=[], status=FAILED,
-                        error="the race could not be completed: gave up after 3 attempts")
-            session.add(race)
-            session.flush()
-            race_id = race.id
-    finally:
-        engine.dispose()
-    with grid.server.client() as anonymous:
+    with app_league.sessions.begin() as session:
+        race = Race(seed=1, env_options={}, entrants=[], status=FAILED,
+                    error="the race could not be completed: gave up after 3 attempts")
+        session.add(race)
+        session.flush()
+        race_id = race.id
+    with app_league.client() as anonymous:
         assert anonymous.get(f"/api/races/{race_id}").json()["status"] == "failed"
         response = anonymous.get(f"/api/races/{race_id}/replay")
     assert response.status_code == 409
@@ -177,54 +195,57 @@ def test_a_failed_race_has_no_replay_and_says_why(grid):
 # --------------------------------------------------------------------------- refused races
 
 
-def test_racing_an_unknown_submission_is_404(grid):
-    response = post_race(grid.alice, [grid.mine["id"], 999999])
+def test_racing_an_unknown_submission_is_404(app_grid):
+    response = post_race(app_grid.alice, [app_grid.mine["id"], 999999])
     assert response.status_code == 404
-    assert response.json() == {"detail": "submission 999999 does not exist"}
+    assert response.json() == not_raceable(999999)
 
 
-def test_racing_a_submission_that_is_not_ready_is_409(grid):
-    rejected = grid.rejected["id"]
-    response = post_race(grid.alice, [grid.mine["id"], rejected])
+def test_racing_a_submission_that_is_not_ready_is_409(app_grid):
+    rejected = app_grid.rejected["id"]
+    response = post_race(app_grid.alice, [app_grid.mine["id"], rejected])
     assert response.status_code == 409
     assert response.json() == {"detail": f"submission {rejected} is not ready (status: rejected); "
                                          "only submissions that passed validation can race"}
 
 
-def test_too_many_cars_is_422(grid):
-    ids = [grid.mine["id"], grid.baseline["id"], *range(900001, 900010)]  # 11 > LEAGUE_MAX_RACE_CARS (10)
-    response = post_race(grid.alice, ids)
+def test_too_many_cars_is_422(app_grid):
+    ids = [app_grid.mine["id"], app_grid.baseline["id"], *range(900001, 900010)]  # 11 > LEAGUE_MAX_RACE_CARS (10)
+    response = post_race(app_grid.alice, ids)
     assert response.status_code == 422
     assert response.json() == {"detail": "too many cars: 11; a race takes at most 10"}
 
 
-def test_a_submission_listed_twice_is_422(grid):
-    response = post_race(grid.alice, [grid.mine["id"], grid.baseline["id"], grid.mine["id"]])
+def test_a_submission_listed_twice_is_422(app_grid):
+    response = post_race(app_grid.alice, [app_grid.mine["id"], app_grid.baseline["id"], app_grid.mine["id"]])
     assert response.status_code == 422
-    assert response.json() == {"detail": f"submission {grid.mine['id']} is listed twice: "
+    assert response.json() == {"detail": f"submission {app_grid.mine['id']} is listed twice: "
                                          "each car races a different submission"}
 
 
-def test_a_race_needs_two_cars(grid):
-    response = post_race(grid.alice, [grid.mine["id"]])
+def test_a_race_needs_two_cars(app_grid):
+    response = post_race(app_grid.alice, [app_grid.mine["id"]])
     assert response.status_code == 422
     assert response.json()["detail"][0]["loc"] == ["body", "submission_ids"]
 
 
 @pytest.mark.parametrize("options, detail", [
-    ({"bogus": 1}, "invalid env_options: unknown MicroRacer option(s) ['bogus']; valid options: "),
-    ({"curves": 2}, "invalid env_options: curves must be an integer >= 5, got 2"),
+    ({"bogus": 1}, "invalid env_options: RaceOptions() got an unexpected keyword argument 'bogus'; valid options: "),
+    ({"curves": 2}, "invalid env_options: curves must be an integer in [5, 60], got 2"),
+    ({"curves": 1_000_000}, "invalid env_options: curves must be an integer in [5, 60], got 1000000"),
+    ({"tstep": 1e-9}, "invalid env_options: tstep must be in [0.01, 0.2] seconds"),
+    ({"max_episode_steps": 10**9}, "invalid env_options: max_episode_steps must be an integer in [1, 20000]"),
     ({"observation": "lidar"}, "observation is not an evaluation setting: it follows each agent's input size"),
 ])
-def test_bad_env_options_are_422(grid, options, detail):
-    response = post_race(grid.alice, [grid.mine["id"], grid.baseline["id"]], env_options=options)
+def test_bad_env_options_are_422(app_grid, options, detail):
+    response = post_race(app_grid.alice, [app_grid.mine["id"], app_grid.baseline["id"]], env_options=options)
     assert response.status_code == 422
     assert response.json()["detail"].startswith(detail)
 
 
-def test_racing_without_a_token_is_401(grid):
-    with grid.server.client() as anonymous:
-        response = post_race(anonymous, [grid.mine["id"], grid.baseline["id"]])
+def test_racing_without_a_token_is_401(app_grid):
+    with app_grid.server.client() as anonymous:
+        response = post_race(anonymous, [app_grid.mine["id"], app_grid.baseline["id"]])
     assert response.status_code == 401
     assert response.json() == {"detail": "missing token: send the header Authorization: Bearer TOKEN"}
 
@@ -236,9 +257,8 @@ def test_another_students_agent_races_only_once_public(grid, models):
     assert bobs["public"] is False
 
     refused = post_race(grid.alice, [grid.mine["id"], bobs["id"]])
-    assert refused.status_code == 403
-    assert refused.json() == {"detail": f"submission {bobs['id']} is another student's private agent: you may "
-                                        "race it once its owner makes it public"}
+    assert refused.status_code == 404  # as if it did not exist: a private agent's id tells nothing
+    assert refused.json() == not_raceable(bobs["id"])
     assert grid.alice.patch(f"/api/submissions/{bobs['id']}", json={"public": True}).status_code == 404  # not hers
 
     made_public = bob.patch(f"/api/submissions/{bobs['id']}", json={"public": True})
@@ -268,14 +288,15 @@ def test_an_agent_of_another_course_cannot_race(grid, models):
         from_there = post_race(outsider, [theirs["id"], grid.mine["id"]])
     with grid.server.client(grid.server.instructor_token) as instructor:
         by_instructor = post_race(instructor, [theirs["id"], grid.baseline["id"]])
-    assert from_here.status_code == 403
-    assert from_here.json() == {"detail": f"submission {theirs['id']} belongs to another course"}
-    assert from_there.status_code == 403
-    assert from_there.json() == {"detail": f"submission {grid.mine['id']} belongs to another course"}
-    assert by_instructor.status_code == 403
-    assert by_instructor.json() == {"detail": f"submission {theirs['id']} belongs to another course"}
+    assert from_here.status_code == 404
+    assert from_here.json() == not_raceable(theirs["id"])
+    assert from_there.status_code == 404
+    assert from_there.json() == not_raceable(grid.mine["id"])
+    assert by_instructor.status_code == 404
+    assert by_instructor.json() == not_raceable(theirs["id"])
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("backend", ["postgres"], indirect=True)  # SQLite: the season in test_championships.py
 def test_race_settings_limit_cars_and_daily_races_and_a_replay_waits_for_the_race(backend, tmp_path, models):
     """LEAGUE_MAX_RACE_CARS=2 and LEAGUE_RACE_QUOTA_PER_DAY=1; with no worker running, the race stays
@@ -314,3 +335,22 @@ def test_race_settings_limit_cars_and_daily_races_and_a_replay_waits_for_the_rac
     assert by_instructor.status_code == 201, by_instructor.text
     assert [race["status"] for race in done] == ["done", "done"]
     assert replay.status_code == 200 and len(replay.json()["cars"]) == 2
+
+
+def test_parallel_races_never_pass_the_daily_quota(grid):
+    """40 friendly races posted at once against LEAGUE_RACE_QUOTA_PER_DAY (20): at most 20 accepted."""
+    quota = 20
+    name = unique("racer")
+    racer = create_student(grid.server, name)
+    token = racer.headers["Authorization"].split()[1]
+    mine = upload_ready(racer, grid.models["heuristic_onnx"])
+    start = threading.Barrier(40)
+
+    def post(_):
+        with grid.server.client(token) as client:
+            start.wait()
+            return post_race(client, [mine["id"], grid.baseline["id"]]).status_code
+
+    with ThreadPoolExecutor(40) as pool:
+        statuses = list(pool.map(post, range(40)))
+    assert statuses.count(201) == quota and statuses.count(429) == 40 - quota, statuses

@@ -1,17 +1,22 @@
-"""Submissions over real HTTP, on SQLite + SQLite queue and on PostgreSQL + Redis."""
+"""Submissions, on SQLite + SQLite queue and on PostgreSQL + Redis: what a worker must run over real
+HTTP (league_server), the refusals in process (app_league)."""
 from __future__ import annotations
 
 import hashlib
 import re
+import threading
 import uuid
+from concurrent.futures import ThreadPoolExecutor
 from datetime import datetime, timedelta
 
 import pytest
 
 from league.agents import load_agent
 from league.evaluation import metrics_run
+from league.server.db.models import REJECTED
 
-from ...conftest import create_student, submission, upload, wait_settled
+from ...conftest import BACKENDS, create_student, submission, upload, wait_settled
+from ..conftest import in_process_league
 
 EPISODES, SEED = 3, 11  # conftest.TEST_SETTINGS
 
@@ -58,7 +63,7 @@ BAD_UPLOADS = {
     "memory_hog": r"out of memory \(the cap is 512 MB\)",
     "external_data": r"refers to external data",
     "custom_domain": r"non-standard operator domain 'com.example'",
-    "reads_file": r"uses 'from_file'",
+    "reads_file": r"operator aten::from_file \(in .*forward\) is not allowed",
 }
 
 
@@ -77,8 +82,8 @@ def test_bad_model_is_rejected_with_its_reason_and_the_server_goes_on(league_ser
     assert student.get("/api/health").status_code == 200
 
 
-def test_empty_file_is_refused(league_server, tmp_path):
-    student = create_student(league_server, unique("empty"))
+def test_empty_file_is_refused(app_league, tmp_path):
+    student = create_student(app_league, unique("empty"))
     empty = tmp_path / "empty.onnx"
     empty.write_bytes(b"")
     response = upload(student, empty)
@@ -86,8 +91,8 @@ def test_empty_file_is_refused(league_server, tmp_path):
     assert response.json() == {"detail": "the file is empty"}
 
 
-def test_unknown_file_type_is_refused(league_server, tmp_path):
-    student = create_student(league_server, unique("type"))
+def test_unknown_file_type_is_refused(app_league, tmp_path):
+    student = create_student(app_league, unique("type"))
     script = tmp_path / "agent.py"
     script.write_text("print('hello')")
     response = upload(student, script)
@@ -95,8 +100,8 @@ def test_unknown_file_type_is_refused(league_server, tmp_path):
     assert response.json()["detail"] == "unsupported file type '.py': upload an .onnx or a TorchScript .pt file"
 
 
-def test_file_over_the_size_limit_is_refused(league_server, tmp_path):
-    student = create_student(league_server, unique("big"))
+def test_file_over_the_size_limit_is_refused(app_league, tmp_path):
+    student = create_student(app_league, unique("big"))
     big = tmp_path / "big.onnx"
     big.write_bytes(b"\0" * (5 * 1024 * 1024 + 1))
     response = upload(student, big)
@@ -105,9 +110,9 @@ def test_file_over_the_size_limit_is_refused(league_server, tmp_path):
     assert student.get("/api/submissions").json() == []
 
 
-def test_size_limit_holds_for_a_streamed_upload_without_length(league_server):
+def test_size_limit_holds_for_a_streamed_upload_without_length(app_league):
     """Chunked transfer: no Content-Length to trust, the limit is enforced while reading."""
-    student = create_student(league_server, unique("stream"))
+    student = create_student(app_league, unique("stream"))
     boundary = "leaguetestboundary"
 
     def body():
@@ -123,21 +128,20 @@ def test_size_limit_holds_for_a_streamed_upload_without_length(league_server):
     assert student.get("/api/health").status_code == 200
 
 
-def test_same_file_twice_is_stored_once(league_server, models):
-    student = create_student(league_server, unique("twice"))
+def test_same_file_twice_is_stored_once(app_league, models):
+    student = create_student(app_league, unique("twice"))
     first = upload(student, models["heuristic_onnx"]).json()["id"]
     second = upload(student, models["heuristic_onnx"]).json()["id"]
     one, two = submission(student, first), submission(student, second)
     digest = hashlib.sha256(models["heuristic_onnx"].read_bytes()).hexdigest()
     assert one["sha256"] == two["sha256"] == digest
-    stored = list((league_server.data_dir / "blobs").rglob(digest))
+    stored = list((app_league.settings.data_dir / "blobs").rglob(digest))
     assert len(stored) == 1 and stored[0].read_bytes() == models["heuristic_onnx"].read_bytes()
 
 
-def test_quota_counts_accepted_uploads_only_and_names_the_next_free_slot(league_server, models):
-    student = create_student(league_server, unique("quota"))
-    rejected = upload(student, models["random_bytes"]).json()["id"]
-    assert wait_settled(student, rejected)["status"] == "rejected"
+def test_quota_counts_accepted_uploads_only_and_names_the_next_free_slot(app_league, models):
+    user, student = app_league.student("quota")
+    app_league.submission(user, status=REJECTED)  # as its validation left it: free
     for _ in range(4):  # LEAGUE_QUOTA_PER_DAY=4; the rejected upload is free
         assert upload(student, models["heuristic_onnx"]).status_code == 201
 
@@ -152,12 +156,12 @@ def test_quota_counts_accepted_uploads_only_and_names_the_next_free_slot(league_
     assert detail.endswith((oldest + timedelta(hours=24)).isoformat(timespec="seconds"))
 
 
-def test_missing_and_wrong_tokens_are_refused(league_server, models):
-    with league_server.client() as anonymous:
+def test_missing_and_wrong_tokens_are_refused(app_league, models):
+    with app_league.client() as anonymous:
         response = upload(anonymous, models["onnx"])
         assert response.status_code == 401
         assert response.json() == {"detail": "missing token: send the header Authorization: Bearer TOKEN"}
-    with league_server.client("lg_not-a-real-token") as stranger:
+    with app_league.client("lg_not-a-real-token") as stranger:
         assert stranger.get("/api/submissions").status_code == 401
         assert stranger.get("/api/submissions").json() == {"detail": "invalid token"}
 
@@ -184,3 +188,59 @@ def test_the_baselines_are_registered_and_evaluated_on_the_first_start(league_se
         settled = wait_settled(instructor, baselines[0]["id"])
     assert settled["status"] == "ready" and settled["evaluation"]["status"] == "done"
     assert (league_server.data_dir / "baselines" / "heuristic.onnx").is_file()
+
+
+@pytest.mark.parametrize("kind", BACKENDS)
+def test_a_student_has_a_limited_number_of_jobs_in_flight(kind, tmp_path, models):
+    """Uploads beyond LEAGUE_MAX_JOBS_IN_FLIGHT wait their turn: no worker runs here, every job waits."""
+    limit = 2
+    with in_process_league(kind, tmp_path, max_jobs_in_flight=limit) as league:
+        _, student = league.student("busy")
+        statuses = [upload(student, models["heuristic_onnx"]) for _ in range(limit)]
+        refused = upload(student, models["heuristic_onnx"])
+    accepted = [response.status_code for response in statuses]
+    assert accepted == [201] * limit
+    assert refused.status_code == 429
+    assert refused.json() == {"detail": f"{limit} of your uploads or races are still waiting or running (at most "
+                                        f"{limit} at once): upload again when one of them is done"}
+
+
+def test_a_rejected_uploads_file_is_deleted(app_league, tmp_path):
+    """Its bytes leave the database when its validation rejects it, and each store's copy with the next sweep."""
+    from league.server.db import crud
+    from league.server.db.models import Job, Submission
+    from league.server.jobs.validate import ValidateSubmission
+    from league.server.sandbox.validation import ValidationReport
+
+    from ... import model_factory as mf
+
+    user, student = app_league.student("reject")
+    bad = mf.random_bytes(tmp_path / "random.onnx")
+    submission_id = upload(student, bad).json()["id"]
+    digest = student.get(f"/api/submissions/{submission_id}").json()["sha256"]
+    with app_league.sessions.begin() as session:  # what the worker's validation writes
+        job = session.query(Job).filter_by(submission_id=submission_id).one()
+        ValidateSubmission().finish(session, job, ValidationReport(False, None, "not an ONNX model", ""))
+        assert session.get(Submission, submission_id).status == "rejected"
+    with app_league.sessions() as session:
+        assert digest not in crud.kept_blobs(session)
+    store = app_league.app.state.store
+    assert store.path(digest).exists()
+    store.sweep(set(), older_than_s=0)
+    assert not store.path(digest).exists()
+
+
+def test_parallel_uploads_never_pass_the_quota(league_server, models):
+    """25 uploads at once against a quota of 4 (LEAGUE_QUOTA_PER_DAY): exactly 4 accepted."""
+    student = create_student(league_server, unique("rush"))
+    start = threading.Barrier(25)
+
+    def post(_):
+        with league_server.client(student.headers["Authorization"].split()[1]) as client:
+            start.wait()
+            return upload(client, models["heuristic_onnx"]).status_code
+
+    with ThreadPoolExecutor(25) as pool:
+        statuses = sorted(pool.map(post, range(25)))
+    assert statuses == [201] * 4 + [429] * 21
+    assert len(student.get("/api/submissions").json()) == 4

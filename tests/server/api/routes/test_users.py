@@ -1,6 +1,9 @@
-"""Accounts over real HTTP: instructors create students (one or a CSV roster) and revoke them."""
+"""Accounts, in process on both backends: instructors create students (one or a CSV roster) and revoke them."""
 from __future__ import annotations
 
+import os
+import subprocess
+import sys
 import uuid
 
 from ...conftest import create_student
@@ -10,16 +13,23 @@ def unique(name: str) -> str:
     return f"{name}-{uuid.uuid4().hex[:6]}"
 
 
-def test_cli_token_authenticates_the_instructor(league_server):
-    with league_server.client(league_server.instructor_token) as instructor:
+def test_cli_token_authenticates_the_instructor(app_league):
+    """`league users add` writes to the same database as the app; its token is accepted."""
+    env = {**os.environ, "LEAGUE_DATABASE_URL": app_league.settings.resolved_database_url,
+           "LEAGUE_QUEUE_URL": app_league.settings.resolved_queue_url, "LEAGUE_DATA_DIR": str(app_league.settings.data_dir)}
+    name = unique("prof")
+    added = subprocess.run([sys.executable, "-m", "league.server", "users", "add", name, "--role", "instructor"],
+                           env=env, capture_output=True, text=True, timeout=120)
+    assert added.returncode == 0, added.stderr
+    with app_league.client(added.stdout.strip()) as instructor:
         me = instructor.get("/api/users/me")
     assert me.status_code == 200
-    assert (me.json()["name"], me.json()["role"], me.json()["active"]) == ("prof", "instructor", True)
+    assert (me.json()["name"], me.json()["role"], me.json()["active"]) == (name, "instructor", True)
 
 
-def test_instructor_creates_a_student_whose_token_works(league_server):
+def test_instructor_creates_a_student_whose_token_works(app_league):
     name = unique("carol")
-    with league_server.client(league_server.instructor_token) as instructor:
+    with app_league.client(app_league.instructor_token) as instructor:
         created = instructor.post("/api/users", json={"name": name})
         assert created.status_code == 201
         assert created.json()["token"].startswith("lg_") and created.json()["role"] == "student"
@@ -27,14 +37,14 @@ def test_instructor_creates_a_student_whose_token_works(league_server):
         duplicate = instructor.post("/api/users", json={"name": name})
     assert duplicate.status_code == 409
     assert duplicate.json() == {"detail": f"user name {name!r} is already taken"}
-    with league_server.client(created.json()["token"]) as student:
+    with app_league.client(created.json()["token"]) as student:
         assert student.get("/api/users/me").json()["name"] == name
 
 
-def test_roster_creates_every_student_or_none(league_server):
+def test_roster_creates_every_student_or_none(app_league):
     names = [unique("dora"), unique("eve")]
     roster = ("name,email\n" + "".join(f"{n},{n}@school.example\n" for n in names)).encode()
-    with league_server.client(league_server.instructor_token) as instructor:
+    with app_league.client(app_league.instructor_token) as instructor:
         created = instructor.post("/api/users/roster", files={"file": ("roster.csv", roster, "text/csv")})
         assert created.status_code == 201
         assert [u["name"] for u in created.json()] == names
@@ -48,25 +58,25 @@ def test_roster_creates_every_student_or_none(league_server):
     assert not any(name.startswith("frank-") for name in listed)
 
 
-def test_revoked_student_is_locked_out_and_a_new_token_restores_them(league_server):
+def test_revoked_student_is_locked_out_and_a_new_token_restores_them(app_league):
     name = unique("gus")
-    with league_server.client(league_server.instructor_token) as instructor:
+    with app_league.client(app_league.instructor_token) as instructor:
         created = instructor.post("/api/users", json={"name": name}).json()
         revoked = instructor.post(f"/api/users/{created['id']}/revoke")
         assert revoked.status_code == 200 and revoked.json()["active"] is False
-        with league_server.client(created["token"]) as student:
+        with app_league.client(created["token"]) as student:
             response = student.get("/api/users/me")
             assert response.status_code == 401
             assert response.json() == {"detail": "this account was revoked"}
         renewed = instructor.post(f"/api/users/{created['id']}/token").json()
-    with league_server.client(renewed["token"]) as student:
+    with app_league.client(renewed["token"]) as student:
         assert student.get("/api/users/me").json()["active"] is True
-    with league_server.client(created["token"]) as old:
+    with app_league.client(created["token"]) as old:
         assert old.get("/api/users/me").status_code == 401
 
 
-def test_student_calling_instructor_endpoints_is_forbidden(league_server):
-    student = create_student(league_server, unique("mallory"))
+def test_student_calling_instructor_endpoints_is_forbidden(app_league):
+    student = create_student(app_league, unique("mallory"))
     forbidden = [
         student.get("/api/users"),
         student.post("/api/users", json={"name": unique("sneaky")}),
@@ -78,3 +88,13 @@ def test_student_calling_instructor_endpoints_is_forbidden(league_server):
     for response in forbidden:
         assert response.status_code == 403, response.request.url
         assert response.json() == {"detail": "only instructors may do this"}
+
+
+def test_instructors_manage_students_only(app_league):
+    """Another instructor's account is theirs: no new token for it, no revoking it."""
+    colleague, _ = app_league.user("colleague", role="instructor")
+    with app_league.client(app_league.instructor_token) as instructor:
+        responses = [instructor.post(f"/api/users/{colleague.id}/token"),
+                     instructor.post(f"/api/users/{colleague.id}/revoke")]
+    assert [r.status_code for r in responses] == [404, 404]
+    assert responses[0].json() == {"detail": "no such student in your course"}

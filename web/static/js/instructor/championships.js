@@ -1,18 +1,16 @@
 // Championships: create one, run a round and watch its heats finish, open the races' replays.
 
-import { api, isMissingEndpoint } from "../api.js";
-import { badge, element, say } from "../format.js";
+import { api } from "../api.js";
+import { $, badge, element, onSubmit, say } from "../dom.js";
 import { Poller } from "../poller.js";
 import { EnvOptionsFields, describeOptions } from "./env-options.js";
 
-const $ = (id) => document.getElementById(id);
 const ROUND_POLL_MS = 1000;
 const watched = new Map(); // "championship/round" -> Poller
 
 export async function setUpChampionships() {
   const options = new EnvOptionsFields($("champ-options"), "champ");
-  $("championship-form").addEventListener("submit", async (event) => {
-    event.preventDefault();
+  onSubmit($("championship-form"), async () => {
     try {
       const created = await api("/api/championships", { method: "POST", json: championshipBody(options) });
       $("championship-form").reset();
@@ -23,14 +21,7 @@ export async function setUpChampionships() {
       say($("championships-message"), `Not created: ${error.message}`, "error");
     }
   });
-  try {
-    await refreshChampionships();
-  } catch (error) {
-    if (!isMissingEndpoint(error)) throw error;
-    $("new-championship").hidden = true;
-    $("championships").replaceChildren();
-    say($("championships-message"), "Championships are not available on this server yet.", "info");
-  }
+  await refreshChampionships();
 }
 
 function championshipBody(options) {

@@ -1,7 +1,7 @@
 // The environment options of league.MicroRacerEnv as form fields. Only what differs from the
 // defaults goes into env_options, so {} means "the thesis' rules, all options on".
 
-import { element } from "../format.js";
+import { element } from "../dom.js";
 
 const SWITCHES = [
   ["obstacles", "Obstacles"],

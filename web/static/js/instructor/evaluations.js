@@ -1,41 +1,32 @@
 // The course's evaluation settings, every submission of the course, and re-running evaluations.
 
 import { api } from "../api.js";
-import { badge, element, number, say } from "../format.js";
+import { $, badge, element, onClick, onSubmit, say } from "../dom.js";
+import { count, number } from "../format.js";
 import { Poller } from "../poller.js";
-import { EnvOptionsFields } from "./env-options.js";
+import { EnvOptionsFields, describeOptions } from "./env-options.js";
 
-const $ = (id) => document.getElementById(id);
 const FAST_POLL_MS = 2000;
 const SLOW_POLL_MS = 15000;
 
 export async function setUpEvaluations() {
   const options = new EnvOptionsFields($("eval-options"), "eval");
-  const settings = await api("/api/settings/evaluation");
-  showSettings(settings, options);
+  let saved = await api("/api/settings/evaluation");
+  showSettings(saved, options);
 
-  $("settings-form").addEventListener("submit", async (event) => {
-    event.preventDefault();
+  onSubmit($("settings-form"), async () => {
     const body = { seed: Number($("eval-seed").value), episodes: Number($("eval-episodes").value), env_options: options.read() };
     try {
-      showSettings(await api("/api/settings/evaluation", { method: "PUT", json: body }), options);
+      saved = await api("/api/settings/evaluation", { method: "PUT", json: body });
+      showSettings(saved, options);
       say($("settings-message"), "Saved. New submissions are evaluated with these settings; re-run the others to update them.", "success");
     } catch (error) {
       say($("settings-message"), `Not saved: ${error.message}`, "error");
     }
   });
 
-  $("rerun-all").addEventListener("click", async () => {
-    try {
-      const { queued } = await api("/api/evaluations/rerun", { method: "POST", json: { all: true } });
-      say($("settings-message"), `Queued ${queued.length} evaluations with the current settings.`, "success");
-      submissionsPoller.poll();
-    } catch (error) {
-      say($("settings-message"), `Nothing re-run: ${error.message}`, "error");
-    }
-  });
-
   const submissionsPoller = new Poller(refreshSubmissions, SLOW_POLL_MS);
+  setUpRerunAll(() => saved, submissionsPoller);
   await submissionsPoller.poll();
 
   async function refreshSubmissions() {
@@ -45,6 +36,36 @@ export async function setUpEvaluations() {
       (s.status === "ready" && !["done", "failed"].includes(s.evaluation?.status)));
     submissionsPoller.interval = busy ? FAST_POLL_MS : SLOW_POLL_MS;
   }
+}
+
+/** "Re-run every evaluation", once the dialog that asks first is confirmed. */
+function setUpRerunAll(savedSettings, submissionsPoller) {
+  onClick($("rerun-all"), () => askToRerunAll(savedSettings()).catch((error) => say($("settings-message"), error.message, "error")));
+  onClick($("rerun-cancel"), () => $("rerun-dialog").close());
+  onClick($("rerun-confirm"), async () => {
+    $("rerun-dialog").close();
+    try {
+      const { queued } = await api("/api/evaluations/rerun", { method: "POST", json: { all: true } });
+      say($("settings-message"), `Queued ${count(queued.length, "evaluation")} with the current settings.`, "success");
+      submissionsPoller.poll();
+    } catch (error) {
+      say($("settings-message"), `Nothing re-run: ${error.message}`, "error");
+    }
+  });
+}
+
+/** Re-running the whole course queues a job per submission: say how many, and with what, first. */
+async function askToRerunAll(settings) {
+  const ready = (await api("/api/submissions?all=true")).filter((s) => s.status === "ready").length;
+  if (!ready) {
+    say($("settings-message"), "There is no ready submission to evaluate again.", "info");
+    return;
+  }
+  $("rerun-summary").textContent = `This evaluates the ${count(ready, "ready submission")} of the course again (the ` +
+    `baselines' too), with the saved settings: seed ${settings.seed}, ${count(settings.episodes, "episode")}, ` +
+    `${describeOptions(settings.env_options)}. That is ${count(ready, "job")} for the workers.`;
+  $("rerun-confirm").textContent = `Re-run ${count(ready, "evaluation")}`;
+  $("rerun-dialog").showModal();
 }
 
 function showSettings(settings, options) {

@@ -1,13 +1,12 @@
 // Students: create one or a CSV roster (their tokens are shown once), revoke, issue a new token.
 
 import { api } from "../api.js";
-import { badge, dateTime, element, say } from "../format.js";
+import { $, badge, element, onSubmit, say } from "../dom.js";
+import { dateTime } from "../format.js";
 
-const $ = (id) => document.getElementById(id);
 
 export function setUpStudents(me) {
-  $("student-form").addEventListener("submit", async (event) => {
-    event.preventDefault();
+  onSubmit($("student-form"), async () => {
     const name = $("student-name").value.trim();
     if (!name) {
       say($("students-message"), "Enter the student's name.", "error");
@@ -24,8 +23,7 @@ export function setUpStudents(me) {
     }
   });
 
-  $("roster-form").addEventListener("submit", async (event) => {
-    event.preventDefault();
+  onSubmit($("roster-form"), async () => {
     const file = $("roster-file").files[0];
     if (!file) {
       say($("students-message"), "Choose a CSV file first.", "error");

@@ -1,7 +1,8 @@
 // The instructor console (/instructor): students, evaluation settings, championships, jobs.
 
 import { api } from "../api.js";
-import { badge, dateTime, element, say } from "../format.js";
+import { $, badge, element, onClick, say } from "../dom.js";
+import { dateTime } from "../format.js";
 import { setUpChampionships } from "../instructor/championships.js";
 import { setUpEvaluations } from "../instructor/evaluations.js";
 import { setUpStudents } from "../instructor/students.js";
@@ -9,7 +10,6 @@ import { Poller } from "../poller.js";
 import { requireUser, showAccount } from "../session.js";
 
 const JOBS_POLL_MS = 5000;
-const $ = (id) => document.getElementById(id);
 
 /** What a job works on: a race (linked to its replay) or a submission. */
 function jobSubject(job) {
@@ -38,7 +38,7 @@ async function start() {
   }
   showAccount(me);
   const jobs = new Poller(refreshJobs, JOBS_POLL_MS);
-  $("refresh-jobs").addEventListener("click", () => jobs.poll());
+  onClick($("refresh-jobs"), () => jobs.poll());
   const parts = [setUpStudents(me), setUpEvaluations(), setUpChampionships(), jobs.poll()];
   const results = await Promise.allSettled(parts);
   const failures = results.filter((r) => r.status === "rejected").map((r) => r.reason.message);

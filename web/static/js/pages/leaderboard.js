@@ -1,8 +1,9 @@
 // The leaderboard page (/): championship standings, the course leaderboard, rounds and races,
 // refreshed every 15 s. Public: the token, when there is one, only highlights the user's rows.
 
-import { api, isMissingEndpoint } from "../api.js";
-import { badge, dateTime, element, number, ordinal, percent, say } from "../format.js";
+import { api } from "../api.js";
+import { $, badge, element, onClick, say } from "../dom.js";
+import { dateTime, number, ordinal, percent } from "../format.js";
 import { Pager } from "../pager.js";
 import { Poller } from "../poller.js";
 import { optionalUser, showAccount } from "../session.js";
@@ -10,7 +11,6 @@ import { SortableTable } from "../sortable-table.js";
 
 const REFRESH_MS = 15000;
 const PAGE_SIZE = 50;
-const $ = (id) => document.getElementById(id);
 
 let me = null;
 const isOwn = (row) => Boolean(me && me.name && row.owner === me.name);
@@ -19,7 +19,7 @@ const standings = new SortableTable($("standings"), [
   { key: "rank", label: "Rank", numeric: true, better: "lower" },
   { key: "name", label: "Agent", render: (row) => raceableName(row) },
   { key: "owner", label: "Student" },
-  { key: "points", label: "Points", numeric: true, better: "higher" },
+  { key: "points", label: "Points", numeric: true, better: "higher", render: pointsCell },
   { key: "wins", label: "Wins", numeric: true, better: "higher" },
   { key: "finishes", label: "Best finishes", numeric: true, better: "lower", value: bestFinish, render: finishesText },
   { key: "rating", label: "Rating", numeric: true, better: "higher", render: ratingCell },
@@ -48,18 +48,32 @@ function completionRate(row) {
   return row.episodes ? row.completed / row.episodes : null;
 }
 
-function finishPositions(row) {
-  return (row.finishes || []).map((f) => (typeof f === "object" && f !== null ? f.position : f)).filter(Number.isFinite);
-}
-
 function bestFinish(row) {
-  const positions = finishPositions(row);
-  return positions.length ? Math.min(...positions) : null;
+  return row.finishes.length ? Math.min(...row.finishes) : null;
 }
 
 function finishesText(row) {
-  const positions = finishPositions(row).sort((a, b) => a - b).slice(0, 5);
+  const positions = [...row.finishes].sort((a, b) => a - b).slice(0, 5);
   return positions.length ? positions.map(ordinal).join(", ") : "–";
+}
+
+/** The points, and for a row level on points with the row ranked above it, what put that one ahead. */
+function pointsCell(row) {
+  if (!row.tieBreak) return String(row.points);
+  return element("span", {}, String(row.points), element("span", { className: "tie-break", text: row.tieBreak }));
+}
+
+/** The standings' tie-breaks (league/championship.py): wins, then 2nd places, 3rd places, ... */
+function tieBreak(row, above) {
+  if (!above || above.points !== row.points) return null;
+  const count = (r, position) => r.finishes.filter((p) => p === position).length;
+  const depth = Math.max(0, ...row.finishes, ...above.finishes);
+  for (let position = 1; position <= depth; position++) {
+    if (count(row, position) !== count(above, position)) {
+      return `level on points with rank ${above.rank}: fewer ${position === 1 ? "wins" : `${ordinal(position)} places`}`;
+    }
+  }
+  return `level with rank ${above.rank} on points and finishes`;
 }
 
 function ratingCell(row) {
@@ -95,7 +109,8 @@ async function refreshChampionships() {
 async function refreshStandings() {
   if (!championshipId) return;
   const page = await api(`/api/championships/${championshipId}/standings?${standingsPager.query()}`, { auth: false });
-  standings.update(page.items);
+  const byRank = new Map(page.items.map((row) => [row.rank, row]));
+  standings.update(page.items.map((row) => ({ ...row, tieBreak: tieBreak(row, byRank.get(row.rank - 1)) })));
   standingsPager.update(page.total);
 }
 
@@ -156,9 +171,7 @@ function raceDescription(race) {
 const problems = new Map();
 
 function showProblem(part) {
-  return (error) => {
-    problems.set(part, isMissingEndpoint(error) ? `${part}: not available on this server yet.` : `${part}: ${error.message}`);
-  };
+  return (error) => problems.set(part, `${part}: ${error.message}`);
 }
 
 async function refreshAll() {
@@ -175,7 +188,7 @@ async function refreshAll() {
 
 const refresher = new Poller(refreshAll, REFRESH_MS);
 $("auto-refresh").addEventListener("change", (event) => (event.target.checked ? refresher.poll() : refresher.stop()));
-$("refresh-now").addEventListener("click", () => refresher.poll());
+onClick($("refresh-now"), () => refresher.poll());
 
 async function start() {
   me = await optionalUser().catch(() => null);

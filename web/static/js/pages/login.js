@@ -2,17 +2,16 @@
 // user came from (or to their home page).
 
 import { api, forgetToken, storeToken, takeLoginMessage } from "../api.js";
-import { say } from "../format.js";
+import { $, onSubmit, say } from "../dom.js";
 
-const form = document.getElementById("login-form");
-const input = document.getElementById("token");
-const message = document.getElementById("login-message");
+const input = $("token");
+const message = $("login-message");
 
 const left = takeLoginMessage();
 if (left) say(message, left, "error");
 input.focus();
 
-document.getElementById("show-token").addEventListener("change", (event) => {
+$("show-token").addEventListener("change", (event) => {
   input.type = event.target.checked ? "text" : "password";
 });
 
@@ -23,8 +22,7 @@ function nextPage(user) {
   return user.role === "instructor" ? "/instructor" : "/submissions";
 }
 
-form.addEventListener("submit", async (event) => {
-  event.preventDefault();
+onSubmit($("login-form"), async () => {
   const token = input.value.trim();
   if (!token) {
     say(message, "Enter your token.", "error");

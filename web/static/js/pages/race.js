@@ -2,7 +2,8 @@
 // /replay plays a replay file saved by `league race --replay`. ?step=N opens at step N.
 
 import { api } from "../api.js";
-import { badge, dateTime, element, finalText, number, say } from "../format.js";
+import { $, badge, element, onClick, say } from "../dom.js";
+import { dateTime, finalText, number } from "../format.js";
 import { markerIcon } from "../palette.js";
 import { Player } from "../player.js";
 import { RacePainter } from "../race-painter.js";
@@ -12,7 +13,6 @@ import { dropZone } from "../upload-zone.js";
 
 const RACE_POLL_MS = 1500;
 const DEFAULT_SPEED = 2;
-const $ = (id) => document.getElementById(id);
 const raceId = (location.pathname.match(/^\/races\/([^/]+)$/) || [])[1];
 const requestedStep = new URLSearchParams(location.search).get("step");
 
@@ -94,6 +94,7 @@ async function show(data, race) {
   $("race-canvas").setAttribute("aria-label", canvasLabel(replay));
   buildLegend(replay);
   showClassification(replay, race);
+  $("share-row").hidden = !raceId;
   $("play-button").focus({ preventScroll: true }); // Space and the arrows work at once
   const step = requestedStep === null ? 0 : Math.min(Math.max(Number(requestedStep) || 0, 0), replay.totalSteps);
   player.seek(step);
@@ -108,6 +109,7 @@ function render(step) {
   $("scrubber").setAttribute("aria-valuetext", `${replay.seconds(step).toFixed(1)} seconds, step ${step} of ${replay.totalSteps}`);
   $("clock").textContent = `t = ${replay.seconds(step).toFixed(1)} s · step ${step}/${replay.totalSteps}`;
   $("viewer").dataset.step = String(step);
+  if (raceId) $("share-link").value = linkToStep(step);
   document.querySelectorAll("#car-legend .car-status").forEach((line, i) => {
     const { text, final } = replay.legend(i, step);
     line.textContent = text;
@@ -138,7 +140,7 @@ function showClassification(replay, race) {
       element("td", { className: "num", text: number(row.time, 2) }),
       element("td", { className: "num", text: number(row.distance, 3) }));
   }));
-  const facts = [`seed ${replay.data.seed}`, `${replay.carCount} cars`, `${replay.data.observation} observations`];
+  const facts = [`seed ${replay.data.seed}`, `${replay.carCount} cars`, observationText(replay.data.observation)];
   const options = Object.entries(replay.data.env_options || {}).filter(([, v]) => v === false).map(([k]) => `no ${k.replaceAll("_", " ")}`);
   if (race) {
     facts.push(race.championship_id ? `championship ${race.championship_id}, round ${race.round}, heat ${race.heat}` : "friendly race");
@@ -147,18 +149,27 @@ function showClassification(replay, race) {
   $("race-facts").textContent = [...facts, ...options].join(" · ");
 }
 
-// --------------------------------------------------------------------------- controls
-
-function rememberStep() {
-  if (!raceId || !viewer) return;
-  const url = new URL(location.href);
-  url.searchParams.set("step", String(viewer.player.step));
-  history.replaceState(null, "", url);
-  $("share-row").hidden = false;
-  $("share-link").value = url.href;
+/** A race's observation is lidar as soon as one car's agent reads lidar; compact agents then get
+ * their 5-number view of it (league.evaluation.race), so the race's mode is not every car's. */
+function observationText(mode) {
+  return mode === "lidar" ? "lidar observations (compact agents get their 5-number view)" : `${mode} observations`;
 }
 
-$("play-button").addEventListener("click", () => viewer?.player.toggle());
+// --------------------------------------------------------------------------- controls
+
+/** The race's address at `step` ("Link to this moment" shows it for the step on screen). */
+function linkToStep(step) {
+  const url = new URL(location.href);
+  url.searchParams.set("step", String(step));
+  return url.href;
+}
+
+/** Paused: the address bar too says where, for a reload or a bookmark. */
+function rememberStep() {
+  if (raceId && viewer) history.replaceState(null, "", linkToStep(viewer.player.step));
+}
+
+onClick($("play-button"), () => viewer?.player.toggle());
 $("speed").addEventListener("change", (event) => {
   if (viewer) viewer.player.speed = Number(event.target.value);
 });
@@ -167,7 +178,7 @@ $("scrubber").addEventListener("input", (event) => {
   viewer.player.seek(Number(event.target.value));
   if (!viewer.player.playing) rememberStep();
 });
-$("copy-link").addEventListener("click", async () => {
+onClick($("copy-link"), async () => {
   $("share-link").select();
   try {
     await navigator.clipboard.writeText($("share-link").value);

@@ -1,9 +1,10 @@
 // My submissions (/submissions): upload a model, watch its status change live, read why it
 // failed, see its evaluation chart, pick the championship's active submission, start a friendly race.
 
-import { api, isMissingEndpoint } from "../api.js";
+import { api } from "../api.js";
+import { $, badge, element, onSubmit, say } from "../dom.js";
 import { showEpisodeChart } from "../episode-chart.js";
-import { badge, dateTime, element, number, outcomeText, say } from "../format.js";
+import { dateTime, number, outcomeText } from "../format.js";
 import { Poller } from "../poller.js";
 import { requireUser, showAccount } from "../session.js";
 import { dropZone } from "../upload-zone.js";
@@ -11,7 +12,7 @@ import { dropZone } from "../upload-zone.js";
 const FAST_POLL_MS = 1000; // while something is being validated or evaluated
 const SLOW_POLL_MS = 10000; // otherwise (e.g. an instructor re-runs evaluations)
 const BASELINES_OWNER = "baselines";
-const $ = (id) => document.getElementById(id);
+const MB = 1024 * 1024; // as the server counts them
 
 let me = null;
 let submissions = [];
@@ -104,8 +105,7 @@ async function update(s, change) {
     say($("page-message"), "");
     await poller.poll();
   } catch (error) {
-    const what = isMissingEndpoint(error) ? "this server cannot do that yet" : error.message;
-    say($("page-message"), `Could not change ${s.name}: ${what}`, "error");
+    say($("page-message"), `Could not change ${s.name}: ${error.message}`, "error");
   }
 }
 
@@ -180,11 +180,15 @@ dropZone($("drop-zone"), $("model-file"), (file) => {
   $("chosen-file").textContent = `Chosen: ${file.name} (${(file.size / 1024).toFixed(1)} KB)`;
 });
 
-$("upload-form").addEventListener("submit", async (event) => {
-  event.preventDefault();
+onSubmit($("upload-form"), async () => {
   const message = $("upload-message");
   if (!chosenFile) {
     say(message, "Choose a model file first (drop it on the box or click the box).", "error");
+    return;
+  }
+  if (chosenFile.size > Number($("drop-zone").dataset.maxBytes)) { // the server's limit, in the page
+    say(message, `${chosenFile.name} is ${(chosenFile.size / MB).toFixed(1)} MB, over the ${$("upload-limit").textContent} ` +
+      "limit: upload a smaller model file.", "error");
     return;
   }
   const form = new FormData();
@@ -235,17 +239,11 @@ async function loadOpponents() {
       element("input", { attrs: { type: "checkbox", name: "opponent", value: row.submission_id, checked: row.owner === BASELINES_OWNER } }),
       `${row.name} (${row.owner})`)));
   } catch (error) {
-    if (isMissingEndpoint(error)) {
-      $("race-form").hidden = true;
-      say($("race-message"), "Friendly races are not available on this server yet.", "info");
-    } else {
-      box.replaceChildren(element("span", { className: "muted", text: `Opponents could not be loaded: ${error.message}` }));
-    }
+    box.replaceChildren(element("span", { className: "muted", text: `Opponents could not be loaded: ${error.message}` }));
   }
 }
 
-$("race-form").addEventListener("submit", async (event) => {
-  event.preventDefault();
+onSubmit($("race-form"), async () => {
   const message = $("race-message");
   const mine = Number($("race-agent").value);
   const opponents = [...document.querySelectorAll("input[name=opponent]:checked")].map((box) => Number(box.value));

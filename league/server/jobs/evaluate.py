@@ -1,12 +1,8 @@
-"""The jobs of issue 5: validating a submission in a sandbox, and evaluating it with metrics_run.
-
-Each handler follows league.server.jobs.JobHandler: `begin` and `finish` run inside the
-lease transactions, `run` does the slow work with no transaction open.
-"""
+"""The evaluation job: the toolkit's `metrics_run` of a submission's sandboxed agent, with its
+course's settings; and queueing one."""
 from __future__ import annotations
 
 from dataclasses import dataclass
-from pathlib import Path
 from typing import Any
 
 from sqlalchemy import delete
@@ -14,13 +10,13 @@ from sqlalchemy.orm import Session
 
 from league.agents import AgentError
 from league.evaluation import metrics_run
+from league.track import TrackGenerationError
 from league.server.db import crud
-from league.server.db.models import (
-    DONE, EVALUATE, FAILED, READY, REJECTED, RUNNING, VALIDATE, VALIDATING, EpisodeResult, Evaluation, Job,
-    Submission, User, utcnow,
-)
-from league.server.jobs import JobRun, register_handler
-from league.server.sandbox import LogBuffer, SandboxedAgent, SandboxLimits, ValidationReport, validate_model
+from league.server.db.models import DONE, FAILED, RUNNING, EpisodeResult, Evaluation, Job, Submission, User, utcnow
+from league.server.jobs.runner import JobRun
+from league.server.sandbox.agent import SandboxedAgent
+from league.server.sandbox.limits import SandboxLimits
+from league.server.sandbox.log import LogBuffer
 
 
 def evaluation_course(session: Session, owner: User):
@@ -38,32 +34,6 @@ def queue_evaluation(session: Session, *, submission: Submission, max_attempts: 
     return job
 
 
-class ValidateSubmission:
-    parallel_sandboxes = False
-
-    def begin(self, session: Session, job: Job) -> None:
-        submission = session.get(Submission, job.submission_id)
-        submission.status, submission.error = VALIDATING, None
-
-    def run(self, run: JobRun) -> ValidationReport:
-        submission = _submission_of(run)
-        limits = SandboxLimits.from_settings(run.context.settings)
-        return validate_model(model_file(run, submission), submission.kind, limits)
-
-    def finish(self, session: Session, job: Job, report: ValidationReport) -> list[int]:
-        submission = session.get(Submission, job.submission_id)
-        submission.log = report.log
-        if not report.ok:
-            submission.status, submission.error = REJECTED, report.error
-            return []
-        submission.status, submission.error, submission.obs_dim = READY, None, report.obs_dim
-        return [queue_evaluation(session, submission=submission, max_attempts=job.max_attempts).id]
-
-    def give_up(self, session: Session, job: Job, reason: str) -> None:
-        submission = session.get(Submission, job.submission_id)
-        submission.status, submission.error = FAILED, f"the validation could not be completed: {reason}"
-
-
 @dataclass
 class EvaluationOutcome:
     result: dict[str, Any] | None  # MetricsResult.to_dict()
@@ -79,19 +49,19 @@ class EvaluateSubmission:
         evaluation.status, evaluation.error = RUNNING, None
 
     def run(self, run: JobRun) -> EvaluationOutcome:
-        submission = _submission_of(run)
+        submission = run.submission()
         with run.context.sessions() as session:
             settings = session.get(Evaluation, run.job.evaluation_id).settings
         limits = SandboxLimits.from_settings(run.context.settings)
         log = LogBuffer(limits.log_limit)
         try:
-            with SandboxedAgent(model_file(run, submission), submission.kind, limits,
+            with SandboxedAgent(run.model_file(submission), submission.kind, limits,
                                 name=submission.name, log=log, cancel=run.lease_lost) as agent:
                 result = metrics_run(agent, episodes=settings["episodes"], seed=settings["seed"],
                                      on_episode=lambda i, episode: agent.new_episode(), **settings["env_options"])
         except AgentError as error:  # the model no longer starts (it passed validation: a changed runtime?)
             return EvaluationOutcome(None, error.reason, log.text())
-        except (TypeError, ValueError) as error:  # settings the simulator refuses: re-running cannot help
+        except (TypeError, ValueError, TrackGenerationError) as error:  # settings the simulator refuses: final
             return EvaluationOutcome(None, f"invalid evaluation settings: {error}", log.text())
         return EvaluationOutcome(result.to_dict(), None, log.text())
 
@@ -121,25 +91,3 @@ def _store_result(session: Session, evaluation: Evaluation, result: dict[str, An
         setattr(evaluation, key, result[key])
     evaluation.result_settings = result["settings"]
     session.expire(evaluation, ["episodes"])
-
-
-def _submission_of(run: JobRun) -> Submission:
-    with run.context.sessions() as session:
-        return session.get(Submission, run.job.submission_id)
-
-
-def model_file(run: JobRun, submission: Submission) -> Path:
-    """The submission's file in this worker's store, fetched from the database on first use here."""
-    store = run.context.store
-    path = store.path(submission.sha256)
-    if path.exists():
-        return path
-    with run.context.sessions() as session:
-        data = crud.blob_data(session, sha256=submission.sha256)
-    if data is None:
-        raise FileNotFoundError(f"the file of submission {submission.id} ({submission.sha256}) is missing")
-    return store.write_verified(submission.sha256, data)
-
-
-register_handler(VALIDATE, ValidateSubmission())
-register_handler(EVALUATE, EvaluateSubmission())

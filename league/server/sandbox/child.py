@@ -1,8 +1,8 @@
 """The sandbox process: loads one untrusted model and answers observation batches over a pipe.
 
-Forked by the fork server (`python -s -B -P sandbox_child.py --fork-server FD`, which
-league.server.sandbox starts once per job thread and which has imported the runtimes) as if run
-as `sandbox_child.py MODEL MEMORY_MB CPU_S USER` in a private temporary directory that holds
+Forked by the fork server (`python -s -B -P child.py --fork-server FD`, which
+league.server.sandbox.process starts once per job thread and which has imported the runtimes) as if
+run as `child.py MODEL MEMORY_MB CPU_S USER` in a private temporary directory that holds
 only the model. Before it reads the model it limits itself (CPU time, open files, file size, no
 core dumps), leaves the network (a new, empty network namespace), drops root to USER, and forbids
 regaining privileges; after its runtime is imported it caps its address space. Inference is
@@ -17,25 +17,59 @@ The child exits at end of input (the parent closed the pipe or died).
 """
 from __future__ import annotations
 
+import contextlib
 import ctypes
 import importlib
+import importlib.util
 import json
 import os
 import resource
 import signal
 import struct
 import sys
+import sysconfig
 import types
 from pathlib import Path
 
 HEADER = struct.Struct("<cII")  # tag, n, d
 LENGTH = struct.Struct("<I")
 MAX_BATCH = 4096
-LEAGUE_DIR = Path(__file__).resolve().parent.parent
-CLONE_NEWNET, CLONE_NEWUSER = 0x40000000, 0x10000000
+LEAGUE_DIR = Path(__file__).resolve().parents[2]
+CLONE_NEWNET, CLONE_NEWUSER, CLONE_THREAD = 0x40000000, 0x10000000, 0x00010000
+CLONE_NAMESPACES = (0x00020000, 0x04000000, 0x08000000, 0x10000000, 0x20000000, 0x40000000, 0x02000000, 0x00000080)
 PR_SET_PDEATHSIG, PR_SET_NO_NEW_PRIVS = 1, 38
+LINUX_CAPABILITY_VERSION_3 = 0x20080522
 MAX_OPEN_FILES = 64
 MAX_FILE_WRITE = 1024 * 1024  # bytes a model may write (it has no reason to write at all)
+MAX_THREADS = 64  # of a sandbox's own user id
+TORCH_AVAILABLE = importlib.util.find_spec("torch") is not None  # to the server: so it must be to sandboxes
+# Landlock (linux/landlock.h): the syscalls are 444-446 on every architecture; rights with the ABI
+# version that introduced them
+SYS_LANDLOCK_CREATE_RULESET = 444
+LANDLOCK_CREATE_RULESET_VERSION, LANDLOCK_RULE_PATH_BENEATH = 1, 1
+LANDLOCK_FS = {name: (1 << bit, 1) for bit, name in enumerate((
+    "execute", "write_file", "read_file", "read_dir", "remove_dir", "remove_file", "make_char", "make_dir",
+    "make_reg", "make_sock", "make_fifo", "make_block", "make_sym"))}
+LANDLOCK_FS.update(refer=(1 << 13, 2), truncate=(1 << 14, 3), ioctl_dev=(1 << 15, 5))
+LANDLOCK_NET_TCP = 0b11  # bind and connect: handled with no rule, so refused
+LANDLOCK_SCOPES = 0b11  # abstract unix sockets and signals outside the sandbox
+# Read-only besides this Python: shared libraries, the loader's cache, randomness, the CPU topology
+SYSTEM_READ = ("/usr", "/lib", "/lib64", "/lib32", "/etc/ld.so.cache", "/dev/urandom", "/proc/cpuinfo", "/proc/stat",
+               "/sys/devices/system/cpu")
+DENIED_SYSCALLS = (
+    "execve", "execveat", "fork", "vfork", "unshare", "setns",  # programs, processes, namespaces
+    "ptrace", "process_vm_readv", "process_vm_writev", "pidfd_open", "pidfd_getfd", "pidfd_send_signal", "kcmp",
+    "kill", "tkill", "rt_sigqueueinfo", "rt_tgsigqueueinfo",  # other processes
+    "socket", "socketpair",  # the network, unix sockets included (a database's socket file)
+    "mount", "umount2", "pivot_root", "chroot", "open_tree", "move_mount", "fsopen", "fsconfig", "fsmount", "fspick",
+    "mount_setattr", "open_by_handle_at", "name_to_handle_at",  # filesystems, and reading around Landlock
+    "bpf", "perf_event_open", "userfaultfd", "io_uring_setup", "io_uring_enter", "io_uring_register",
+    "kexec_load", "kexec_file_load", "init_module", "finit_module", "delete_module", "reboot", "swapon", "swapoff",
+    "acct", "quotactl", "settimeofday", "clock_settime", "adjtimex", "clock_adjtime", "syslog", "personality",
+    "keyctl", "add_key", "request_key",  # the kernel and its keyrings
+    "setuid", "setgid", "setreuid", "setregid", "setresuid", "setresgid", "setfsuid", "setfsgid", "setgroups",
+    "capset",  # identities, once the sandbox has its own
+)
 
 
 # --------------------------------------------------------------------------- isolation
@@ -73,17 +107,126 @@ def isolate_network() -> str:
     return "unavailable"
 
 
-def drop_privileges(user: str | None) -> None:
-    libc = ctypes.CDLL(None, use_errno=True)
-    libc.prctl(PR_SET_PDEATHSIG, signal.SIGKILL)  # the worker died: so does its sandbox
-    if user and os.geteuid() == 0:
-        import pwd
-
-        entry = pwd.getpwnam(user)
+def become_sandbox_user(uid_base: int) -> str:
+    """Leave root: to a user id of this sandbox's own (`uid_base` + its pid, unique on the machine
+    while it runs) when `uid_base` is set, else to root without any capability. A process that is
+    not root keeps its user; Landlock and seccomp confine it. Returns who the sandbox runs as."""
+    if os.geteuid() != 0:
+        return "the server's user"
+    if uid_base:
+        uid = uid_base + os.getpid()
+        os.chown(".", uid, uid)  # its directory (the model is readable by any user)
         os.setgroups([])
-        os.setgid(entry.pw_gid)
-        os.setuid(entry.pw_uid)
+        os.setresgid(uid, uid, uid)
+        os.setresuid(uid, uid, uid)
+        resource.setrlimit(resource.RLIMIT_NPROC, (MAX_THREADS, MAX_THREADS))  # per user: this sandbox's own
+        return f"uid {uid}"
+    drop_capabilities()
+    return "root without capabilities"
+
+
+def drop_capabilities() -> None:
+    """Clear every capability set (capset(2)): root by number, but no power over what others own."""
+
+    class Header(ctypes.Structure):
+        _fields_ = [("version", ctypes.c_uint32), ("pid", ctypes.c_int)]
+
+    class Data(ctypes.Structure):
+        _fields_ = [("effective", ctypes.c_uint32), ("permitted", ctypes.c_uint32), ("inheritable", ctypes.c_uint32)]
+
+    libc = ctypes.CDLL(None, use_errno=True)
+    if libc.capset(ctypes.byref(Header(LINUX_CAPABILITY_VERSION_3, 0)), (Data * 2)()) != 0:
+        raise OSError(ctypes.get_errno(), "capset failed: cannot drop root's capabilities")
+
+
+def die_with_the_server(server: int) -> None:
+    """The parent-death signal, set after leaving root (a change of user clears it), then a check that
+    the server did not die before it was set."""
+    libc = ctypes.CDLL(None, use_errno=True)
+    libc.prctl(PR_SET_PDEATHSIG, signal.SIGKILL)
+    if os.getppid() != server:
+        os._exit(1)
     libc.prctl(PR_SET_NO_NEW_PRIVS, 1, 0, 0, 0)
+
+
+def read_roots() -> list[str]:
+    """What a sandbox may read: this Python (its prefixes, standard library and site-packages, never
+    a path a .pth file added), our package, the system's shared libraries, and the CPU description
+    the runtimes read. Everything else (the data directory, other sandboxes, /etc, /tmp) is denied."""
+    paths = sysconfig.get_paths()
+    roots = {sys.base_prefix, sys.base_exec_prefix, paths["stdlib"], paths["platstdlib"], paths["purelib"],
+             paths["platlib"], str(LEAGUE_DIR), *SYSTEM_READ}
+    return sorted(root for root in roots if os.path.exists(root))
+
+
+def restrict_files() -> int:
+    """Landlock: read-only access to `read_roots()`, its own directory (the working directory) read
+    and write, /dev/null; nothing else. Where the kernel has them, also no TCP at all and no signal
+    or abstract socket outside the sandbox. Returns the kernel's Landlock ABI version."""
+    abi = _landlock(0, None, 0, LANDLOCK_CREATE_RULESET_VERSION)
+    fs_rights = sum(bit for bit, since in LANDLOCK_FS.values() if abi >= since)
+    ruleset = LandlockRuleset(fs_rights, LANDLOCK_NET_TCP if abi >= 4 else 0, LANDLOCK_SCOPES if abi >= 6 else 0)
+    fd = _landlock(0, ctypes.byref(ruleset), ctypes.sizeof(ruleset), 0)
+    try:
+        read_dir, read_file = LANDLOCK_FS["execute"][0] | LANDLOCK_FS["read_file"][0], LANDLOCK_FS["read_file"][0]
+        read_dir |= LANDLOCK_FS["read_dir"][0]
+        for root in read_roots() + ["/proc/self"]:
+            _allow(fd, root, read_dir if os.path.isdir(root) else read_file)
+        _allow(fd, ".", fs_rights)
+        _allow(fd, os.devnull, read_file | LANDLOCK_FS["write_file"][0])
+        _landlock(2, fd, 0)  # landlock_restrict_self (no_new_privs is set)
+    finally:
+        os.close(fd)
+    return abi
+
+
+class LandlockRuleset(ctypes.Structure):
+    _fields_ = [("handled_access_fs", ctypes.c_uint64), ("handled_access_net", ctypes.c_uint64),
+                ("scoped", ctypes.c_uint64)]
+
+
+class LandlockPathBeneath(ctypes.Structure):
+    _pack_ = 1
+    _fields_ = [("allowed_access", ctypes.c_uint64), ("parent_fd", ctypes.c_int32)]
+
+
+def _allow(ruleset_fd: int, path: str, rights: int) -> None:
+    fd = os.open(path, os.O_PATH | os.O_CLOEXEC)
+    try:
+        _landlock(1, ruleset_fd, LANDLOCK_RULE_PATH_BENEATH, ctypes.byref(LandlockPathBeneath(rights, fd)), 0)
+    finally:
+        os.close(fd)
+
+
+def _landlock(call: int, *args) -> int:
+    """landlock_create_ruleset (0), landlock_add_rule (1), landlock_restrict_self (2), checked."""
+    libc = ctypes.CDLL(None, use_errno=True)
+    result = libc.syscall(ctypes.c_long(SYS_LANDLOCK_CREATE_RULESET + call), *args)
+    if result < 0:
+        error = ctypes.get_errno()
+        raise OSError(error, f"Landlock ({('create_ruleset', 'add_rule', 'restrict_self')[call]}): "
+                             f"{os.strerror(error)}")
+    return result
+
+
+def restrict_syscalls() -> None:
+    """seccomp: refuse (EPERM) what inference never needs -- running programs, new processes and
+    namespaces, sockets, signals to other processes, tracing, mounts, kernel and identity changes."""
+    import errno
+
+    import pyseccomp as seccomp
+
+    rules = seccomp.SyscallFilter(seccomp.ALLOW)
+    refuse = seccomp.ERRNO(errno.EPERM)
+    for name in DENIED_SYSCALLS:
+        with contextlib.suppress(RuntimeError, ValueError):  # a syscall this architecture does not have
+            rules.add_rule(refuse, name)
+    rules.add_rule(refuse, "tgkill", seccomp.Arg(0, seccomp.NE, os.getpid()))  # signals to itself only
+    rules.add_rule(refuse, "clone", seccomp.Arg(0, seccomp.MASKED_EQ, CLONE_THREAD, 0))  # threads, no processes
+    for flag in CLONE_NAMESPACES:
+        rules.add_rule(refuse, "clone", seccomp.Arg(0, seccomp.MASKED_EQ, flag, flag))
+    rules.add_rule(seccomp.ERRNO(errno.ENOSYS), "clone3")  # its flags are out of reach: glibc falls back to clone
+    rules.load()
 
 
 def cap_address_space(extra_mb: int) -> None:
@@ -120,7 +263,7 @@ def import_league_module(name: str) -> types.ModuleType:
 def load_model(model_path: Path, memory_mb: int):
     """Static checks, then the toolkit's loader (which dry-runs the model) under the memory cap."""
     agents = import_league_module("agents")
-    checks = import_league_module("server.model_checks")
+    checks = import_league_module("server.sandbox.checks")
     if model_path.suffix == ".onnx":
         checks.check_onnx(model_path)
         agents.import_onnxruntime().disable_telemetry_events()  # before the cap: its footprint is not the model's
@@ -192,8 +335,10 @@ def preload_runtimes() -> None:
     telemetry off; torch is imported by each TorchScript sandbox after the fork)."""
     import contextlib
 
+    import pyseccomp  # noqa: F401  (what every sandbox confines itself with)
+
     agents = import_league_module("agents")  # numpy
-    import_league_module("server.model_checks")
+    import_league_module("server.sandbox.checks")
     with contextlib.suppress(agents.AgentError, ImportError):  # without the onnx extra: TorchScript only
         import onnx  # noqa: F401  (the static checks)
 
@@ -218,7 +363,7 @@ def fork_sandbox(request: dict, fds: list[int], control) -> int:
         os.environ.update(request["env"])
         ctypes.CDLL(None, use_errno=True).prctl(PR_SET_PDEATHSIG, signal.SIGKILL)  # the server dies: so do we
         if os.getppid() == server:  # (it did not die before the line above)
-            code = run_sandbox(request["args"])
+            code = run_sandbox(request["args"], server)
     except BaseException:
         import traceback
 
@@ -284,26 +429,46 @@ def serve(agent, proto_in: int, proto_out: int, memory_mb: int) -> None:
 def main(argv: list[str]) -> int:
     if argv[1:2] == ["--fork-server"]:
         return fork_server(int(argv[2]))
-    return run_sandbox(argv[1:])
+    return run_sandbox(argv[1:], os.getppid())
 
 
-def run_sandbox(args: list[str]) -> int:
-    """Serve one model: MODEL MEMORY_MB CPU_S USER, the protocol on stdin/stdout."""
-    model_path, memory_mb, cpu_seconds, user = Path(args[0]), int(args[1]), int(args[2]), args[3] or None
+def run_sandbox(args: list[str], server: int) -> int:
+    """Serve one model: MODEL MEMORY_MB CPU_S UID_BASE, the protocol on stdin/stdout; `server` is the
+    process it must not outlive. With MODEL "--probe", confine, import the runtimes and report how
+    the sandbox is isolated."""
+    model, memory_mb, cpu_seconds, uid_base = args[0], int(args[1]), int(args[2]), int(args[3])
     proto_in, proto_out = take_protocol_fds()
-    limit_resources(cpu_seconds)
-    network = isolate_network()
-    drop_privileges(user)
-    single_thread_environment()
     try:
-        agent = load_model(model_path, memory_mb)
+        isolation = confine(cpu_seconds, uid_base, server)
+        agent = probe_runtimes() if model == "--probe" else load_model(Path(model), memory_mb)
     except BaseException as error:  # whatever the file did, it is the reason it is refused
         send_text(proto_out, b"E", failure_reason(error, memory_mb))
         return 1
-    ready = {"obs_dim": agent.obs_dim, "kind": agent.kind, "network": network}
-    send_text(proto_out, b"R", json.dumps(ready))
-    serve(agent, proto_in, proto_out, memory_mb)
+    send_text(proto_out, b"R", json.dumps({"isolation": isolation, "obs_dim": getattr(agent, "obs_dim", None)}))
+    if agent is not None:
+        serve(agent, proto_in, proto_out, memory_mb)
     return 0
+
+
+def confine(cpu_seconds: int, uid_base: int, server: int) -> dict:
+    """Everything the sandbox does to itself before it reads the model, in this order: limits, its own
+    network namespace, its own user, the parent-death signal, no new privileges, Landlock, seccomp."""
+    limit_resources(cpu_seconds)
+    network = isolate_network()
+    user = become_sandbox_user(uid_base)
+    die_with_the_server(server)
+    landlock_abi = restrict_files()
+    restrict_syscalls()
+    single_thread_environment()
+    return {"network": network, "user": user, "landlock": landlock_abi, "seccomp": True}
+
+
+def probe_runtimes() -> None:
+    """What a sandbox imports, imported under the sandbox's confinement (does this install allow it?)."""
+    preload_runtimes()
+    if TORCH_AVAILABLE:
+        _import_torch()
+    return None
 
 
 if __name__ == "__main__":

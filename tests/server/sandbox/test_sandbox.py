@@ -5,6 +5,7 @@ import os
 import signal
 import subprocess
 import sys
+import tempfile
 import threading
 import time
 from pathlib import Path
@@ -13,9 +14,13 @@ import numpy as np
 import pytest
 
 from league.agents import AgentError, dry_run_observations
-from league.server.sandbox import ForkServer, LogBuffer, SandboxedAgent, SandboxLimits, validate_model
+from league.server.sandbox.agent import SandboxedAgent
+from league.server.sandbox.limits import SandboxLimits
+from league.server.sandbox.log import LogBuffer
+from league.server.sandbox.process import ForkServer, Isolation, IsolationUnavailable, _child_environment
+from league.server.sandbox.validation import validate_model
 
-from . import model_factory as mf
+from .. import model_factory as mf
 
 FAST = SandboxLimits(first_call_allowance_s=0.3, load_timeout_s=20, max_restarts=1)
 
@@ -65,12 +70,12 @@ def test_the_episode_deadline_ends_an_episode_and_new_episode_resets_it(files):
 def test_validation_measures_the_model_speed(files):
     report = validate_model(files["good"], "onnx", FAST)
     assert report.ok and report.obs_dim == 5 and report.error is None
-    assert 0 < report.ms_per_call < 20
+    assert report.ms_per_call > 0  # ok means it is within the step deadline: no clock of ours asserted here
 
 
 def test_the_sandbox_cannot_reach_the_network():
     probe = ("import socket, sys\n"
-             "from league.server.sandbox_child import isolate_network\n"
+             "from league.server.sandbox.child import isolate_network\n"
              "mode = isolate_network()\n"
              "print(mode)\n"
              "try:\n"
@@ -78,8 +83,9 @@ def test_the_sandbox_cannot_reach_the_network():
              "    print('connected')\n"
              "except OSError as error:\n"
              "    print('refused', error.errno)\n")
-    result = subprocess.run([sys.executable, "-c", probe], capture_output=True, text=True, timeout=60,
-                            env={**os.environ, "PYTHONPATH": str(Path(__file__).resolve().parents[2])})
+    env = {**_child_environment(Path(tempfile.gettempdir())),  # one thread, as sandboxes (a user namespace needs it)
+           "PYTHONPATH": str(Path(__file__).resolve().parents[3])}
+    result = subprocess.run([sys.executable, "-c", probe], capture_output=True, text=True, timeout=60, env=env)
     mode, outcome = result.stdout.split("\n", 1)
     if mode == "unavailable":
         pytest.skip("no network namespaces here (not root, no user namespaces)")
@@ -186,12 +192,13 @@ def test_sandboxes_end_with_the_thread_that_started_them(files):
 
 def test_nothing_outlives_a_killed_worker(files, tmp_path):
     script = ("import os, signal, sys\n"
-              "from league.server.sandbox import ForkServer, SandboxedAgent, SandboxLimits\n"
+              "from league.server.sandbox.agent import SandboxedAgent, SandboxLimits\n"
+              "from league.server.sandbox.process import ForkServer\n"
               "agent = SandboxedAgent(sys.argv[1], 'onnx', SandboxLimits(load_timeout_s=20))\n"
               "print(ForkServer.of_this_thread().proc.pid, agent._process.proc.pid, flush=True)\n"
               "os.kill(os.getpid(), signal.SIGKILL)\n")
     result = subprocess.run([sys.executable, "-c", script, str(files["good"])], capture_output=True, text=True,
-                            timeout=60, env={**os.environ, "PYTHONPATH": str(Path(__file__).resolve().parents[2])})
+                            timeout=60, env={**os.environ, "PYTHONPATH": str(Path(__file__).resolve().parents[3])})
     assert result.returncode == -signal.SIGKILL, result.stderr
     pids = [int(pid) for pid in result.stdout.split()]
     assert len(pids) == 2 and wait_gone(pids) == []
@@ -215,3 +222,20 @@ def test_sandboxes_start_on_the_cpus_their_thread_may_use_now(files):
     thread.start()
     thread.join()
     assert seen == [{cpus[1]}, set(cpus)]
+
+
+def test_without_landlock_and_seccomp_no_model_runs_unless_allowed():
+    partial = Isolation("namespace", "the server's user", landlock=0, seccomp=True, uid_base=0)
+    with pytest.raises(IsolationUnavailable, match=r"not run here: the sandbox is Landlock ABI 0.*"
+                                                   r"LEAGUE_SANDBOX_REQUIRE_ISOLATION=false"):
+        partial.check(SandboxLimits())
+    assert partial.check(SandboxLimits(require_isolation=False)) is partial
+    broken = Isolation("unknown", "unknown", 0, False, 0, problem="ModuleNotFoundError: No module named 'torch'")
+    assert broken.describe() == "NOT isolated: ModuleNotFoundError: No module named 'torch'"
+
+
+def test_a_model_that_fails_to_load_leaves_no_directory(tmp_path):
+    before = set(Path(tempfile.gettempdir()).glob("league-sandbox-*"))
+    report = validate_model(mf.random_bytes(tmp_path / "random.onnx"), "onnx", FAST)
+    assert not report.ok
+    assert set(Path(tempfile.gettempdir()).glob("league-sandbox-*")) <= before

@@ -12,9 +12,9 @@ from pathlib import Path
 
 import pytest
 
-from league.server.placement import CpuSlots, Placement
+from league.server.jobs.placement import CpuSlots, Placement
 
-REPO = Path(__file__).resolve().parents[2]
+REPO = Path(__file__).resolve().parents[3]
 CPUS = sorted(os.sched_getaffinity(0))
 needs_two_cpus = pytest.mark.skipif(len(CPUS) < 2, reason="placement splits CPUs: this process may use one")
 
@@ -54,7 +54,7 @@ def test_job_threads_of_one_machine_take_cpus_of_their_own(tmp_path):
 def test_the_slot_of_a_killed_worker_is_free_at_once(tmp_path):
     mine = Placement(1, tmp_path)
     holder = subprocess.Popen(
-        [sys.executable, "-c", "import sys, time; from league.server.placement import Placement; "
+        [sys.executable, "-c", "import sys, time; from league.server.jobs.placement import Placement; "
                                f"p = Placement(1, {str(tmp_path)!r}); print('held', flush=True); time.sleep(60)"],
         cwd=REPO, stdout=subprocess.PIPE, text=True)
     try:

@@ -4,7 +4,8 @@ from __future__ import annotations
 import pytest
 
 from league.agents import heuristic_agent
-from league.server.racing import FailedAgent, InvalidRaceSettings, race_in_sandboxes
+from league.server.jobs.race import FailedAgent, InvalidRaceSettings, car_limits, public, race_in_sandboxes
+from league.server.sandbox.limits import SandboxLimits
 
 
 class Tracked:
@@ -46,3 +47,18 @@ def test_options_the_simulator_refuses_are_invalid_race_settings_and_agents_are_
     with pytest.raises(InvalidRaceSettings, match="invalid race settings"):
         race_in_sandboxes([lambda: first], ["a"], seed=0, env_options={"curves": -1})
     assert first.closed
+
+
+def test_the_public_classification_keeps_a_dnf_reason_but_not_the_models_own_words():
+    rows = [{"car": "car_0", "outcome": "dnf", "reason": "the model raised RuntimeError: \u202eevil.exe; see "
+                                                        "https://x.test"},
+            {"car": "car_1", "outcome": "dnf", "reason": "the model returned NaN or infinite actions"},
+            {"car": "car_2", "outcome": "off_road", "reason": "off road"}]
+    assert [row["reason"] for row in public(rows)] == [
+        "the model raised RuntimeError", "the model returned NaN or infinite actions", "off road"]
+
+
+def test_the_cars_of_a_race_share_its_memory():
+    limits = SandboxLimits(memory_mb=512)
+    assert car_limits(limits, cars=10, race_memory_mb=2048).memory_mb == 204  # 10 x 204 MB: within the race's 2 GB
+    assert car_limits(limits, cars=2, race_memory_mb=2048).memory_mb == 512  # never more than a sandbox's own cap

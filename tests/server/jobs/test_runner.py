@@ -12,10 +12,11 @@ from league.server.config import Settings
 from league.server.db import crud
 from league.server.db.models import DONE, FAILED, QUEUED, RUNNING, Job, utcnow
 from league.server.db.session import make_engine, make_sessionmaker, migrate
-from league.server.jobs import HANDLERS, WorkerContext, claim, complete, heartbeat, reap, register_handler, run_job
-from league.server.placement import Placement
+from league.server.jobs.leases import cancel, claim, complete, fairest_queued, heartbeat
+from league.server.jobs.placement import Placement
+from league.server.jobs.queue import build_queue
+from league.server.jobs.runner import JobCannotSucceed, JobRun, WorkerContext, reap, release_active, run_job
 from league.server.storage import BlobStore
-from league.server.taskqueue import build_queue
 
 
 class Recorder:
@@ -42,26 +43,25 @@ class Recorder:
 
 
 @pytest.fixture
-def recorder():
-    handler = Recorder()
-    register_handler("test", handler)
-    return handler
-
-
-@pytest.fixture
 def context(backend, tmp_path):
     _, (database_url, queue_url, queue_name) = backend
     settings = Settings(data_dir=tmp_path / "data", database_url=database_url, queue_url=queue_url,
                         queue_name=queue_name, lease_timeout_s=60, requeue_queued_after_s=600, bootstrap=False)
     engine = make_engine(database_url)
     migrate(engine)
-    yield WorkerContext(settings, make_sessionmaker(engine), build_queue(settings), BlobStore(settings.data_dir))
+    yield WorkerContext(settings, make_sessionmaker(engine), build_queue(settings), BlobStore(settings.data_dir),
+                        handlers={"test": Recorder()})
     engine.dispose()
+
+
+@pytest.fixture
+def recorder(context):
+    return context.handlers["test"]
 
 
 def new_job(context, max_attempts: int = 3) -> int:
     with context.sessions.begin() as session:
-        return crud.create_job(session, kind="test", max_attempts=max_attempts).id
+        return crud.create_job(session, kind="test", owner_id=None, max_attempts=max_attempts).id
 
 
 def job(context, job_id: int) -> Job:
@@ -82,7 +82,7 @@ def test_a_job_is_claimed_by_one_attempt_only(context, recorder):
     winners = []
 
     def attempt(name):
-        if claim(context.sessions, job_id=job_id, attempt_id=name) is not None:
+        if claim(context.sessions, context.handlers, job_id=job_id, attempt_id=name) is not None:
             winners.append(name)
 
     threads = [threading.Thread(target=attempt, args=(f"w{i}",)) for i in range(4)]
@@ -105,12 +105,12 @@ def test_run_job_writes_the_outcome_and_ignores_duplicate_messages(context, reco
 
 def test_results_of_an_attempt_that_lost_its_lease_are_discarded(context, recorder):
     job_id = new_job(context)
-    claim(context.sessions, job_id=job_id, attempt_id="slow")
+    claim(context.sessions, context.handlers, job_id=job_id, attempt_id="slow")
     age(context, job_id, heartbeat_at=120)
     assert reap(context) == [job_id]  # re-queued for another worker
     assert not heartbeat(context.sessions, job_id=job_id, attempt_id="slow")
 
-    assert complete(context.sessions, job_id=job_id, attempt_id="slow", outcome={"late": True}) == []
+    assert complete(context.sessions, context.handlers, job_id=job_id, attempt_id="slow", outcome={"late": True}) == []
 
     assert recorder.finished == []
     row = job(context, job_id)
@@ -120,7 +120,7 @@ def test_results_of_an_attempt_that_lost_its_lease_are_discarded(context, record
 
 def test_reaper_leaves_fresh_leases_alone(context, recorder):
     job_id = new_job(context)
-    claim(context.sessions, job_id=job_id, attempt_id="alive")
+    claim(context.sessions, context.handlers, job_id=job_id, attempt_id="alive")
     assert heartbeat(context.sessions, job_id=job_id, attempt_id="alive")
     assert reap(context) == []
     assert job(context, job_id).status == RUNNING
@@ -129,7 +129,7 @@ def test_reaper_leaves_fresh_leases_alone(context, recorder):
 def test_a_job_whose_workers_keep_dying_fails_for_good_with_the_reason(context, recorder):
     job_id = new_job(context, max_attempts=2)
     for attempt in ("first", "second"):
-        assert claim(context.sessions, job_id=job_id, attempt_id=attempt) is not None
+        assert claim(context.sessions, context.handlers, job_id=job_id, attempt_id=attempt) is not None
         age(context, job_id, heartbeat_at=120)
         reap(context)
     row = job(context, job_id)
@@ -158,10 +158,8 @@ def test_a_long_queued_job_is_sent_again(context, recorder):
 
 
 def test_a_worker_shutting_down_hands_its_jobs_back(context, recorder):
-    from league.server.jobs import JobRun, release_active
-
     job_id = new_job(context)
-    claimed = claim(context.sessions, job_id=job_id, attempt_id="leaving")
+    claimed = claim(context.sessions, context.handlers, job_id=job_id, attempt_id="leaving")
     run = JobRun(context, claimed, "leaving")
     context.active[job_id] = run
     pending = context.queue.pending()
@@ -172,7 +170,7 @@ def test_a_worker_shutting_down_hands_its_jobs_back(context, recorder):
     row = job(context, job_id)
     assert (row.status, row.worker_id, row.error) == (QUEUED, None, "its worker shut down")
     assert context.queue.pending() == pending + 1
-    assert complete(context.sessions, job_id=job_id, attempt_id="leaving", outcome={}) == []
+    assert complete(context.sessions, context.handlers, job_id=job_id, attempt_id="leaving", outcome={}) == []
 
 
 class AffinityRecorder(Recorder):
@@ -191,14 +189,63 @@ def test_a_job_thread_is_placed_by_the_kind_of_its_job(context, tmp_path):
     cpus = sorted(os.sched_getaffinity(0))
     context.placement = Placement(1, tmp_path / "slots")
     for kind, parallel in (("test-one-sandbox", False), ("test-race", True)):
-        register_handler(kind, AffinityRecorder(parallel))
+        context.handlers[kind] = AffinityRecorder(parallel)
     with context.sessions.begin() as session:
-        ids = [crud.create_job(session, kind=kind).id for kind in ("test-one-sandbox", "test-race")]
+        ids = [crud.create_job(session, kind=kind, owner_id=None).id for kind in ("test-one-sandbox", "test-race")]
     worker = threading.Thread(target=lambda: [run_job(context, job_id) for job_id in ids])  # a job thread
     worker.start()
     worker.join()
     with context.sessions() as session:
         assert [session.get(Job, job_id).status for job_id in ids] == [DONE, DONE]
-    assert HANDLERS["test-one-sandbox"].finished == [{"cpus": cpus[:1]}]  # its sandbox beside it
-    assert HANDLERS["test-race"].finished == [{"cpus": cpus}]  # alone on the machine: every CPU
+    assert context.handlers["test-one-sandbox"].finished == [{"cpus": cpus[:1]}]  # its sandbox beside it
+    assert context.handlers["test-race"].finished == [{"cpus": cpus}]  # alone on the machine: every CPU
     context.placement.close()
+
+
+# --------------------------------------------------------------------------- a fair queue
+
+
+def owners(context, count: int) -> list[int]:
+    with context.sessions.begin() as session:
+        return [crud.create_user(session, name=f"owner-{os.getpid()}-{i}-{id(context)}", role="student",
+                                 course=None)[0].id for i in range(count)]
+
+
+def queued_jobs(context, owner: int, kinds: list[str]) -> list[int]:
+    with context.sessions.begin() as session:
+        return [crud.create_job(session, kind=kind, owner_id=owner).id for kind in kinds]
+
+
+def test_one_students_backlog_delays_anothers_first_job_by_one_job_at_most(context):
+    alice, bob = owners(context, 2)
+    backlog = queued_jobs(context, alice, ["validate"] * 10)
+    first = queued_jobs(context, bob, ["validate"])
+    assert fairest_queued(context.sessions, limit=3) == [backlog[0], first[0], backlog[1]]
+    claim(context.sessions, {"validate": Recorder()}, job_id=backlog[0], attempt_id="busy")  # alice's job runs
+    assert fairest_queued(context.sessions, limit=2) == [first[0], backlog[1]]  # bob's first, while hers runs
+
+
+def test_validations_go_before_evaluations_and_races(context):
+    alice, bob, carol = owners(context, 3)
+    race, evaluation, validation = (queued_jobs(context, owner, [kind])[0]
+                                    for owner, kind in ((alice, "race"), (bob, "evaluate"), (carol, "validate")))
+    assert fairest_queued(context.sessions, limit=3) == [validation, evaluation, race]
+
+
+def test_a_job_that_cannot_succeed_fails_once_without_retrying(context, recorder):
+    recorder.fail_with = JobCannotSucceed("the file of submission 7 is no longer kept")
+    job_id = new_job(context, max_attempts=3)
+    run_job(context, job_id)
+    row = job(context, job_id)
+    assert (row.status, row.attempts, row.error) == (FAILED, 1, "the file of submission 7 is no longer kept")
+    assert recorder.given_up == [(job_id, "the file of submission 7 is no longer kept")]
+
+
+def test_a_running_job_cancelled_loses_its_lease_and_its_results(context, recorder):
+    job_id = new_job(context)
+    claim(context.sessions, context.handlers, job_id=job_id, attempt_id="running")
+    assert cancel(context.sessions, context.handlers, job_id=job_id, reason="cancelled by prof")
+    assert not heartbeat(context.sessions, job_id=job_id, attempt_id="running")  # its worker stops
+    assert complete(context.sessions, context.handlers, job_id=job_id, attempt_id="running", outcome={}) == []
+    assert (job(context, job_id).status, recorder.given_up) == (FAILED, [(job_id, "cancelled by prof")])
+    assert not cancel(context.sessions, context.handlers, job_id=job_id, reason="again")

@@ -1,7 +1,7 @@
 """The task queue: Huey, on SQLite (embedded default) or Redis (workers on several machines).
 
 Messages carry only a job id; the job, its status and its lease are in the database, so a lost
-message or a dead consumer never loses work (see league.server.jobs).
+message or a dead consumer never loses work (see league.server.jobs.leases).
 """
 from __future__ import annotations
 
@@ -13,6 +13,7 @@ from huey.api import Huey
 from sqlalchemy.engine import make_url
 
 from league.server.config import Settings
+from league.server.db.session import create_private_file
 
 
 class JobQueue:
@@ -48,5 +49,5 @@ def _build_huey(url: str, name: str) -> Huey:
     parsed = make_url(url)
     if parsed.get_backend_name() != "sqlite" or not parsed.database:
         raise ValueError(f"queue_url must be redis://... or sqlite:///path, got {url!r}")
-    Path(parsed.database).parent.mkdir(parents=True, exist_ok=True)
+    create_private_file(Path(parsed.database))
     return SqliteHuey(name=name, filename=parsed.database, results=False)

@@ -12,7 +12,7 @@ on one. Hence:
   block of the CPUs by its rank among the slots held; a thread alone takes them all. A lock
   dies with its process, so a crashed worker frees its slot.
 
-Sandboxes run where the thread that starts them may run (league.server.sandbox.ForkServer
+Sandboxes run where the thread that starts them may run (league.server.sandbox.process.ForkServer
 follows the thread's affinity), so placing the thread places its sandboxes.
 """
 from __future__ import annotations

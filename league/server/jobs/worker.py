@@ -12,13 +12,15 @@ from pathlib import Path
 
 from huey.consumer import Consumer
 
-from league.server import racing, tasks  # noqa: F401  (they register the job handlers)
 from league.server.config import Settings
+from league.server.db import crud
 from league.server.db.session import make_engine, make_sessionmaker, migrate
-from league.server.jobs import WorkerContext, reap, release_active, run_job
-from league.server.placement import Placement
+from league.server.jobs.handlers import HANDLERS
+from league.server.jobs.placement import Placement
+from league.server.jobs.queue import JobQueue, build_queue
+from league.server.jobs.runner import WorkerContext, reap, release_active, run_job
+from league.server.sandbox.process import sandbox_isolation
 from league.server.storage import BlobStore
-from league.server.taskqueue import JobQueue, build_queue
 
 log = logging.getLogger("league.server.worker")
 MAX_POLL_DELAY_S = 1.0  # an idle SQLite-queue worker looks for work at least this often (Redis blocks instead)
@@ -50,6 +52,7 @@ class Reaper:
                 sent = reap(self.context)
                 if sent:
                     log.info("reaper re-sent jobs %s", sent)
+                sweep_store(self.context.sessions, self.context.store)
             except Exception:  # an outage must not end the reaper: it is what recovers from outages
                 log.exception("reaper pass failed")
             if self._stop.wait(self.context.settings.reaper_interval_s):
@@ -99,12 +102,22 @@ class Worker:
             log.info("handed jobs %s back to the queue", released)
 
 
+def sweep_store(sessions, store: BlobStore) -> None:
+    """Remove the local copies of files the database no longer keeps (rejected uploads)."""
+    with sessions() as session:
+        kept = crud.kept_blobs(session)
+    removed = store.sweep(kept)
+    if removed:
+        log.info("removed %d model files no longer kept", len(removed))
+
+
 def worker_context(settings: Settings, queue: JobQueue | None = None) -> WorkerContext:
     engine = make_engine(settings.resolved_database_url)
     migrate(engine)
     store = BlobStore(settings.data_dir)
     store.ensure()
-    return WorkerContext(settings, make_sessionmaker(engine), queue or build_queue(settings), store)
+    sandbox_isolation(settings.sandbox_uid_base)  # logged at start-up: what this machine's sandboxes get
+    return WorkerContext(settings, make_sessionmaker(engine), queue or build_queue(settings), store, HANDLERS)
 
 
 def pin_to_cpus(spec: str) -> set[int]:

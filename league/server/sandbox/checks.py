@@ -7,7 +7,7 @@ ONNX files have had path-traversal and out-of-bounds bugs, so anything unusual i
 """
 from __future__ import annotations
 
-import re
+import ast
 import zipfile
 from pathlib import Path
 from typing import Any, Iterator
@@ -42,8 +42,9 @@ arange tensor scalar_tensor to type_as float double detach clone copy_ fill_ zer
 __getitem__ __is__ __isnot__ __not__ __and__ __or__ __contains__ list append Int Float Bool ScalarImplicit
 format warn item is_floating_point new_zeros new_ones masked_fill where_ erf lerp tensor_split movedim
 """.split())
-# Load-time code: TorchScript runs a module's __setstate__ while loading, before any graph check.
-TORCH_FORBIDDEN_SOURCE = re.compile(r"def __setstate__|from_file|torch\.save|torch\.load|\bops\.(?!aten\.|prim\.)")
+# Methods that run while a TorchScript file is loaded (the unpickler calls __setstate__; its pair
+# makes no sense alone): refused outright, wherever they are defined.
+LOAD_TIME_METHODS = frozenset({"__setstate__", "__getstate__"})
 PICKLE_MARK = b"\x80"  # first byte of every pickle of protocol >= 2
 MAX_CODE_FILE = 4 * 1024 * 1024  # bytes of TorchScript source per file (zip bombs are not read)
 
@@ -118,7 +119,8 @@ def _check_onnx_node(node: Any) -> None:
 
 
 def check_torchscript_archive(path: Path) -> None:
-    """Before loading: a real TorchScript zip whose code defines no load-time hooks and names no file ops."""
+    """Before loading: a real TorchScript zip, each of its code files valid TorchScript source that
+    defines no method run at load time (parsed, whatever its spelling)."""
     with open(path, "rb") as handle:
         head = handle.read(4)
     if head[:1] == PICKLE_MARK:
@@ -129,7 +131,7 @@ def check_torchscript_archive(path: Path) -> None:
             infos = archive.infolist()
             _check_archive_layout(path, [info.filename for info in infos])
             for info in infos:
-                if "/code/" in info.filename and info.filename.endswith(".py"):
+                if info.filename.endswith(".py"):
                     _check_torchscript_source(archive, info)
     except zipfile.BadZipFile as error:
         raise ModelRejected("damaged zip archive (truncated?), not a loadable TorchScript file") from error
@@ -138,6 +140,8 @@ def check_torchscript_archive(path: Path) -> None:
 def _check_archive_layout(path: Path, names: list[str]) -> None:
     if any(name.startswith("/") or ".." in name.split("/") for name in names):
         raise ModelRejected("the archive holds paths outside itself")
+    if len(set(names)) != len(names):
+        raise ModelRejected("the archive holds two files of the same name")
     if not any("/code/" in name for name in names) or not any(name.endswith("constants.pkl") for name in names):
         raise ModelRejected(f"{path.suffix or 'the'} file is a torch.save checkpoint (a pickle), not TorchScript: "
                             "export with torch.jit.script(model).save(path)")
@@ -146,23 +150,48 @@ def _check_archive_layout(path: Path, names: list[str]) -> None:
 def _check_torchscript_source(archive: zipfile.ZipFile, info: zipfile.ZipInfo) -> None:
     if info.file_size > MAX_CODE_FILE:
         raise ModelRejected(f"TorchScript code file {info.filename} is too large")
-    source = archive.read(info).decode("utf-8", errors="replace")
-    match = TORCH_FORBIDDEN_SOURCE.search(source)
-    if match:
-        raise ModelRejected(f"the TorchScript code uses {match.group(0).strip()!r}, which league models may not")
+    try:
+        tree = ast.parse(archive.read(info).decode("utf-8"), filename=info.filename)
+    except (UnicodeDecodeError, SyntaxError, ValueError) as error:
+        raise ModelRejected(f"{info.filename} is not TorchScript code: {_short(error)}") from error
+    for node in ast.walk(tree):
+        if isinstance(node, (ast.FunctionDef, ast.AsyncFunctionDef)) and node.name in LOAD_TIME_METHODS:
+            raise ModelRejected(f"the TorchScript code defines {node.name}, which runs while the file is loaded: "
+                                "league models may not (remove it and export again)")
 
 
 def check_torchscript_graph(module: Any) -> None:
-    """After loading (nothing run yet): every operator of the inlined forward graph is allow-listed."""
-    try:
-        graph = module.inlined_graph
-    except Exception as error:
-        raise ModelRejected(f"the TorchScript module has no forward method: {_short(error)}") from error
-    for kind in sorted(_graph_kinds(graph)):
-        namespace, _, name = kind.partition("::")
-        allowed = TORCH_PRIM_OPS if namespace == "prim" else TORCH_ATEN_OPS if namespace == "aten" else ()
-        if name not in allowed:
-            raise ModelRejected(f"operator {kind} is not allowed in league models (MLP/CNN operators only)")
+    """After loading (nothing run yet): every operator of every method and hook of the module and
+    its submodules, inlined, is allow-listed."""
+    for where, graph in _every_graph(module):
+        for kind in sorted(_graph_kinds(graph)):
+            namespace, _, name = kind.partition("::")
+            allowed = TORCH_PRIM_OPS if namespace == "prim" else TORCH_ATEN_OPS if namespace == "aten" else ()
+            if name not in allowed:
+                raise ModelRejected(f"operator {kind} (in {where}) is not allowed in league models "
+                                    "(MLP/CNN operators only)")
+
+
+def _every_graph(module: Any) -> Iterator[tuple[str, Any]]:
+    import torch
+
+    if "forward" not in module._c._method_names():
+        raise ModelRejected("the TorchScript module has no forward method")
+    for prefix, submodule in module.named_modules():
+        owner = prefix or type(module).__name__
+        for name in submodule._c._method_names():
+            if name in LOAD_TIME_METHODS:
+                raise ModelRejected(f"{owner} defines {name}, which runs while a file is loaded")
+            yield f"{owner}.{name}", _inlined(torch, submodule._c._get_method(name).graph)
+        for hook in [*submodule._c._get_forward_pre_hooks(), *submodule._c._get_forward_hooks()]:
+            yield f"a hook of {owner}", _inlined(torch, hook.graph)
+
+
+def _inlined(torch: Any, graph: Any) -> Any:
+    """The graph with every call it makes inlined, so no operator hides in a called function."""
+    graph = graph.copy()
+    torch._C._jit_pass_inline(graph)
+    return graph
 
 
 def _graph_kinds(graph: Any) -> set[str]:

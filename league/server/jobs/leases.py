@@ -1,0 +1,178 @@
+"""Leases in the database: a job is never stuck, and its results are written once.
+
+As in fishtest, a worker that takes a task keeps it alive with heartbeats and a scavenger
+reclaims tasks whose worker went quiet. Here:
+
+* claim: the fairest queued job (owners in turn, validations first) goes `queued -> running` by a
+  conditional UPDATE (one worker wins), with a fresh attempt id;
+* heartbeat: refreshes `heartbeat_at` while the job runs; False once the lease was taken away;
+* complete: the results are written in the transaction that moves `running -> done`, and only
+  if this attempt still holds the lease -- so a re-run job is counted once;
+* reap: running jobs whose heartbeat is older than `lease_timeout` go back to the queue (or are
+  failed for good with their reason after `max_attempts`); queued jobs whose message may have
+  been lost are sent again (a duplicate message finds the job taken and does nothing).
+
+Each function takes the job handlers (kind -> JobHandler, league.server.jobs.handlers) whose
+`begin`, `finish` and `give_up` run inside these transactions.
+"""
+from __future__ import annotations
+
+import logging
+from datetime import datetime, timedelta
+from typing import Any, Mapping
+
+from sqlalchemy import case, func, select, update
+from sqlalchemy.orm import Session, sessionmaker
+
+from league.server.db.models import DONE, EVALUATE, FAILED, QUEUED, RUNNING, VALIDATE, Job, utcnow
+
+log = logging.getLogger("league.server.jobs")
+CANDIDATES = 8  # fairest queued jobs tried per claim (others' workers may take the first ones)
+
+
+def claim_next(sessions: sessionmaker[Session], handlers: Mapping[str, Any], *, attempt_id: str) -> Job | None:
+    """Claim the fairest queued job: owners take turns (a job's rank counts its owner's jobs running
+    or queued before it), so one student's backlog delays another's first job by one job at most;
+    at equal rank validations go first, then evaluations, then races, then the oldest."""
+    for job_id in fairest_queued(sessions):
+        job = claim(sessions, handlers, job_id=job_id, attempt_id=attempt_id)
+        if job is not None:
+            return job
+    return None
+
+
+def fairest_queued(sessions: sessionmaker[Session], limit: int = CANDIDATES) -> list[int]:
+    active = Job.status.in_((QUEUED, RUNNING))
+    rank = func.row_number().over(partition_by=func.coalesce(Job.owner_id, -1),
+                                  order_by=(case((Job.status == RUNNING, 0), else_=1), Job.id))
+    kind_order = case((Job.kind == VALIDATE, 0), (Job.kind == EVALUATE, 1), else_=2)
+    ranked = select(Job.id, Job.status, rank.label("rank"), kind_order.label("kind_order")).where(active).subquery()
+    with sessions() as session:
+        return list(session.scalars(select(ranked.c.id).where(ranked.c.status == QUEUED)
+                                    .order_by(ranked.c.rank, ranked.c.kind_order, ranked.c.id).limit(limit)))
+
+
+def claim(sessions: sessionmaker[Session], handlers: Mapping[str, Any], *, job_id: int,
+          attempt_id: str) -> Job | None:
+    """Take a queued job for this attempt; None if it is not queued (done, failed, running elsewhere)."""
+    now = utcnow()
+    with sessions.begin() as session:
+        taken = session.execute(
+            update(Job).where(Job.id == job_id, Job.status == QUEUED)
+            .values(status=RUNNING, worker_id=attempt_id, attempts=Job.attempts + 1, started_at=now, heartbeat_at=now)
+        ).rowcount
+        if not taken:
+            return None
+        job = session.get(Job, job_id, populate_existing=True)
+        handlers[job.kind].begin(session, job)
+        return job
+
+
+def heartbeat(sessions: sessionmaker[Session], *, job_id: int, attempt_id: str) -> bool:
+    """Refresh the lease; False if this attempt no longer holds it."""
+    with sessions.begin() as session:
+        return bool(session.execute(
+            update(Job).where(Job.id == job_id, Job.status == RUNNING, Job.worker_id == attempt_id)
+            .values(heartbeat_at=utcnow())
+        ).rowcount)
+
+
+def complete(sessions: sessionmaker[Session], handlers: Mapping[str, Any], *, job_id: int, attempt_id: str,
+             outcome: Any) -> list[int]:
+    """Write the outcome with `running -> done`, if this attempt holds the lease; the follow-up jobs."""
+    with sessions.begin() as session:
+        if not take_lease_for(session, job_id, attempt_id, DONE):
+            log.warning("job %s: lease lost before completion; its results are discarded", job_id)
+            return []
+        job = session.get(Job, job_id, populate_existing=True)
+        return handlers[job.kind].finish(session, job, outcome)
+
+
+def take_lease_for(session: Session, job_id: int, attempt_id: str, status: str, **values: Any) -> bool:
+    """Move this attempt's running job to `status`; row-locks it until the transaction ends."""
+    return bool(session.execute(
+        update(Job).where(Job.id == job_id, Job.status == RUNNING, Job.worker_id == attempt_id)
+        .values(status=status, finished_at=utcnow() if status in (DONE, FAILED) else None, **values)
+    ).rowcount)
+
+
+def retry_or_fail(sessions: sessionmaker[Session], handlers: Mapping[str, Any], *, job_id: int, attempt_id: str,
+                  reason: str) -> bool:
+    """After an infrastructure failure: back to the queue (True), or failed for good after max_attempts."""
+    with sessions.begin() as session:
+        job = session.get(Job, job_id, populate_existing=True)
+        if job.attempts >= job.max_attempts:
+            if take_lease_for(session, job_id, attempt_id, FAILED, error=reason):
+                handlers[job.kind].give_up(session, job, reason)
+            return False
+        return take_lease_for(session, job_id, attempt_id, QUEUED, error=reason, worker_id=None, enqueued_at=utcnow())
+
+
+def fail(sessions: sessionmaker[Session], handlers: Mapping[str, Any], *, job_id: int, attempt_id: str,
+         reason: str) -> None:
+    """Fail this attempt's job for good, at once (it cannot succeed: retrying would only repeat it)."""
+    with sessions.begin() as session:
+        if take_lease_for(session, job_id, attempt_id, FAILED, error=reason):
+            handlers[session.get(Job, job_id).kind].give_up(session, session.get(Job, job_id), reason)
+
+
+def cancel(sessions: sessionmaker[Session], handlers: Mapping[str, Any], *, job_id: int, reason: str) -> bool:
+    """Fail a queued or running job for good; a running one's worker loses its lease and stops.
+    False if the job was already over."""
+    with sessions.begin() as session:
+        cancelled = session.execute(update(Job).where(Job.id == job_id, Job.status.in_((QUEUED, RUNNING))).values(
+            status=FAILED, error=reason, worker_id=None, finished_at=utcnow())).rowcount
+        if cancelled:
+            job = session.get(Job, job_id, populate_existing=True)
+            handlers[job.kind].give_up(session, job, reason)
+        return bool(cancelled)
+
+
+def hand_back(sessions: sessionmaker[Session], *, job_id: int, attempt_id: str, reason: str) -> bool:
+    """Give a running job back to the queue at once (its worker shuts down); True if it was ours."""
+    with sessions.begin() as session:
+        return take_lease_for(session, job_id, attempt_id, QUEUED, worker_id=None, enqueued_at=utcnow(),
+                              error=reason)
+
+
+def reap(sessions: sessionmaker[Session], handlers: Mapping[str, Any], *, lease_timeout_s: float,
+         requeue_queued_after_s: float, now: datetime | None = None) -> list[int]:
+    """Re-queue running jobs whose worker stopped heart-beating and re-send long-queued ones.
+
+    Returns the ids to send to the queue. Safe to run in every worker at once: each change is a
+    conditional UPDATE that only one of them can make.
+    """
+    now = now or utcnow()
+    stale_before = now - timedelta(seconds=lease_timeout_s)
+    resend_before = now - timedelta(seconds=requeue_queued_after_s)
+    with sessions() as session:
+        stale = list(session.scalars(select(Job.id).where(Job.status == RUNNING, Job.heartbeat_at < stale_before)))
+        lost = list(session.scalars(select(Job.id).where(Job.status == QUEUED, Job.enqueued_at < resend_before)))
+    sent = [job_id for job_id in stale if _release_stale(sessions, handlers, job_id, stale_before, now)]
+    sent += [job_id for job_id in lost if _mark_resent(sessions, job_id, resend_before, now)]
+    return sent
+
+
+def _release_stale(sessions: sessionmaker[Session], handlers: Mapping[str, Any], job_id: int,
+                   stale_before: datetime, now: datetime) -> bool:
+    still_stale = (Job.id == job_id, Job.status == RUNNING, Job.heartbeat_at < stale_before)
+    with sessions.begin() as session:
+        job = session.get(Job, job_id)
+        reason = f"its worker ({job.worker_id}) stopped heart-beating"
+        if job.attempts >= job.max_attempts:
+            failed = session.execute(update(Job).where(*still_stale).values(
+                status=FAILED, error=f"gave up after {job.attempts} attempts: {reason}", finished_at=now)).rowcount
+            if failed:
+                handlers[job.kind].give_up(session, job, f"gave up after {job.attempts} attempts: {reason}")
+            return False
+        requeued = session.execute(update(Job).where(*still_stale).values(
+            status=QUEUED, worker_id=None, error=reason, enqueued_at=now)).rowcount
+    if requeued:
+        log.warning("job %s re-queued: %s", job_id, reason)
+    return bool(requeued)
+
+
+def _mark_resent(sessions: sessionmaker[Session], job_id: int, resend_before: datetime, now: datetime) -> bool:
+    with sessions.begin() as session:
+        return bool(session.execute(update(Job).where(
+            Job.id == job_id, Job.status == QUEUED, Job.enqueued_at < resend_before).values(enqueued_at=now)).rowcount)

@@ -1,0 +1,38 @@
+"""The validation job: static checks, load and a timed dry run of an upload, in a sandbox."""
+from __future__ import annotations
+
+from sqlalchemy.orm import Session
+
+from league.server.db import crud
+from league.server.db.models import FAILED, READY, REJECTED, VALIDATING, Job, Submission
+from league.server.jobs.evaluate import queue_evaluation
+from league.server.jobs.runner import JobRun
+from league.server.sandbox.limits import SandboxLimits
+from league.server.sandbox.validation import ValidationReport, validate_model
+
+
+class ValidateSubmission:
+    parallel_sandboxes = False
+
+    def begin(self, session: Session, job: Job) -> None:
+        submission = session.get(Submission, job.submission_id)
+        submission.status, submission.error = VALIDATING, None
+
+    def run(self, run: JobRun) -> ValidationReport:
+        submission = run.submission()
+        limits = SandboxLimits.from_settings(run.context.settings)
+        return validate_model(run.model_file(submission), submission.kind, limits)
+
+    def finish(self, session: Session, job: Job, report: ValidationReport) -> list[int]:
+        submission = session.get(Submission, job.submission_id)
+        submission.log = report.log
+        if not report.ok:
+            submission.status, submission.error = REJECTED, report.error
+            crud.forget_blob_unless_used(session, sha256=submission.sha256)  # the stores sweep their copies
+            return []
+        submission.status, submission.error, submission.obs_dim = READY, None, report.obs_dim
+        return [queue_evaluation(session, submission=submission, max_attempts=job.max_attempts).id]
+
+    def give_up(self, session: Session, job: Job, reason: str) -> None:
+        submission = session.get(Submission, job.submission_id)
+        submission.status, submission.error = FAILED, f"the validation could not be completed: {reason}"

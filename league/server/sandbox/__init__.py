@@ -1,0 +1,22 @@
+"""Run untrusted models in sandbox processes; the worker and the API never load a model themselves.
+
+    agent.py       SandboxedAgent: a league.agents.Agent whose model lives in a child process, with
+                   deadlines and restarts; the worker runs the toolkit's metrics_run and race on it
+    process.py     the child process seen from the worker: the fork server that starts it, who it
+                   runs as, its environment and directory, the pipe protocol
+    child.py       the child itself (run by path, as a script): isolates itself, loads the model,
+                   answers observation batches
+    checks.py      static checks of a model file, run in the child before the model is loaded
+    validation.py  validating an upload: checks, load and dry run in a sandbox, timed from outside
+    limits.py      what a sandbox may use; log.py what it printed, within a size limit
+
+Isolation of the child, done by the child itself before it reads the model (child.confine):
+rlimits (CPU, files, address space), a new network namespace, a user id of its own when the worker
+is root (else root without capabilities, or the worker's user), the parent-death signal, no new
+privileges, Landlock (it reads only this Python and our package, writes only its own directory,
+opens no TCP connection, signals no one outside it) and seccomp (no program, process, namespace,
+socket, trace, mount or identity change). Besides: a private temporary directory holding a copy of
+the model, no inherited file descriptors but its pipes, a clean environment. Which of these a
+machine gives is found once by a probe sandbox (process.isolation), logged, and shown by
+/api/health; without Landlock and seccomp no model runs unless the settings allow it.
+"""

@@ -1,0 +1,385 @@
+"""The sandbox process seen from the worker: starting it (a fork server per thread), who it runs
+as, its environment and directory, and the pipe protocol of league/server/sandbox/child.py.
+
+Each thread that starts sandboxes has a `ForkServer`, a child.py process that has imported numpy,
+onnx and onnxruntime once and forks a sandbox per model (one start is a fork and a model load,
+~0.03 s, instead of a new interpreter, ~0.25 s). The server dies with its thread and takes its
+sandboxes with it (the kernel's parent-death signal, which follows the starting thread).
+Sandboxes run on the CPUs their thread may use when they start (see league.server.jobs.placement).
+"""
+from __future__ import annotations
+
+import contextlib
+import functools
+import importlib.util
+import json
+import logging
+import os
+import pwd
+import select
+import shutil
+import signal
+import socket
+import subprocess
+import sys
+import tempfile
+import threading
+import time
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from league.agents import plain_text
+from league.server.sandbox import child
+from league.server.sandbox.limits import SandboxLimits
+from league.server.sandbox.log import LogBuffer
+
+log = logging.getLogger("league.server.sandbox")
+CHILD_SCRIPT = Path(child.__file__).resolve()
+HEADER, LENGTH = child.HEADER, child.LENGTH
+MAX_MESSAGE = 65536
+READ_CHUNK = 65536
+FORK_SERVER_TIMEOUT_S = 60.0  # its imports on a busy machine
+
+
+class SandboxFailure(Exception):
+    """The child failed; `fatal` when it is dead or was killed (a new one is needed)."""
+
+    def __init__(self, reason: str, fatal: bool, timed_out: bool = False):
+        super().__init__(reason)
+        self.reason, self.fatal, self.timed_out = reason, fatal, timed_out
+
+
+
+class SandboxProcess:
+    """One child process serving one model."""
+
+    def __init__(self, model_file: Path, model_kind: str, limits: SandboxLimits, log: LogBuffer):
+        self.limits, self.log = limits, log
+        uid_base = isolation(limits).uid_base  # before the directory: a refusal leaves nothing behind
+        self.workdir = Path(tempfile.mkdtemp(prefix="league-sandbox-"))
+        try:
+            model_name = "model.onnx" if model_kind == "onnx" else "model.pt"
+            shutil.copyfile(model_file, self.workdir / model_name)
+            os.chmod(self.workdir / model_name, 0o644)  # readable by the sandbox's own user
+            self.proc = ForkServer.of_this_thread().spawn([model_name, str(limits.memory_mb), str(limits.cpu_seconds),
+                                                           str(uid_base)], self.workdir,
+                                                          _child_environment(self.workdir))
+        except BaseException:
+            shutil.rmtree(self.workdir, ignore_errors=True)
+            raise
+        self._out = self.proc.stdout.fileno()
+        os.set_blocking(self._out, False)
+        self._poller = select.poll()
+        self._poller.register(self._out, select.POLLIN)
+        self._unread = bytearray()
+        self._log_thread = threading.Thread(target=self._copy_log, daemon=True)
+        self._log_thread.start()
+        try:
+            self.ready = self._await_ready()
+        except BaseException:
+            self.close()  # the process, the pipes and the directory: nothing of a failed start is left
+            raise
+
+    def _copy_log(self) -> None:
+        for chunk in iter(lambda: self.proc.stderr.read1(65536), b""):
+            self.log.write(chunk)
+
+    def _await_ready(self) -> dict:
+        deadline = time.monotonic() + self.limits.load_timeout_s
+        try:
+            tag, payload = self._read_message(deadline, expected=(b"R", b"E"))
+        except SandboxFailure as failure:
+            if failure.timed_out:
+                raise SandboxFailure(f"the model did not load and pass its dry run within "
+                                     f"{self.limits.load_timeout_s:g} s (a model must answer in "
+                                     f"{self.limits.step_deadline_s * 1000:g} ms)", fatal=True) from failure
+            raise
+        if tag == b"E":
+            raise SandboxFailure(plain_text(payload.decode("utf-8", errors="replace")), fatal=True)
+        return json.loads(payload)
+
+    def send_observations(self, obs: np.ndarray) -> None:
+        obs = np.ascontiguousarray(obs, dtype="<f4")
+        self._send(HEADER.pack(b"I", obs.shape[0], obs.shape[1]) + obs.tobytes())
+
+    def receive_actions(self, deadline: float) -> np.ndarray:
+        tag, payload = self._read_message(deadline, expected=(b"A", b"E"))
+        if tag == b"E":
+            raise SandboxFailure(plain_text(payload.decode("utf-8", errors="replace")), fatal=False)
+        return payload
+
+    def _send(self, data: bytes) -> None:
+        try:
+            self.proc.stdin.write(data)
+            self.proc.stdin.flush()
+        except (BrokenPipeError, OSError) as error:
+            raise SandboxFailure(self._death_reason(), fatal=True) from error
+
+    def _read_message(self, deadline: float, expected: tuple[bytes, ...]) -> tuple[bytes, object]:
+        tag = self._read_exact(1, deadline)
+        if tag not in expected:
+            self.kill()
+            raise SandboxFailure(f"sandbox protocol error (message {tag!r})", fatal=True)
+        if tag == b"A":
+            n, d = HEADER.unpack(tag + self._read_exact(8, deadline))[1:]
+            if d != 2 or n > child.MAX_BATCH:
+                self.kill()
+                raise SandboxFailure(f"sandbox protocol error (actions {n}x{d})", fatal=True)
+            return tag, np.frombuffer(self._read_exact(n * d * 4, deadline), dtype="<f4").reshape(n, d)
+        (length,) = LENGTH.unpack(self._read_exact(LENGTH.size, deadline))
+        if length > MAX_MESSAGE:
+            self.kill()
+            raise SandboxFailure("sandbox protocol error (message too long)", fatal=True)
+        return tag, self._read_exact(length, deadline)
+
+    def _read_exact(self, size: int, deadline: float) -> bytes:
+        """`size` bytes of the child's answers, within the deadline. Reads are buffered and
+        non-blocking: an answer that is already in the pipe costs one read, no poll."""
+        while len(self._unread) < size:
+            try:
+                chunk = os.read(self._out, max(READ_CHUNK, size - len(self._unread)))
+            except BlockingIOError:
+                remaining = deadline - time.monotonic()
+                if remaining <= 0 or not self._poller.poll(remaining * 1000):
+                    self.kill()
+                    raise SandboxFailure("deadline exceeded", fatal=True, timed_out=True) from None
+                continue
+            if not chunk:
+                raise SandboxFailure(self._death_reason(), fatal=True)
+            self._unread += chunk
+        data = bytes(self._unread[:size])
+        del self._unread[:size]
+        return data
+
+    def _death_reason(self) -> str:
+        try:
+            code = self.proc.wait(timeout=2)
+        except subprocess.TimeoutExpired:
+            self.kill()
+            return "the sandbox stopped answering"
+        if code == -signal.SIGXCPU:
+            return f"the model used more than {self.limits.cpu_seconds} s of CPU time"
+        if code < 0:
+            return f"the sandbox process crashed ({signal.Signals(-code).name}); see the log"
+        return f"the sandbox process exited with code {code}; see the log"
+
+    def kill(self) -> None:
+        if self.proc.poll() is None:
+            self.proc.kill()
+        self.proc.wait()
+
+    def close(self) -> None:
+        with contextlib.suppress(OSError, ValueError):
+            self.proc.stdin.close()
+        self.kill()  # nothing in the child is worth its slow interpreter shutdown
+        self._log_thread.join(timeout=2)
+        self.proc.stdout.close()
+        self.proc.stderr.close()
+        shutil.rmtree(self.workdir, ignore_errors=True)
+
+
+class ForkServer:
+    """sandbox_child.py's fork server: one per thread that starts sandboxes, since the kernel's
+    parent-death signal follows the thread that started a process; it ends with that thread."""
+
+    _threads = threading.local()
+
+    @classmethod
+    def of_this_thread(cls) -> ForkServer:
+        server = getattr(cls._threads, "server", None)
+        if server is None or server.proc.poll() is not None:
+            server = cls._threads.server = cls()
+        return server
+
+    def __init__(self):
+        ours, theirs = socket.socketpair(socket.AF_UNIX, socket.SOCK_SEQPACKET)
+        home = Path(tempfile.gettempdir())
+        with theirs:
+            self.proc = subprocess.Popen(
+                [sys.executable, "-s", "-B", "-P", str(CHILD_SCRIPT), "--fork-server", str(theirs.fileno())],
+                cwd="/", env=_child_environment(home), stdin=subprocess.DEVNULL, stdout=subprocess.DEVNULL,
+                pass_fds=[theirs.fileno()], start_new_session=True)
+        self.control = ours
+        self.control.settimeout(FORK_SERVER_TIMEOUT_S)
+        self.cpus = os.sched_getaffinity(0)  # the thread's, inherited by the server
+        self._lock = threading.Lock()
+
+    def spawn(self, args: list[str], workdir: Path, env: dict[str, str]) -> ForkedProcess:
+        """A sandbox process running sandbox_child.py `args` in `workdir`, with pipes to its stdio,
+        on the CPUs the calling thread may use now (league.server.jobs.placement moves job threads)."""
+        self._follow_thread_affinity()
+        (stdin, to_stdin), (from_stdout, stdout), (from_stderr, stderr) = (os.pipe() for _ in range(3))
+        ours = [to_stdin, from_stdout, from_stderr]
+        try:
+            reply = self._ask({"args": args, "workdir": str(workdir), "env": env}, [stdin, stdout, stderr])
+        except BaseException:
+            for fd in ours:
+                os.close(fd)
+            raise
+        finally:  # the child has its copies (or there is no child)
+            for fd in (stdin, stdout, stderr):
+                os.close(fd)
+        return ForkedProcess(reply["pid"], self, stdin=open(to_stdin, "wb"),
+                             stdout=open(from_stdout, "rb", buffering=0), stderr=open(from_stderr, "rb"))
+
+    def _follow_thread_affinity(self) -> None:
+        cpus = os.sched_getaffinity(0)
+        if cpus != self.cpus:
+            with contextlib.suppress(ProcessLookupError):  # (a dead server fails the request next)
+                os.sched_setaffinity(self.proc.pid, cpus)  # the server has one thread
+            self.cpus = cpus
+
+    def exit_status(self, pid: int) -> int | None:
+        try:
+            return self._ask({"wait": pid})["status"]
+        except SandboxFailure:
+            return -signal.SIGKILL  # the server is gone, and its children with it
+
+    def _ask(self, request: dict, fds: list[int] = ()) -> dict:
+        with self._lock:
+            try:
+                socket.send_fds(self.control, [json.dumps(request).encode()], list(fds))
+                reply = self.control.recv(65536)
+            except OSError as error:  # timeouts included
+                self.proc.kill()
+                raise SandboxFailure(f"the sandbox launcher failed: {error}", fatal=True) from error
+        if not reply:
+            raise SandboxFailure("the sandbox launcher exited", fatal=True)
+        return json.loads(reply)
+
+
+class ForkedProcess:
+    """What SandboxProcess needs of a Popen, for a child of the fork server (a pidfd to signal it
+    and to see it end; its exit status from the server)."""
+
+    def __init__(self, pid: int, server: ForkServer, *, stdin, stdout, stderr):
+        self.pid, self.server = pid, server
+        self.stdin, self.stdout, self.stderr = stdin, stdout, stderr
+        self.returncode: int | None = None
+        self._pidfd = os.pidfd_open(pid)  # safe: the server keeps the pid until asked for its status
+
+    def poll(self) -> int | None:
+        return self.wait(timeout=0) if self.returncode is None and self._ended(0) else self.returncode
+
+    def wait(self, timeout: float | None = None) -> int:
+        if self.returncode is None:
+            if not self._ended(timeout):
+                raise subprocess.TimeoutExpired(f"sandbox {self.pid}", timeout)
+            self.returncode = self.server.exit_status(self.pid)
+            if self.returncode is None:  # ended as the pidfd says, not yet as the server sees it
+                self.returncode = -signal.SIGKILL
+            os.close(self._pidfd)
+        return self.returncode
+
+    def kill(self) -> None:
+        if self.returncode is None:
+            with contextlib.suppress(ProcessLookupError):
+                signal.pidfd_send_signal(self._pidfd, signal.SIGKILL)
+
+    def _ended(self, timeout: float | None) -> bool:
+        return bool(select.select([self._pidfd], [], [], timeout)[0])
+
+
+def _child_environment(workdir: Path) -> dict[str, str]:
+    """No proxies, no credentials, no PYTHONPATH of ours: only what Python and one-thread math need."""
+    return {"PATH": os.defpath, "HOME": str(workdir), "TMPDIR": str(workdir), "LANG": "C.UTF-8",
+            "OMP_NUM_THREADS": "1", "MKL_NUM_THREADS": "1", "OPENBLAS_NUM_THREADS": "1", "MALLOC_ARENA_MAX": "2",
+            "ORT_DISABLE_TELEMETRY": "1"}
+
+
+# --------------------------------------------------------------------------- isolation
+
+
+class IsolationUnavailable(RuntimeError):
+    """Sandboxes cannot be isolated here as the settings require: a fault of the machine, not of a
+    model (the job fails with this reason; nothing is held against the upload)."""
+
+
+@dataclass(frozen=True)
+class Isolation:
+    """How this machine's sandboxes are isolated, as a probe sandbox found it."""
+
+    network: str  # "namespace", "user-namespace" or "unavailable" (seccomp refuses sockets anyway)
+    user: str  # "uid N" (its own), "root without capabilities", or "the server's user"
+    landlock: int  # the kernel's Landlock ABI version (0: none)
+    seccomp: bool
+    uid_base: int  # what sandboxes are started with (0: no user of their own)
+    problem: str | None = None  # why a probe failed, if one did
+
+    @property
+    def full(self) -> bool:
+        return self.problem is None and self.landlock > 0 and self.seccomp
+
+    def describe(self) -> str:
+        if self.problem:
+            return f"NOT isolated: {self.problem}"
+        return (f"Landlock ABI {self.landlock}, seccomp, network {self.network}, "
+                f"runs as {'a user id of its own' if self.uid_base else self.user}")
+
+    def check(self, limits: SandboxLimits) -> Isolation:
+        """This isolation, or IsolationUnavailable if the limits require full isolation and it is not."""
+        if limits.require_isolation and not self.full:
+            raise IsolationUnavailable(f"uploaded models are not run here: the sandbox is {self.describe()} "
+                                       "(set LEAGUE_SANDBOX_REQUIRE_ISOLATION=false to run them anyway)")
+        return self
+
+    def to_dict(self) -> dict:
+        return {"full": self.full, "network": self.network, "user": "own user id" if self.uid_base else self.user,
+                "landlock": self.landlock, "seccomp": self.seccomp, "problem": self.problem}
+
+
+_isolation_lock = threading.Lock()
+_isolation: Isolation | None = None
+
+
+def sandbox_isolation(uid_base: int = SandboxLimits.uid_base) -> Isolation:
+    """This machine's sandbox isolation, found once per process by probe sandboxes started as every
+    sandbox is: with a user id of their own if we are root and the runtimes are readable by other
+    users, else as this process's user (root without capabilities)."""
+    global _isolation
+    with _isolation_lock:
+        if _isolation is None:
+            _isolation = _probe_isolation(uid_base if os.geteuid() == 0 else 0)
+            (log.info if _isolation.full else log.error)("sandbox isolation: %s", _isolation.describe())
+        return _isolation
+
+
+def isolation(limits: SandboxLimits) -> Isolation:
+    """The isolation sandboxes get; IsolationUnavailable if the limits require full isolation and
+    this machine cannot give it."""
+    return sandbox_isolation(limits.uid_base).check(limits)
+
+
+def _probe_isolation(uid_base: int) -> Isolation:
+    found = _run_probe(uid_base)
+    if isinstance(found, str) and uid_base:  # e.g. a standard library other users cannot read
+        log.warning("sandboxes keep root's user id, without capabilities: with a user id of their own they "
+                    "cannot import their runtimes (%s)", found)
+        uid_base, found = 0, _run_probe(0)
+    if isinstance(found, str):
+        return Isolation("unknown", "unknown", 0, False, uid_base, problem=found)
+    return Isolation(found["network"], found["user"], found["landlock"], found["seccomp"], uid_base)
+
+
+def _run_probe(uid_base: int) -> dict | str:
+    """A sandbox without a model: confined as sandboxes are, it imports the runtimes and says how it
+    is isolated (a dict), or fails (the reason)."""
+    workdir = Path(tempfile.mkdtemp(prefix="league-probe-"))
+    try:
+        proc = ForkServer.of_this_thread().spawn(["--probe", "0", "600", str(uid_base)], workdir,
+                                                 _child_environment(workdir))
+        with proc.stdout, proc.stderr, proc.stdin:
+            tag, message = proc.stdout.read(1), proc.stdout.read()
+            errors = proc.stderr.read().decode(errors="replace").strip()
+        proc.wait()
+    except SandboxFailure as failure:
+        return failure.reason
+    finally:
+        shutil.rmtree(workdir, ignore_errors=True)
+    text = message[LENGTH.size:].decode(errors="replace")
+    if tag != b"R":
+        lines = (text or errors).strip().splitlines()
+        return lines[-1] if lines else "the probe sandbox died"
+    return json.loads(text)["isolation"]

@@ -1,0 +1,110 @@
+"""Standings, ratings and the course leaderboard, recomputed from what is stored.
+
+Nothing here is stored: championship standings and OpenSkill ratings come from the finished
+rounds' classifications, in order, with `league.championship` (the rules the toolkit uses too),
+so every figure can be re-derived; the leaderboard from each submission's newest finished
+evaluation.
+"""
+from __future__ import annotations
+
+from typing import Any
+
+from sqlalchemy.orm import Session
+
+from league import championship as rules
+from league.server.db import crud
+from league.server.db.models import BASELINE, DONE, Championship, ChampionshipRound, Submission
+
+
+def finished_heats(rounds: list[ChampionshipRound]) -> list[list[dict]]:
+    """The classifications of the heats of finished rounds, in order, as the rules read them."""
+    heats = []
+    for championship_round in sorted(rounds, key=lambda r: r.number):
+        if championship_round.status != DONE:
+            continue  # points are awarded when the whole round is over
+        for race_row in championship_round.races:
+            heats.append([{"entrant": row["submission_id"], "position": row["position"], "outcome": row["outcome"]}
+                          for row in race_row.classification])
+    return heats
+
+
+def championship_standings(championship: Championship) -> list[rules.Standing]:
+    return rules.standings(finished_heats(championship.rounds), tuple(championship.points))
+
+
+def ratings_after(heats: list[list[dict]]) -> dict[int, rules.Rating]:
+    """OpenSkill (Plackett-Luce) ratings, updated heat after heat from each heat's order."""
+    ratings: dict[int, rules.Rating] = {}
+    for heat in heats:
+        order = [row["entrant"] for row in sorted(heat, key=lambda row: row["position"])]
+        ratings.update(rules.update_ratings(ratings, order))
+    return ratings
+
+
+def standings_rows(session: Session, championship: Championship) -> list[dict]:
+    heats = finished_heats(championship.rounds)
+    table, ratings = rules.standings(heats, tuple(championship.points)), ratings_after(heats)
+    submissions = crud.submissions_by_id(session, ids=[standing.entrant for standing in table])
+    rows = []
+    for rank, standing in enumerate(table, start=1):
+        submission, rating = submissions.get(standing.entrant), ratings[standing.entrant]
+        rows.append({"rank": rank, "submission_id": standing.entrant,
+                     "name": submission.name if submission else "(deleted)",
+                     "owner": submission.owner.name if submission else "", "points": standing.points,
+                     "wins": standing.wins, "finishes": standing.finishes, "rating": rating.conservative,
+                     "mu": rating.mu, "sigma": rating.sigma})
+    return rows
+
+
+def course_ratings(session: Session, *, course_id: int | None) -> dict[int, rules.Rating]:
+    """Ratings from every finished round of the course's championships, oldest first."""
+    rounds = sorted((r for c in crud.course_championships(session, course_id=course_id) for r in c.rounds),
+                    key=lambda r: r.id)
+    heats = []
+    for championship_round in rounds:
+        heats += finished_heats([championship_round])
+    return ratings_after(heats)
+
+
+# --------------------------------------------------------------------------- the course leaderboard
+
+
+def leaderboard_rows(session: Session, *, course_id: int | None) -> list[dict]:
+    """Each student's best evaluated submission (completion rate, then mean return), and every
+    bundled baseline as a reference row; best first, with the course-wide rating."""
+    owners = crud.leaderboard_owners(session, course_id=course_id)
+    ready = crud.ready_submissions(session, owner_ids=[u.id for u in owners])
+    # the newest finished evaluation: a re-run in progress does not take an agent off the board
+    evaluations = crud.latest_evaluations(session, submission_ids=[s.id for s in ready], status=DONE)
+    best: dict[tuple[str, int], tuple[Submission, Any]] = {}
+    for submission in ready:
+        evaluation = evaluations.get(submission.id)
+        if evaluation is None:
+            continue
+        key = leaderboard_key(submission)
+        if key not in best or _score(evaluation) > _score(best[key][1]):
+            best[key] = (submission, evaluation)
+    ratings = course_ratings(session, course_id=course_id)
+    ordered = sorted(best.values(), key=lambda pair: (_score(pair[1]), -pair[0].id), reverse=True)
+    return [_leaderboard_row(rank, submission, evaluation, ratings.get(submission.id))
+            for rank, (submission, evaluation) in enumerate(ordered, start=1)]
+
+
+def leaderboard_key(submission: Submission) -> tuple[str, int]:
+    """A row's identity: each baseline agent has a row, each student one (their best agent).
+    Tagged, so that a student's user id never collides with a baseline's submission id."""
+    if submission.owner.role == BASELINE:
+        return ("baseline", submission.id)
+    return ("student", submission.owner_id)
+
+
+def _score(evaluation) -> tuple[float, float]:
+    return (evaluation.completed / max(evaluation.episodes_total, 1), evaluation.mean_return)
+
+
+def _leaderboard_row(rank: int, submission: Submission, evaluation, rating: rules.Rating | None) -> dict:
+    return {"rank": rank, "owner": submission.owner.name, "submission_id": submission.id, "name": submission.name,
+            "public": submission.public, "completed": evaluation.completed, "episodes": evaluation.episodes_total,
+            "mean_return": evaluation.mean_return, "mean_steps": evaluation.mean_steps,
+            "mean_speed": evaluation.mean_speed, "rating": rating.conservative if rating else None,
+            "mu": rating.mu if rating else None, "sigma": rating.sigma if rating else None}

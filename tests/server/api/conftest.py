@@ -1,0 +1,110 @@
+"""The in-process tier of the API tests: the app itself (FastAPI's TestClient), on a real database
+of each backend, with no worker. For every answer that needs no job to run (validation, 4xx,
+permissions, quotas); submissions and evaluations a test needs are written to the database as
+the jobs would write them. What needs real processes (jobs, sandboxes, kill -9) uses the
+subprocess servers of tests/server/conftest.py.
+"""
+from __future__ import annotations
+
+import contextlib
+import uuid
+from dataclasses import dataclass
+from pathlib import Path
+
+import pytest
+from fastapi.testclient import TestClient
+
+from league.server.app import create_app
+from league.server.config import Settings
+from league.server.db import crud
+from league.server.db.models import DONE, INSTRUCTOR, READY, REJECTED, STUDENT, Submission, User
+from league.server.db.session import make_sessionmaker
+
+from ..conftest import BACKENDS, TEST_SETTINGS, fresh_backend
+
+
+def unique(name: str) -> str:
+    return f"{name}-{uuid.uuid4().hex[:6]}"
+
+
+class Client(TestClient):
+    """A client of the app whose `with` block only closes it: the fixture ran the app's lifespan once."""
+
+    def __enter__(self) -> "Client":
+        return self
+
+    def __exit__(self, *exc_info) -> None:
+        self.close()
+
+
+@dataclass
+class InProcessLeague:
+    """The app in this process, and ways to put what a test needs straight into its database."""
+
+    app: object
+    settings: Settings
+    instructor_token: str
+
+    @property
+    def sessions(self):
+        return self.app.state.sessions
+
+    def client(self, token: str | None = None) -> Client:
+        headers = {"Authorization": f"Bearer {token}"} if token else {}
+        return Client(self.app, headers=headers)
+
+    def user(self, name: str, role: str = STUDENT, course_name: str | None = None) -> tuple[User, str]:
+        """A new user (of the default course, or of a new course) and their token."""
+        with self.sessions.begin() as session:
+            course = crud.get_or_create_course(session, name=course_name or crud.DEFAULT_COURSE,
+                                               evaluation=self.settings.default_evaluation())
+            return crud.create_user(session, name=unique(name), role=role, course=course)
+
+    def student(self, name: str = "student") -> tuple[User, Client]:
+        user, token = self.user(name)
+        return user, self.client(token)
+
+    def submission(self, owner: User, *, status: str = READY, evaluated: bool = True, completed: int = 2,
+                   public: bool = False) -> Submission:
+        """A submission as its jobs leave it: ready with a finished evaluation, or rejected."""
+        with self.sessions.begin() as session:
+            digest, owner = uuid.uuid4().hex.ljust(64, "0"), session.get(User, owner.id)
+            submission, _ = crud.create_submission(session, owner=owner, name=unique("agent"),
+                                                   filename="agent.onnx", kind="onnx", sha256=digest, size=1,
+                                                   max_attempts=1)
+            submission.status, submission.public, submission.obs_dim = status, public, 5
+            if status == REJECTED:
+                submission.error = "the model returned NaN or infinite actions"
+            if status == READY and evaluated:
+                evaluation, _ = crud.create_evaluation(session, submission=submission,
+                                                       course=owner.course or crud.first_course(session),
+                                                       settings=self.settings.default_evaluation(), max_attempts=1)
+                evaluation.status, evaluation.completed, evaluation.episodes_total = DONE, completed, 3
+                evaluation.mean_return, evaluation.mean_steps, evaluation.mean_speed = completed * 2.0, 500.0, 0.3
+            session.flush()
+            session.expunge(submission)
+        return submission
+
+
+@contextlib.contextmanager
+def in_process_league(kind: str, tmp_path: Path, **settings):
+    """The app with the test settings (and `settings`) on a fresh database of `kind`; an instructor;
+    no worker."""
+    with fresh_backend(kind, tmp_path) as (database_url, queue_url, queue_name):
+        values = {key.removeprefix("LEAGUE_").lower(): value for key, value in TEST_SETTINGS.items()}
+        values.update(public_cache_s=0)  # every answer fresh: tests independent of their order
+        settings = Settings(_env_file=None, **{**values, **settings}, data_dir=tmp_path / "data",
+                            database_url=database_url, queue_url=queue_url, queue_name=queue_name)
+        app = create_app(settings)
+        with TestClient(app):  # the lifespan: migrations, the course, the baselines registered
+            with make_sessionmaker(app.state.league.engine).begin() as session:
+                _, token = crud.create_user(session, name="prof", role=INSTRUCTOR,
+                                            course=crud.first_course(session))
+            yield InProcessLeague(app, settings, token)
+
+
+@pytest.fixture(scope="package", params=BACKENDS)
+def app_league(request, tmp_path_factory):
+    """The in-process league the API tests share, per backend."""
+    with in_process_league(request.param, tmp_path_factory.mktemp(f"app-{request.param}")) as league:
+        yield league

@@ -1,0 +1,76 @@
+"""Request bodies are bounded before anything reads them: a declared length over a route's limit is
+refused at once, a streamed body is cut at the limit, both with a JSON 413, before authentication;
+multipart bodies are read only once the token is accepted; a stalled body is refused (408)."""
+from __future__ import annotations
+
+import socket
+import time
+
+import pytest
+
+from ..conftest import fresh_backend, make_server
+
+HUGE = 75 * 1024 * 1024
+
+
+def test_a_huge_declared_body_is_refused_unread_and_before_authentication(app_league):
+    with app_league.client() as anonymous:  # no token at all: the size is checked first
+        response = anonymous.post("/api/races", content=b"{}", headers={"Content-Length": str(HUGE),
+                                                                         "Content-Type": "application/json"})
+    assert response.status_code == 413
+    assert response.json() == {"detail": "request body too large: the limit is 64 KB"}
+
+
+def test_a_streamed_body_is_cut_at_the_limit(app_league):
+    sent = []
+
+    def chunks():
+        for _ in range(64):  # 4 MB in 64 KB chunks, no Content-Length
+            sent.append(1)
+            yield b" " * 65536
+
+    with app_league.client() as anonymous:
+        response = anonymous.post("/api/races", content=chunks(), headers={"Content-Type": "application/json"})
+    assert response.status_code == 413
+    assert response.json() == {"detail": "request body too large: the limit is 64 KB"}
+
+
+@pytest.mark.parametrize("path, limit", [("/api/submissions", "file too large: the limit is 5 MB"),
+                                         ("/api/users/roster", "roster too large: the limit is 1 MB")])
+def test_multipart_routes_have_their_own_limit_said_in_json(app_league, path, limit):
+    with app_league.client(app_league.instructor_token) as instructor:
+        response = instructor.post(path, files={"file": ("big.onnx", b"\0" * (6 * 1024 * 1024))})
+    assert response.status_code == 413
+    assert response.json() == {"detail": limit}
+
+
+@pytest.mark.parametrize("path", ["/api/submissions", "/api/users/roster"])
+def test_a_multipart_body_is_not_read_without_a_token(app_league, path):
+    """Garbage that would fail to parse: a 401, so the body was never parsed (nor spooled)."""
+    with app_league.client() as anonymous:
+        response = anonymous.post(path, content=b"--x\r\nnot a form at all", headers={
+            "Content-Type": "multipart/form-data; boundary=x"})
+    assert response.status_code == 401
+    assert response.json() == {"detail": "missing token: send the header Authorization: Bearer TOKEN"}
+
+
+@pytest.mark.slow
+def test_a_body_that_stops_arriving_is_refused_and_the_api_goes_on(tmp_path):
+    """A real server and a client that sends half a body, then nothing: a 408 after the timeout."""
+    with fresh_backend("sqlite", tmp_path) as urls:
+        server = make_server(tmp_path, urls, LEAGUE_REQUEST_BODY_TIMEOUT_S="1", LEAGUE_BOOTSTRAP="false")
+        server.start_api(embedded_worker=False)
+        try:
+            with socket.create_connection(("127.0.0.1", server.port), timeout=30) as client:
+                client.sendall(b"POST /api/races HTTP/1.1\r\nHost: test\r\nContent-Type: application/json\r\n"
+                               b"Content-Length: 1000\r\n\r\n{\"submission_ids\": ")
+                started = time.monotonic()
+                answer = b"".join(iter(lambda: client.recv(4096), b"")).decode()  # until the server closes
+                waited = time.monotonic() - started
+            with server.client() as anonymous:
+                assert anonymous.get("/api/health").status_code == 200
+        finally:
+            server.stop_all()
+    assert answer.startswith("HTTP/1.1 408"), answer
+    assert answer.endswith('{"detail": "the request body stopped arriving for 1 s"}'), answer
+    assert waited < 30  # it was the server that gave up, not our socket
