@@ -61,6 +61,10 @@ def get_current_user(session: SessionDep,
         raise unauthorized("invalid token")
     if not user.active:
         raise unauthorized("this account was revoked")
+    # End the lookup's transaction: its connection goes back to the pool. A route that opens a
+    # session of its own (an upload) would otherwise hold two at once, and a burst of such requests
+    # can take the whole pool and wait on itself until the pool's timeout.
+    session.commit()
     return user
 
 
