@@ -34,7 +34,7 @@ def bench_evaluation(model: Path, episodes: int) -> float:
     with one_core():  # one core, for this process and the sandbox it starts
         start = time.perf_counter()
         with SandboxedAgent(model, "onnx", SandboxLimits()) as agent:
-            result = metrics_run(agent, episodes=episodes, seed=0, on_episode=lambda i, e: agent.new_episode())
+            result = metrics_run(agent, episodes=episodes, seed=0)
         seconds = time.perf_counter() - start
         start_local = time.perf_counter()
         metrics_run(model, episodes=episodes, seed=0)

@@ -158,7 +158,7 @@ def test_a_failure_on_a_batch_is_isolable_and_names_the_model():
     with pytest.raises(AgentError) as caught:
         agent(np.array([[0, 0.3, 0.3, 0.3, 0.2], [0, 0.3, 0.3, 0.3, 0.5]], dtype=np.float32))
     assert caught.value.isolable and caught.value.reason == "the model raised ValueError: bad input"
-    assert not AgentError("the model did not answer within its 10 ms step deadline").isolable
+    assert not AgentError("the model used more than its 10 ms of CPU per observation").isolable
 
 
 def test_several_outputs_use_the_first(thesis_module, tmp_path):

@@ -50,10 +50,10 @@ class Settings(BaseSettings):
                                                           "their runtimes (each gets its share, at most "
                                                           "sandbox_memory_mb)")
     sandbox_cpu_seconds: int = Field(600, description="CPU time of one sandbox process")
-    step_deadline_ms: float = Field(20.0, description="wall-clock time of one agent call")
-    first_call_allowance_ms: float = Field(1000.0, description="banked extra time for warm-up calls")
-    episode_deadline_s: float = Field(60.0, description="model time within one episode")
-    load_timeout_s: float = Field(30.0, description="starting the sandbox and loading the model")
+    step_deadline_ms: float = Field(20.0, description="CPU time of the model per observation of a call")
+    first_call_allowance_ms: float = Field(1000.0, description="banked extra CPU time for warm-up calls")
+    run_cpu_s: float = Field(60.0, description="CPU time of the model over one evaluation or race")
+    load_cpu_s: float = Field(30.0, description="CPU time to start the sandbox, load the model and dry-run it")
     sandbox_uid_base: int = Field(0x5000_0000, ge=0, lt=2**31 - 2**22,
                                   description="a root worker runs each sandbox as user id sandbox_uid_base + its pid "
                                               "(no account needed); 0: as root without capabilities")

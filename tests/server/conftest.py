@@ -34,7 +34,7 @@ TEST_SETTINGS = {
     "LEAGUE_QUOTA_PER_DAY": "4",
     "LEAGUE_MAX_JOBS_IN_FLIGHT": "20",  # tests upload faster than a worker evaluates
     "LEAGUE_FIRST_CALL_ALLOWANCE_MS": "500",
-    "LEAGUE_LOAD_TIMEOUT_S": "8",
+    "LEAGUE_LOAD_CPU_S": "8",
     "LEAGUE_HEARTBEAT_INTERVAL_S": "0.5",
     "LEAGUE_LEASE_TIMEOUT_S": "3",
     "LEAGUE_REAPER_INTERVAL_S": "0.5",

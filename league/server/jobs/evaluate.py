@@ -58,7 +58,7 @@ class EvaluateSubmission:
             with SandboxedAgent(run.model_file(submission), submission.kind, limits,
                                 name=submission.name, log=log, cancel=run.lease_lost) as agent:
                 result = metrics_run(agent, episodes=settings["episodes"], seed=settings["seed"],
-                                     on_episode=lambda i, episode: agent.new_episode(), **settings["env_options"])
+                                     **settings["env_options"])
         except AgentError as error:  # the model no longer starts (it passed validation: a changed runtime?)
             return EvaluationOutcome(None, error.reason, log.text())
         except (TypeError, ValueError, TrackGenerationError) as error:  # settings the simulator refuses: final

@@ -2,16 +2,17 @@
 
 `SandboxedAgent` is a `league.agents.Agent`, so the worker runs the toolkit's `metrics_run` and
 `race` on it unchanged. Each call sends the observation batch as raw float32 bytes and waits for
-the actions under a deadline: `step_deadline` per call, plus a bank of `first_call_allowance`
-spent by calls that overrun it (warm-up, JIT). A call past its deadline, a crash, a NaN or a model
-exception raises `AgentError(reason)` -- a DNF -- and a dead or killed child is restarted for the
-next call, at most `max_restarts` times.
+the actions within a budget of the child's own CPU time: `step_deadline` per observation, plus a
+bank of `first_call_allowance` spent by calls that overrun it (warm-up, JIT), within `run_cpu`
+for the whole run. CPU time, not wall time: a model gets the same result on a quiet machine and
+on a busy one. A call over its budget, a crash, a NaN or a model exception raises
+`AgentError(reason)` -- a DNF -- and a dead or killed child is restarted for the next call, at
+most `max_restarts` times.
 """
 from __future__ import annotations
 
 import functools
 import threading
-import time
 from pathlib import Path
 from typing import Callable
 
@@ -20,7 +21,7 @@ import numpy as np
 from league.agents import Agent, AgentError, check_actions
 from league.server.sandbox.limits import SandboxLimits
 from league.server.sandbox.log import LogBuffer
-from league.server.sandbox.process import SandboxFailure, SandboxProcess
+from league.server.sandbox.process import Budget, SandboxFailure, SandboxProcess
 
 
 class SandboxedAgent(Agent):
@@ -34,12 +35,12 @@ class SandboxedAgent(Agent):
         self.log = log or LogBuffer(limits.log_limit)
         self.cancel = cancel or threading.Event()
         self.restarts, self.last_failure = 0, None
-        self.call_times: list[float] = []
+        self.cpu_per_observation: list[float] = []  # of each call, in seconds
+        self.cpu_used = 0.0  # by the model's calls, over the run
         self._process: SandboxProcess | None = None
         ready = self._start()
         super().__init__(ready["obs_dim"], name)
         self.isolation = ready["isolation"]
-        self.episode_time = 0.0
 
     def _start(self) -> dict:
         try:
@@ -52,12 +53,8 @@ class SandboxedAgent(Agent):
         isolation = self._process.ready["isolation"]
         self.log.note(f"started: Landlock ABI {isolation['landlock']}, seccomp, network {isolation['network']}, "
                       f"runs as {isolation['user']}, memory cap +{self.limits.memory_mb} MB, "
-                      f"step deadline {self.limits.step_deadline_s * 1000:g} ms")
+                      f"{self.limits.step_deadline_s * 1000:g} ms of CPU per observation")
         return self._process.ready
-
-    def new_episode(self) -> None:
-        """Reset the per-episode clock (metrics_run's on_episode calls it)."""
-        self.episode_time = 0.0
 
     def _act(self, obs: np.ndarray) -> np.ndarray:
         return self._send(obs)()
@@ -76,43 +73,50 @@ class SandboxedAgent(Agent):
         if self.cancel.is_set():
             raise AgentError("the evaluation was cancelled")
         process = self._live_process()
-        episode_left = self.limits.episode_deadline_s - self.episode_time
-        if episode_left <= 0:
-            raise AgentError(f"the model used more than {self.limits.episode_deadline_s:g} s in this episode")
-        budget = min(self.limits.step_deadline_s + self.bank, episode_left)
-        started = time.monotonic()
+        run_left = self.limits.run_cpu_s - self.cpu_used
+        if run_left <= 0:
+            raise AgentError(self._run_spent())
+        rows = obs.shape[0]
+        budget = Budget.for_call(process.cpu_time, min(self.limits.step_deadline_s * rows + self.bank, run_left))
         try:
             process.send_observations(obs)
         except SandboxFailure as failure:
-            self._account(time.monotonic() - started)
-            raise AgentError(self._failure_reason(failure, budget, episode_left)) from failure
+            self._account(budget, rows)
+            raise AgentError(self._failure_reason(failure, budget, run_left)) from failure
 
         def receive() -> np.ndarray:
             try:
-                return process.receive_actions(started + budget)
+                return process.receive_actions(budget)
             except SandboxFailure as failure:
-                raise AgentError(self._failure_reason(failure, budget, episode_left)) from failure
+                raise AgentError(self._failure_reason(failure, budget, run_left)) from failure
             finally:
-                self._account(time.monotonic() - started)
+                self._account(budget, rows)
 
         return receive
 
-    def _account(self, elapsed: float) -> None:
-        self.call_times.append(elapsed)
-        self.episode_time += elapsed
-        self.bank = max(0.0, self.bank - max(0.0, elapsed - self.limits.step_deadline_s))
+    def _account(self, budget: Budget, rows: int) -> None:
+        used = budget.used()
+        self.cpu_per_observation.append(used / rows)
+        self.cpu_used += used
+        self.bank = max(0.0, self.bank - max(0.0, used - self.limits.step_deadline_s * rows))
 
-    def _failure_reason(self, failure: SandboxFailure, budget: float, episode_left: float) -> str:
+    def _run_spent(self) -> str:
+        return f"the model used more than {self.limits.run_cpu_s:g} s of CPU time in this run"
+
+    def _failure_reason(self, failure: SandboxFailure, budget: Budget, run_left: float) -> str:
         if failure.fatal:
             self._process.close()
             self._process = None
         if not failure.timed_out:
             reason = failure.reason
-        elif budget >= episode_left:
-            reason = f"the model used more than {self.limits.episode_deadline_s:g} s in this episode"
+        elif budget.spent_on_the_wall_clock():
+            reason = (f"the model stopped answering without using the CPU "
+                      f"(no answer after {budget.wall_s:g} s)")
+        elif budget.cpu_s >= run_left:
+            reason = self._run_spent()
         else:
-            reason = (f"the model did not answer within its {self.limits.step_deadline_s * 1000:g} ms step deadline "
-                      f"(allowance left: {self.bank * 1000:.0f} ms)")
+            reason = (f"the model used more than its {self.limits.step_deadline_s * 1000:g} ms of CPU per "
+                      f"observation (allowance left: {self.bank * 1000:.0f} ms)")
         self.last_failure = reason
         self.log.note(reason)
         return reason

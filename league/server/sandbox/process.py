@@ -25,7 +25,8 @@ import sys
 import tempfile
 import threading
 import time
-from dataclasses import dataclass
+from collections.abc import Callable
+from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
@@ -41,6 +42,10 @@ HEADER, LENGTH = child.HEADER, child.LENGTH
 MAX_MESSAGE = 65536
 READ_CHUNK = 65536
 FORK_SERVER_TIMEOUT_S = 60.0  # its imports on a busy machine
+# Wall-clock backstops of a CPU-time budget: only a child that stops using the CPU without
+# answering reaches them; a busy machine stretches a call's wall time far less than 30x.
+WALL_BACKSTOP, WALL_MARGIN_S = 30.0, 5.0  # a call: 30x its CPU budget, + 5 s
+LOAD_WALL_BACKSTOP = 4.0  # a load: 4x its CPU budget
 
 
 class SandboxFailure(Exception):
@@ -50,6 +55,44 @@ class SandboxFailure(Exception):
         super().__init__(reason)
         self.reason, self.fatal, self.timed_out = reason, fatal, timed_out
 
+
+
+def cpu_clock_of(pid: int) -> int:
+    """The clock id of a process's CPU time (Linux's MAKE_PROCESS_CPUCLOCK(pid, CPUCLOCK_SCHED)):
+    readable for any process we can see, whatever its user."""
+    return (~pid << 3) | 2
+
+
+@dataclass
+class Budget:
+    """What one answer of the child may take: `cpu_s` of the child's own CPU time, so that a busy
+    machine (which delays the child but does not make it use more CPU) changes nothing; and a
+    wall-clock backstop, `wall_s`, for a child that stops using the CPU without answering."""
+
+    clock: Callable[[], float]  # the child's CPU time
+    cpu_s: float
+    wall_s: float
+    cpu_start: float = field(init=False)
+    wall_end: float = field(init=False)
+
+    def __post_init__(self):
+        self.cpu_start, self.wall_end = self.clock(), time.monotonic() + self.wall_s
+
+    @classmethod
+    def for_call(cls, clock: Callable[[], float], cpu_s: float) -> Budget:
+        return cls(clock, cpu_s, WALL_BACKSTOP * cpu_s + WALL_MARGIN_S)
+
+    def used(self) -> float:
+        return self.clock() - self.cpu_start
+
+    def wait_s(self) -> float:
+        """How long to wait before looking again (the child cannot use more CPU than time passes,
+        being one thread); 0 once the budget is spent."""
+        left = min(self.cpu_s - self.used(), self.wall_end - time.monotonic())
+        return 0.0 if left <= 0 else max(left, 0.001)
+
+    def spent_on_the_wall_clock(self) -> bool:
+        return time.monotonic() >= self.wall_end and self.used() < self.cpu_s
 
 
 class SandboxProcess:
@@ -69,6 +112,7 @@ class SandboxProcess:
         except BaseException:
             shutil.rmtree(self.workdir, ignore_errors=True)
             raise
+        self._cpu_clock, self._cpu_time = cpu_clock_of(self.proc.pid), 0.0
         self._out = self.proc.stdout.fileno()
         os.set_blocking(self._out, False)
         self._poller = select.poll()
@@ -86,15 +130,23 @@ class SandboxProcess:
         for chunk in iter(lambda: self.proc.stderr.read1(65536), b""):
             self.log.write(chunk)
 
+    def cpu_time(self) -> float:
+        """The child's CPU time so far, in seconds (its last reading once it is gone)."""
+        if self._cpu_clock is not None:  # not once it is reaped: its pid may be another process's
+            with contextlib.suppress(OSError):
+                self._cpu_time = time.clock_gettime(self._cpu_clock)
+        return self._cpu_time
+
     def _await_ready(self) -> dict:
-        deadline = time.monotonic() + self.limits.load_timeout_s
+        limit = self.limits.load_cpu_s
         try:
-            tag, payload = self._read_message(deadline, expected=(b"R", b"E"))
+            tag, payload = self._read_message(Budget(self.cpu_time, limit, LOAD_WALL_BACKSTOP * limit),
+                                              expected=(b"R", b"E"))
         except SandboxFailure as failure:
             if failure.timed_out:
-                raise SandboxFailure(f"the model did not load and pass its dry run within "
-                                     f"{self.limits.load_timeout_s:g} s (a model must answer in "
-                                     f"{self.limits.step_deadline_s * 1000:g} ms)", fatal=True) from failure
+                raise SandboxFailure(f"the model did not load and pass its dry run within {limit:g} s of CPU "
+                                     f"time (a model may use {self.limits.step_deadline_s * 1000:g} ms "
+                                     f"per observation)", fatal=True) from failure
             raise
         if tag == b"E":
             raise SandboxFailure(plain_text(payload.decode("utf-8", errors="replace")), fatal=True)
@@ -104,8 +156,8 @@ class SandboxProcess:
         obs = np.ascontiguousarray(obs, dtype="<f4")
         self._send(HEADER.pack(b"I", obs.shape[0], obs.shape[1]) + obs.tobytes())
 
-    def receive_actions(self, deadline: float) -> np.ndarray:
-        tag, payload = self._read_message(deadline, expected=(b"A", b"E"))
+    def receive_actions(self, budget: Budget) -> np.ndarray:
+        tag, payload = self._read_message(budget, expected=(b"A", b"E"))
         if tag == b"E":
             raise SandboxFailure(plain_text(payload.decode("utf-8", errors="replace")), fatal=False)
         return payload
@@ -117,34 +169,35 @@ class SandboxProcess:
         except (BrokenPipeError, OSError) as error:
             raise SandboxFailure(self._death_reason(), fatal=True) from error
 
-    def _read_message(self, deadline: float, expected: tuple[bytes, ...]) -> tuple[bytes, object]:
-        tag = self._read_exact(1, deadline)
+    def _read_message(self, budget: Budget, expected: tuple[bytes, ...]) -> tuple[bytes, object]:
+        tag = self._read_exact(1, budget)
         if tag not in expected:
             self.kill()
             raise SandboxFailure(f"sandbox protocol error (message {tag!r})", fatal=True)
         if tag == b"A":
-            n, d = HEADER.unpack(tag + self._read_exact(8, deadline))[1:]
+            n, d = HEADER.unpack(tag + self._read_exact(8, budget))[1:]
             if d != 2 or n > child.MAX_BATCH:
                 self.kill()
                 raise SandboxFailure(f"sandbox protocol error (actions {n}x{d})", fatal=True)
-            return tag, np.frombuffer(self._read_exact(n * d * 4, deadline), dtype="<f4").reshape(n, d)
-        (length,) = LENGTH.unpack(self._read_exact(LENGTH.size, deadline))
+            return tag, np.frombuffer(self._read_exact(n * d * 4, budget), dtype="<f4").reshape(n, d)
+        (length,) = LENGTH.unpack(self._read_exact(LENGTH.size, budget))
         if length > MAX_MESSAGE:
             self.kill()
             raise SandboxFailure("sandbox protocol error (message too long)", fatal=True)
-        return tag, self._read_exact(length, deadline)
+        return tag, self._read_exact(length, budget)
 
-    def _read_exact(self, size: int, deadline: float) -> bytes:
-        """`size` bytes of the child's answers, within the deadline. Reads are buffered and
+    def _read_exact(self, size: int, budget: Budget) -> bytes:
+        """`size` bytes of the child's answers, within the budget. Reads are buffered and
         non-blocking: an answer that is already in the pipe costs one read, no poll."""
         while len(self._unread) < size:
             try:
                 chunk = os.read(self._out, max(READ_CHUNK, size - len(self._unread)))
             except BlockingIOError:
-                remaining = deadline - time.monotonic()
-                if remaining <= 0 or not self._poller.poll(remaining * 1000):
+                wait_s = budget.wait_s()
+                if wait_s <= 0:
                     self.kill()
-                    raise SandboxFailure("deadline exceeded", fatal=True, timed_out=True) from None
+                    raise SandboxFailure("out of time", fatal=True, timed_out=True) from None
+                self._poller.poll(wait_s * 1000)
                 continue
             if not chunk:
                 raise SandboxFailure(self._death_reason(), fatal=True)
@@ -169,6 +222,8 @@ class SandboxProcess:
         if self.proc.poll() is None:
             self.proc.kill()
         self.proc.wait()
+        self.cpu_time()  # its last reading: a killed child's clock stands until it is reaped
+        self._cpu_clock = None
 
     def close(self) -> None:
         with contextlib.suppress(OSError, ValueError):

@@ -12,7 +12,7 @@ from league.server.sandbox.validation import validate_model
 
 from .. import model_factory as mf
 
-LIMITS = SandboxLimits(load_timeout_s=60, max_restarts=0)
+LIMITS = SandboxLimits(load_cpu_s=60, max_restarts=0)
 
 
 @pytest.mark.parametrize("spelling", sorted(mf.LOAD_HOOK_SPELLINGS))

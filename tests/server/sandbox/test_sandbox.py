@@ -1,6 +1,7 @@
 """The sandbox process on its own: deadlines, restarts, isolation, logs."""
 from __future__ import annotations
 
+import json
 import os
 import signal
 import subprocess
@@ -22,7 +23,7 @@ from league.server.sandbox.validation import validate_model
 
 from .. import model_factory as mf
 
-FAST = SandboxLimits(first_call_allowance_s=0.3, load_timeout_s=20, max_restarts=1)
+FAST = SandboxLimits(first_call_allowance_s=0.3, load_cpu_s=20, max_restarts=1)
 
 
 @pytest.fixture(scope="module")
@@ -44,33 +45,87 @@ def test_sandboxed_agent_answers_like_the_model(files):
         np.testing.assert_array_equal(agent(obs(3)), load_agent(files["good"])(obs(3)))
 
 
-def test_a_call_past_the_deadline_is_a_dnf_then_the_sandbox_restarts_then_gives_up(files):
+def test_a_call_over_its_cpu_budget_is_a_dnf_then_the_sandbox_restarts_then_gives_up(files):
     with SandboxedAgent(files["slow"], "onnx", FAST) as agent:
-        with pytest.raises(AgentError, match=r"did not answer within its 20 ms step deadline"):
-            for _ in range(100):  # the 300 ms allowance is spent, then the deadline bites
+        with pytest.raises(AgentError, match=r"used more than its 20 ms of CPU per observation"):
+            for _ in range(100):  # the 300 ms allowance is spent, then the budget bites
                 agent(obs())
-        with pytest.raises(AgentError, match=r"step deadline"):
+        with pytest.raises(AgentError, match=r"ms of CPU per observation"):
             for _ in range(100):
                 agent(obs())  # a fresh sandbox (restart 1 of 1), a fresh allowance
         assert agent.restarts == 1
-        with pytest.raises(AgentError, match=r"the agent was stopped after 2 failures; last: the model did not"):
+        with pytest.raises(AgentError, match=r"the agent was stopped after 2 failures; last: the model used more"):
             agent(obs())
 
 
-def test_the_episode_deadline_ends_an_episode_and_new_episode_resets_it(files):
-    limits = SandboxLimits(episode_deadline_s=0.05, first_call_allowance_s=0.3, load_timeout_s=20)
+def test_the_run_budget_ends_a_run_that_uses_too_much_cpu_in_all(files):
+    limits = SandboxLimits(run_cpu_s=0.05, first_call_allowance_s=0.3, load_cpu_s=20)
     with SandboxedAgent(files["quick"], "onnx", limits) as agent:
-        with pytest.raises(AgentError, match=r"more than 0.05 s in this episode"):
+        with pytest.raises(AgentError, match=r"more than 0.05 s of CPU time in this run"):
             for _ in range(1000):
                 agent(obs())
-        agent.new_episode()
-        assert agent(obs()).shape == (1, 2)
+        assert agent.cpu_used >= 0.05
+        with pytest.raises(AgentError, match=r"in this run"):  # and it stays ended
+            agent(obs())
+
+
+# An evaluation pinned to one CPU: it loads the model, lowers its sandbox's scheduling weight (the
+# sandbox leads its own session, so it has its own autogroup), says "loaded", waits for a line on
+# stdin, then runs and prints the episodes and the largest CPU time per observation of a call.
+_PINNED_EVALUATION = """
+import json, os, sys
+from league.evaluation import metrics_run
+from league.server.sandbox.agent import SandboxedAgent
+from league.server.sandbox.limits import SandboxLimits
+model, cpu_per_observation, cpu = sys.argv[1], float(sys.argv[2]), int(sys.argv[3])
+os.sched_setaffinity(0, {cpu})
+limits = SandboxLimits(step_deadline_s=cpu_per_observation, first_call_allowance_s=0.0, load_cpu_s=20,
+                       max_restarts=0)
+with SandboxedAgent(model, "onnx", limits) as agent:
+    with open(f"/proc/{agent._process.proc.pid}/autogroup", "w") as autogroup:
+        autogroup.write("10")
+    print("loaded", flush=True)
+    sys.stdin.readline()
+    result = metrics_run(agent, episodes=2, seed=4, max_episode_steps=40)
+    print(json.dumps({"episodes": [e.to_dict() for e in result.episodes],
+                      "max_cpu": max(agent.cpu_per_observation)}))
+"""
+_BURNER = "import os, sys\nos.sched_setaffinity(0, {int(sys.argv[1])})\nwhile True:\n    pass\n"
+
+
+def _pinned_evaluation(model: Path, cpu_per_observation: float, cpu: int, burners: int = 0) -> dict:
+    env = {**os.environ, "PYTHONPATH": str(Path(__file__).resolve().parents[3])}
+    run = subprocess.Popen([sys.executable, "-c", _PINNED_EVALUATION, str(model), str(cpu_per_observation), str(cpu)],
+                           stdin=subprocess.PIPE, stdout=subprocess.PIPE, text=True, env=env)
+    started = [subprocess.Popen([sys.executable, "-c", _BURNER, str(cpu)], start_new_session=True)
+               for _ in range(burners)]  # each its own session, so its own autogroup: a full share each
+    try:
+        assert run.stdout.readline().strip() == "loaded"
+        output, _ = run.communicate("go\n", timeout=300)
+    finally:
+        for burner in started:
+            burner.kill()
+            burner.wait()
+    assert run.returncode == 0, output
+    return json.loads(output)
+
+
+def test_a_busy_machine_changes_no_result_and_the_budget_is_on_the_cpu_clock(files):
+    """The same evaluation on a quiet CPU and on one shared with three CPU burners, with a budget of
+    3x the largest CPU time per observation seen when quiet: the same episodes, none a DNF. (The
+    sandbox gets a quarter of the CPU or less when busy, so a call takes over 4x its CPU time on
+    the wall clock: a wall-clock budget makes DNFs of them.)"""
+    cpu = max(os.sched_getaffinity(0))
+    quiet = _pinned_evaluation(files["quick"], 1.0, cpu)
+    busy = _pinned_evaluation(files["quick"], 3 * quiet["max_cpu"], cpu, burners=3)
+    assert not any(episode["outcome"] == "dnf" for episode in quiet["episodes"])
+    assert busy["episodes"] == quiet["episodes"]
 
 
 def test_validation_measures_the_model_speed(files):
     report = validate_model(files["good"], "onnx", FAST)
     assert report.ok and report.obs_dim == 5 and report.error is None
-    assert report.ms_per_call > 0  # ok means it is within the step deadline: no clock of ours asserted here
+    assert report.cpu_ms_per_observation > 0  # ok means it is within the budget: no clock of ours asserted here
 
 
 def test_the_sandbox_cannot_reach_the_network():
@@ -194,7 +249,7 @@ def test_nothing_outlives_a_killed_worker(files, tmp_path):
     script = ("import os, signal, sys\n"
               "from league.server.sandbox.agent import SandboxedAgent, SandboxLimits\n"
               "from league.server.sandbox.process import ForkServer\n"
-              "agent = SandboxedAgent(sys.argv[1], 'onnx', SandboxLimits(load_timeout_s=20))\n"
+              "agent = SandboxedAgent(sys.argv[1], 'onnx', SandboxLimits(load_cpu_s=20))\n"
               "print(ForkServer.of_this_thread().proc.pid, agent._process.proc.pid, flush=True)\n"
               "os.kill(os.getpid(), signal.SIGKILL)\n")
     result = subprocess.run([sys.executable, "-c", script, str(files["good"])], capture_output=True, text=True,
