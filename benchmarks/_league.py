@@ -1,4 +1,4 @@
-"""Helpers shared by the server benchmarks (bench_server.py, bench_league.py).
+"""Helpers shared by the benchmarks (bench_server.py, bench_league.py, bench_toolkit.py).
 
 Everything runs on this machine: servers started as `python -m league.server serve|worker`
 subprocesses on 127.0.0.1, in a temporary data directory, with bounded request loops.
@@ -31,6 +31,28 @@ def thesis_actor(folder: Path, name: str = "thesis_actor.onnx", **driver_options
     from tests.toolkit_models import thesis_driver
 
     return export_onnx(thesis_driver(**driver_options), folder / name)
+
+
+def plain_loop(path: Path, seeds: list[int]) -> int:
+    """What a student writes: a Gymnasium env and an ONNX Runtime session, one call per step."""
+    import gymnasium as gym
+    import onnxruntime as ort
+
+    import league  # noqa: F401 (registers the env)
+
+    options = ort.SessionOptions()
+    options.intra_op_num_threads = options.inter_op_num_threads = 1
+    session = ort.InferenceSession(str(path), options, providers=["CPUExecutionProvider"])
+    env = gym.make("league/MicroRacer-v0")
+    completed = 0
+    for seed in seeds:
+        obs, info = env.reset(seed=seed)
+        terminated = truncated = False
+        while not (terminated or truncated):
+            action = session.run(None, {"obs": obs[None, :]})[0][0]
+            obs, reward, terminated, truncated, info = env.step(action)
+        completed += info["outcome"] == "finished"
+    return completed
 
 
 @contextlib.contextmanager

@@ -1,13 +1,18 @@
-"""Benchmark of the league server: a sandboxed evaluation, and status answers under load.
+"""Benchmark of the league server: sandboxed evaluations, and status answers under load.
 
-    python benchmarks/bench_server.py [--episodes 100] [--rate 200] [--seconds 10]
+    python benchmarks/bench_server.py [--episodes 100] [--uploads 20] [--rate 200] [--seconds 10]
 
-(a) a 100-episode evaluation of a thesis-size ONNX actor (5 -> 64 -> 64 -> 2) in a sandbox
-    process, sandbox start included, pinned to one core: target <= 15 s;
-(b) GET /api/submissions/{id} at 200 requests/s on loopback while a `league worker` process
+(a) 100 episodes of a thesis-size ONNX actor (5 -> 64 -> 64 -> 2), one core, three ways: the
+    plain per-episode loop a student writes (no sandbox), lockstep metrics_run without a sandbox,
+    and in a sandbox process (start included): targets <= 15 s, the sandbox <= 1.5x the
+    unsandboxed lockstep run (issue 12);
+(b) from upload to figures, a `league worker` on one CPU: target >= 1x the plain loop of (a);
+(c) 20 uploads at once to that worker (validation and evaluation each): target >= 100
+    evaluations per core-minute;
+(d) GET /api/submissions/{id} at 200 requests/s on loopback while a `league worker` process
     keeps evaluating (re-runs of every submission): target p99 <= 50 ms; then the same with
     the worker embedded in `league serve` (one process, the default setup);
-(c) the same evaluation as (a) as a job of a `league worker` that may use every CPU (as a
+(e) the same evaluation as (a) as a job of a `league worker` that may use every CPU (as a
     course runs it): the job's run time with the worker's CPU placement (its thread and the
     sandbox on one CPU, the default) and without it (LEAGUE_CPU_PLACEMENT=false).
 
@@ -16,39 +21,102 @@ Everything runs on this machine: a server on 127.0.0.1, a bounded number of requ
 from __future__ import annotations
 
 import argparse
+import os
 import tempfile
 import threading
 import time
 from pathlib import Path
 
-from _league import League, measure_latency, one_core, thesis_actor
+from _league import League, measure_latency, one_core, plain_loop, thesis_actor
 
 EVALUATION_TARGET_S = 15.0
+SANDBOX_COST_TARGET = 1.5  # sandboxed lockstep run against the unsandboxed one
+RATE_TARGET = 100  # evaluations per core-minute
 P99_TARGET_MS = 50.0
 
 
 def bench_evaluation(model: Path, episodes: int) -> float:
-    from league.evaluation import metrics_run
+    """(a): returns the plain loop's seconds, the reference of (b)."""
+    from league.evaluation import episode_seeds, metrics_run
+    from league.physics import set_track_cache_size
     from league.server.sandbox.agent import SandboxedAgent, SandboxLimits
+    from league.server.sandbox.process import ForkServer
 
-    with one_core():  # one core, for this process and the sandbox it starts
-        start = time.perf_counter()
+    def sandboxed():
         with SandboxedAgent(model, "onnx", SandboxLimits()) as agent:
-            result = metrics_run(agent, episodes=episodes, seed=0)
+            return metrics_run(agent, episodes=episodes, seed=0)
+
+    with one_core():  # one core, for this process and the sandbox it starts: wall time is their CPU time
+        plain = wall_time(lambda: plain_loop(model, episode_seeds(0, episodes)))
+        set_track_cache_size(max(128, episodes))  # empty: each lockstep run draws its tracks, as the plain loop
+        local = wall_time(lambda: metrics_run(model, episodes=episodes, seed=0))
+        fork_server = wall_time(ForkServer.of_this_thread)  # once per worker thread, then reused
+        set_track_cache_size(max(128, episodes))
+        start = time.perf_counter()
+        result = sandboxed()
         seconds = time.perf_counter() - start
-        start_local = time.perf_counter()
-        metrics_run(model, episodes=episodes, seed=0)
-        local = time.perf_counter() - start_local
-    steps = sum(e.steps for e in result.episodes)
-    verdict = "ok" if seconds <= EVALUATION_TARGET_S else "OVER TARGET"
-    print(f"(a) {episodes}-episode evaluation in a sandbox, one core: {seconds:.2f} s "
-          f"(target <= {EVALUATION_TARGET_S:g} s: {verdict})")
-    print(f"    {steps} steps, {1e6 * seconds / steps:.0f} us per step; the same run without a sandbox: "
-          f"{local:.2f} s; completed {result.completed}/{result.episodes_total}")
-    return seconds
+    print(f"(a) {episodes} episodes of a thesis-size ONNX actor, one core, every track drawn "
+          f"(the worker thread's fork server started first: {fork_server:.2f} s):")
+    print(f"    plain loop (gym.make + ONNX Runtime, one call per step):   {plain:6.2f} s")
+    print(f"    metrics_run in lockstep, no sandbox:                        {local:6.2f} s")
+    print(f"    metrics_run in lockstep, in a sandbox (start included):     {seconds:6.2f} s  "
+          f"(target <= {EVALUATION_TARGET_S:g} s: {verdict(seconds <= EVALUATION_TARGET_S)})")
+    print(f"    the sandbox costs {seconds / local:.2f}x the unsandboxed lockstep run "
+          f"(target <= {SANDBOX_COST_TARGET:g}x: {verdict(seconds / local <= SANDBOX_COST_TARGET)}); "
+          f"the sandboxed run is {plain / seconds:.1f}x the plain loop; completed {result.completed}/{episodes}")
+    return plain
 
 
-# --------------------------------------------------------------------------- (b) status latency
+def wall_time(work) -> float:
+    start = time.perf_counter()
+    work()
+    return time.perf_counter() - start
+
+
+def verdict(ok: bool) -> str:
+    return "ok" if ok else "OVER TARGET"
+
+
+# --------------------------------------------------------------------------- (b), (c) a worker on one CPU
+
+
+def bench_worker_on_one_cpu(model: Path, episodes: int, plain: float, uploads: int) -> None:
+    """(b) one upload to its figures; (c) `uploads` uploads at once, evaluations per core-minute."""
+    cpu = str(max(os.sched_getaffinity(0)))
+    with tempfile.TemporaryDirectory(prefix="league-bench-") as tmp:
+        settings = {"LEAGUE_EVAL_EPISODES": str(episodes), "LEAGUE_WORKER_THREADS": "1"}
+        with League(Path(tmp), embedded=False, settings=settings) as league:
+            league.start_worker(wait=True, cpus=cpu)
+            client = league.client()
+            first = wall_time(lambda: wait_ready(client, [upload_file(client, model)]))
+            print(f"(b) upload to figures, {episodes} episodes, a `league worker` on CPU {cpu}: {first:.2f} s; "
+                  f"{plain / first:.2f}x the plain loop of (a) (target >= 1x: {verdict(plain / first >= 1)})")
+            seconds = wall_time(lambda: wait_ready(client, [upload_file(client, model) for _ in range(uploads)]))
+    rate = 60 * uploads / seconds
+    print(f"(c) {uploads} uploads at once, validated and evaluated ({episodes} episodes) by that worker: "
+          f"{seconds:.1f} s, {rate:.0f} evaluations per core-minute "
+          f"(target >= {RATE_TARGET}: {verdict(rate >= RATE_TARGET)})")
+
+
+def upload_file(client, model: Path) -> int:
+    with open(model, "rb") as handle:
+        response = client.post("/api/submissions", files={"file": (model.name, handle)})
+    response.raise_for_status()
+    return response.json()["id"]
+
+
+def wait_ready(client, submission_ids: list[int], timeout: float = 600) -> None:
+    deadline = time.monotonic() + timeout
+    for submission_id in submission_ids:
+        while (status := client.get(f"/api/submissions/{submission_id}").json()["status"]) not in ("ready", "rejected"):
+            if time.monotonic() > deadline:
+                raise TimeoutError(f"submission {submission_id} is still {status}")
+            time.sleep(0.05)
+        if status != "ready":
+            raise RuntimeError(f"submission {submission_id} was rejected")
+
+
+# --------------------------------------------------------------------------- (d) status latency
 
 
 def keep_evaluating(client, stop: threading.Event, busy: list[int]) -> None:
@@ -84,7 +152,7 @@ def bench_status(model: Path, rate: float, seconds: float, embedded: bool) -> fl
     p50, p95, p99 = np.percentile(latencies, [50, 95, 99])
     where = "embedded in `league serve`" if embedded else "in a `league worker` process"
     verdict = "ok" if p99 <= P99_TARGET_MS else "OVER TARGET"
-    print(f"(b) GET status, {len(latencies)} requests at {rate:g}/s, evaluations running {where}:")
+    print(f"(d) GET status, {len(latencies)} requests at {rate:g}/s, evaluations running {where}:")
     print(f"    p50 {p50:.1f} ms, p95 {p95:.1f} ms, p99 {p99:.1f} ms, max {latencies.max():.1f} ms "
           f"(target p99 <= {P99_TARGET_MS:g} ms: {verdict}); a job was running in "
           f"{100 * np.mean(np.array(busy) > 0):.0f}% of the samples")
@@ -115,7 +183,7 @@ def bench_evaluation_job(model: Path, episodes: int, placement: bool) -> float:
                 time.sleep(0.2)
     job = evaluation[0]
     seconds = (datetime.fromisoformat(job["finished_at"]) - datetime.fromisoformat(job["started_at"])).total_seconds()
-    print(f"(c) {episodes}-episode evaluation job in a `league worker` on every CPU, CPU placement "
+    print(f"(e) {episodes}-episode evaluation job in a `league worker` on every CPU, CPU placement "
           f"{'on (the default)' if placement else 'off'}: {seconds:.2f} s ({job['status']})", flush=True)
     return seconds
 
@@ -125,12 +193,14 @@ def main() -> None:
     parser.add_argument("--episodes", type=int, default=100)
     parser.add_argument("--rate", type=float, default=200.0, help="GET requests per second")
     parser.add_argument("--seconds", type=float, default=10.0, help="length of the GET load")
-    parser.add_argument("--only-jobs", action="store_true", help="only (c)")
+    parser.add_argument("--uploads", type=int, default=20, help="uploads at once in (c)")
+    parser.add_argument("--only-jobs", action="store_true", help="only (e)")
     args = parser.parse_args()
     with tempfile.TemporaryDirectory(prefix="league-bench-model-") as folder:
         model = thesis_actor(Path(folder))
         if not args.only_jobs:
-            bench_evaluation(model, args.episodes)
+            plain = bench_evaluation(model, args.episodes)
+            bench_worker_on_one_cpu(model, args.episodes, plain, args.uploads)
             bench_status(model, args.rate, args.seconds, embedded=False)
             bench_status(model, args.rate, args.seconds, embedded=True)
         placed = bench_evaluation_job(model, args.episodes, placement=True)

@@ -34,6 +34,8 @@ from pathlib import Path
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
+from _league import plain_loop  # noqa: E402
+
 TARGETS = {"metrics_run": 10.0, "race": 2.0, "gif": 30.0}  # seconds
 SPEED_UP_TARGET = 4.0  # lockstep metrics_run against the plain loop
 
@@ -62,28 +64,6 @@ def timed(label: str, work, target: float | None = None):
     verdict = "" if target is None else f"   (target <= {target:g} s: {'ok' if seconds <= target else 'OVER TARGET'})"
     print(f"{label:<58} {seconds:7.2f} s{verdict}")
     return result, seconds
-
-
-def plain_loop(path: Path, seeds: list[int]) -> int:
-    """What a student writes: a Gymnasium env and an ONNX Runtime session, one call per step."""
-    import gymnasium as gym
-    import onnxruntime as ort
-
-    import league  # noqa: F401 (registers the env)
-
-    options = ort.SessionOptions()
-    options.intra_op_num_threads = options.inter_op_num_threads = 1
-    session = ort.InferenceSession(str(path), options, providers=["CPUExecutionProvider"])
-    env = gym.make("league/MicroRacer-v0")
-    completed = 0
-    for seed in seeds:
-        obs, info = env.reset(seed=seed)
-        terminated = truncated = False
-        while not (terminated or truncated):
-            action = session.run(None, {"obs": obs[None, :]})[0][0]
-            obs, reward, terminated, truncated, info = env.step(action)
-        completed += info["outcome"] == "finished"
-    return completed
 
 
 def main() -> None:

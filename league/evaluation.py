@@ -556,10 +556,6 @@ def race_again(replay: dict, agents: Sequence[Agent | str | os.PathLike]) -> Rac
     return race(agents, seed=replay["seed"], names=replay["names"], **given, **replay["env_options"])
 
 
-def result_json(result: MetricsResult | RaceResult) -> str:
-    return json.dumps(result.to_dict(), indent=2)
-
-
 __all__ = [
     "CarLog", "EpisodeResult", "MetricsResult", "RaceResult", "episode_seeds", "load_replay", "metrics_run",
     "race", "race_again", "replay_track", "run_episode", "save_replay", "classification_table",

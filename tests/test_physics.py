@@ -5,7 +5,9 @@ import numpy as np
 import pytest
 
 import league
+from league.constants import CELLS_PER_UNIT, ORIGIN
 from league.physics import MAX_ACC, MAX_TURN, TSTEP
+from league.track import Track
 
 from . import reference
 
@@ -72,25 +74,24 @@ def test_off_road_crash_gives_minus_3_and_leaves_the_car_where_it_was():
 
 
 def test_obstacle_is_off_road():
-    env, obs, _ = start(seed=0, speed=0.25)
+    """A car driven straight at an obstacle ends off road; on the same track without obstacles the
+    same step stays on the road (it may still be the wrong direction: off road is checked first)."""
+    env = league.MicroRacerEnv()
+    env.reset(seed=0)
     track = env.unwrapped.track
-    cars = env.unwrapped.cars
-    # drive straight at the first obstacle point from a valid cell right before it
     target = track.obstacles[0].mean(axis=0)
-    cells = np.argwhere(track.valid)
-    xy = (cells - 650 + 0.5) / 500
-    near = xy[np.argmin(np.linalg.norm(xy - target, axis=1))]
+    cells = np.argwhere(track.valid)  # (x cell, y cell)
+    xy = (cells - ORIGIN + 0.5) / CELLS_PER_UNIT
+    near = xy[np.argmin(np.linalg.norm(xy - target, axis=1))]  # the valid cell nearest to the obstacle
     heading = math.atan2(target[1] - near[1], target[0] - near[0])
-    env2 = league.MicroRacerEnv()
-    env2.reset(seed=0, options={"initial_speed": 0.25})
-    c = env2.unwrapped.cars
-    c.reset(float(near[0]), float(near[1]), heading, 0.25)
-    for _ in range(10):
-        _, reward, terminated, _, info = env2.step([0.0, 0.0])
-        if terminated:
-            break
-    assert info["outcome"] == "off_road" and reward == -3.0
-    assert track.obstacle_cells.any() and cars is not None
+
+    def first_step(on: Track) -> str:
+        env.reset(options={"track": on, "initial_speed": 0.25})
+        env.unwrapped.cars.reset(float(near[0]), float(near[1]), heading, 0.25)
+        return env.step([0.0, 0.0])[4]["outcome"]
+
+    assert first_step(track) == "off_road"
+    assert first_step(track.with_obstacles(np.empty((0, 2, 2)))) != "off_road"
 
 
 def test_stopped_car_without_low_speed_termination_is_wrong_direction():

@@ -123,6 +123,19 @@ def test_revoked_token_sends_the_user_back_to_login_with_a_message(web, web_serv
     web.screenshot("login-after-revoked-token")
 
 
+@pytest.mark.parametrize("next_page, landing", [
+    ("/leaderboard?page=2", "/leaderboard?page=2"),
+    ("//evil.example/x", "/submissions"), ("/%5Cevil.example/x", "/submissions"),
+    ("/%5C%5Cevil.example", "/submissions"), ("https://evil.example/", "/submissions"),
+    ("javascript:alert(1)", "/submissions")])
+def test_login_goes_back_only_to_a_page_of_this_site(web, web_server, next_page, landing):
+    web.goto(f"/login?next={next_page}")
+    web.page.fill("#token", student_token(web_server, unique("back")))
+    web.page.click("#login-form button[type=submit]")
+    web.page.wait_for_url(lambda url: "/login" not in url)
+    assert web.page.url == web.base + landing
+
+
 def test_a_page_for_logged_in_users_asks_to_log_in_first(web):
     web.goto("/submissions")
     web.page.wait_for_url(re.compile(r"/login\?next=%2Fsubmissions$"))

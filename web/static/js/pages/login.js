@@ -15,10 +15,15 @@ $("show-token").addEventListener("change", (event) => {
   input.type = event.target.checked ? "text" : "password";
 });
 
-/** Only paths of this site: "/x" but not "//host/x". */
+/** Only pages of this site, judged as the browser resolves the address ("/\\host" is another site). */
 function nextPage(user) {
   const next = new URLSearchParams(location.search).get("next");
-  if (next && next.startsWith("/") && !next.startsWith("//") && !next.startsWith("/login")) return next;
+  if (next) {
+    const target = new URL(next, location.origin);
+    if (target.origin === location.origin && !target.pathname.startsWith("/login")) {
+      return target.pathname + target.search + target.hash;
+    }
+  }
   return user.role === "instructor" ? "/instructor" : "/submissions";
 }
 
