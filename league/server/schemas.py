@@ -20,8 +20,24 @@ class UserOut(BaseModel):
     active: bool
 
 
+class QuotaOut(BaseModel):
+    limit: int = Field(description="submissions per rolling 24 hours (rejected ones do not count)")
+    used: int
+    remaining: int
+    next_free_at: datetime | None = Field(description="when a used slot frees up; null while some remain")
+
+
+class UserMe(UserOut):
+    upload_quota: QuotaOut | None = Field(description="students' uploads left; null for instructors (no quota)")
+
+
 class UserCreated(UserOut):
     token: str = Field(description="the API token: shown once, store it (Authorization: Bearer TOKEN)")
+
+
+class RosterCreated(BaseModel):
+    created: list[UserCreated]
+    skipped: list[str] = Field(description="names already taken (by students created before, or other users)")
 
 
 class UserCreate(BaseModel):

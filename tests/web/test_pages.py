@@ -172,6 +172,12 @@ def test_bad_uploads_show_the_servers_error(web, web_server, agent_files, tmp_pa
     token = student_token(web_server, unique("bob"))
     web.login(token)
 
+    # the page states the uploads left today
+    quota = int(web_server.env["LEAGUE_QUOTA_PER_DAY"])
+    web.page.wait_for_selector("#upload-quota:not(:empty)")
+    assert web.page.inner_text("#upload-quota") == \
+        f"{quota} of {quota} uploads left in the last 24 hours (rejected uploads do not count)."
+
     # the page states the server's upload limit, and keeps a bigger file at home
     limit_mb = float(web_server.env["LEAGUE_MAX_UPLOAD_MB"])
     assert f"of at most {limit_mb:g} MB" in web.page.inner_text("#drop-zone")
@@ -208,6 +214,7 @@ def test_bad_uploads_show_the_servers_error(web, web_server, agent_files, tmp_pa
     web.page.wait_for_selector("#upload-message.error")
     assert web.page.inner_text("#upload-message") == f"random.onnx was rejected: {error}"
     assert web.page.inner_text("#detail-error") == f"Rejected: {error}"
+    assert web.page.inner_text("#upload-quota").startswith(f"{quota} of {quota} uploads left")  # rejected: free
     web.screenshot("submissions-rejected")
 
 
@@ -347,6 +354,16 @@ def test_instructor_creates_students_changes_settings_and_reruns(web, web_server
     web.page.wait_for_function("() => document.querySelector('#students-message').textContent.includes('Created 2 students')")
     assert web.page.locator("#token-table tbody tr").count() == 2
     assert {first, second} <= set(web.page.locator("#users tbody td:first-child").all_inner_texts())
+
+    # the same roster again with a late enrolment: the existing names are skipped, and said so
+    late = unique("fay")
+    roster.write_text(f"name\n{first}\n{second}\n{late}\n")
+    web.page.set_input_files("#roster-file", str(roster))
+    web.page.click("#roster-form button[type=submit]")
+    web.page.wait_for_function("() => document.querySelector('#students-message').textContent.includes('Created 1 student ')")
+    assert web.page.inner_text("#students-message") == \
+        f"Created 1 student from roster.csv. Skipped 2 names already taken: {first}, {second}."
+    assert web.page.locator("#token-table tbody tr").all_inner_texts()[0].startswith(late)
 
     # a roster naming a student twice: the server's reason
     roster.write_text(f"name\n{first}x\n{first}x\n")

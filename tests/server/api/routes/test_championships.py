@@ -100,12 +100,19 @@ def test_a_bad_championship_is_refused(app_league, body, detail):
     assert after == before
 
 
-@pytest.mark.parametrize("body", [{"heat_size": 1}, {"points": []}, {"name": ""}, {"seed": -1}])
-def test_a_championship_outside_the_schema_is_refused(app_league, body):
+@pytest.mark.parametrize("body, detail", [
+    ({"heat_size": 1}, "heat_size: Input should be greater than or equal to 2"),
+    ({"points": []}, "points: List should have at least 1 item after validation, not 0"),
+    ({"name": ""}, "name: String should have at least 1 character"),
+    ({"seed": -1, "heat_size": "x"}, "heat_size: Input should be a valid integer, unable to parse string as an "
+                                     "integer; seed: Input should be greater than or equal to 0"),
+])
+def test_a_championship_outside_the_schema_is_refused_in_one_sentence(app_league, body, detail):
+    """Schema errors are {"detail": "text"} as every other error (docs/CONTRACT.md), naming each field."""
     with app_league.client(app_league.instructor_token) as instructor:
         response = create(instructor, **body)
     assert response.status_code == 422
-    assert isinstance(response.json()["detail"], list)
+    assert response.json() == {"detail": detail}
 
 
 def test_unknown_championships_are_404(app_league):
