@@ -5,11 +5,14 @@ nothing of any host but the server and threw no script error. Screenshots: test-
 """
 from __future__ import annotations
 
+import csv
+import io
 import itertools
 import json
 import math
 import re
 import uuid
+from pathlib import Path
 
 import pytest
 
@@ -465,6 +468,7 @@ def test_student_sees_their_agent_on_the_leaderboard(web, web_server, agent_file
     own = web.page.locator("#leaderboard tbody tr.own")
     own.wait_for()
     assert name in own.inner_text()
+    assert web.page.is_hidden("#leaderboard-csv") and web.page.is_hidden("#standings-csv")  # grades: instructors
     # sortable, best first on the first click, and saying which way is better
     header = web.page.locator("#leaderboard th", has_text="Mean return")
     assert "higher is better" in header.inner_text()
@@ -540,6 +544,16 @@ def test_instructor_runs_a_round_opens_a_replay_and_the_standings_break_ties(web
         assert points.split("\n") == [str(row["points"])] + ([note] if note else []), (row, points)
     assert any(notes), f"no tie on points in {rows}"
     web.screenshot("standings-tie-breaks")
+
+    # the instructor downloads the grades: the server's CSV, read back
+    for button, path in (("#standings-csv", f"/api/championships/{championship_id}/standings.csv"),
+                         ("#leaderboard-csv", "/api/leaderboard.csv")):
+        with web.page.expect_download() as event:
+            web.page.click(button)
+        saved = Path(event.value.path()).read_text()
+        served = web_server.client(web_server.instructor_token).get(path).text
+        assert list(csv.DictReader(io.StringIO(saved))) == list(csv.DictReader(io.StringIO(served)))
+        assert saved.startswith("rank,student,agent,submission_id,")
 
 
 def test_student_starts_a_friendly_race_against_the_baselines(web, web_server, agent_files):
