@@ -115,6 +115,18 @@ class EvaluationSettings(BaseModel):
     env_options: dict[str, Any] = Field(default_factory=dict, description="options of league.MicroRacerEnv")
 
 
+class UploadLimits(BaseModel):
+    """What an upload must fit (public: `league check` measures a model against it before uploading)."""
+
+    max_upload_bytes: int
+    quota_per_day: int
+    sandbox_memory_mb: int
+    step_deadline_ms: float
+    first_call_allowance_ms: float
+    episode_deadline_s: float
+    load_timeout_s: float
+
+
 class RerunRequest(BaseModel):
     submission_id: DbId | None = Field(None, description="re-run this submission's evaluation")
     all: bool = Field(False, description="re-run every ready submission of the course (baselines included)")
