@@ -4,6 +4,7 @@
     league race model.onnx heuristic --seed 3 --save race.gif --replay race.json
     league replay race.json --save race.mp4
     league track --seed 3 --save track.png
+    league check model.onnx && league submit model.onnx --wait      (a league server: league login)
 
 Errors print one line saying what went wrong and what to do, and exit with status 2
 (``LEAGUE_DEBUG=1`` shows the traceback). The server adds its own commands
@@ -94,8 +95,10 @@ def build_parser() -> argparse.ArgumentParser:
 
 def _add_server_commands(subparsers) -> None:
     from league.baselines.cli import add_commands as add_baseline_commands  # imports torch only when run
+    from league.client import add_commands as add_client_commands  # imports httpx only when run
 
     add_baseline_commands(subparsers)
+    add_client_commands(subparsers)
     try:
         from league.server.cli import add_commands
     except ImportError:  # the server extra is not installed
@@ -252,14 +255,15 @@ def main(argv: Sequence[str] | None = None) -> int:
         if os.environ.get("LEAGUE_DEBUG"):
             raise
         print(f"league: error: {_describe(error)}", file=sys.stderr)
-        return EXIT_ERROR
+        return getattr(error, "exit_code", EXIT_ERROR)  # the server client's codes: league/client.py
 
 
 def _describe(error: Exception) -> str:
     from league.agents import AgentError
 
     message = " ".join(str(error).split()) or type(error).__name__
-    if isinstance(error, (AgentError, UsageError, ValueError, TypeError, OSError)) or type(error).__name__ == "RenderError":
+    if isinstance(error, (AgentError, UsageError, ValueError, TypeError, OSError)) or \
+            type(error).__name__ in ("RenderError", "ClientError"):
         return message
     return f"unexpected {type(error).__name__}: {message} (set LEAGUE_DEBUG=1 to see the traceback and report it)"
 

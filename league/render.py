@@ -451,8 +451,13 @@ def _ffmpeg() -> str:
 
     ffmpeg = shutil.which(rcParams["animation.ffmpeg_path"]) or shutil.which("ffmpeg")
     if ffmpeg is None:
-        raise RenderError("saving MP4 needs ffmpeg on the PATH (e.g. 'apt install ffmpeg' or 'conda install ffmpeg'); "
-                          "or save a .gif instead")
+        try:  # the binary the video extra installs (pip install 'microracer-league[video]')
+            import imageio_ffmpeg
+
+            ffmpeg = imageio_ffmpeg.get_ffmpeg_exe()
+        except (ImportError, RuntimeError):
+            raise RenderError("saving MP4 needs ffmpeg: pip install 'microracer-league[video]' (or 'apt install "
+                              "ffmpeg'); or save a .gif instead") from None
     return ffmpeg
 
 

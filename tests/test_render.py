@@ -1,11 +1,20 @@
-"""league.render: numpy frames, track pictures, race animations (all without a display)."""
+"""league.render: numpy frames, track pictures, race animations (without a display), MP4 through
+the video extra's ffmpeg, and the env's "human" window on a virtual X display (Xvfb)."""
+import os
+import shutil
+import subprocess
+import sys
+from pathlib import Path
+
 import numpy as np
 import pytest
 from PIL import Image
 
 import league
 from league import render
-from league.evaluation import race
+from league.evaluation import race, save_replay
+
+REPO = Path(__file__).resolve().parents[1]
 
 
 @pytest.fixture(scope="module")
@@ -167,8 +176,75 @@ def test_saving_errors_are_clear(small_race, tmp_path, monkeypatch):
         render.animate_replay(small_race.replay, save=tmp_path / "race.avi")
     monkeypatch.setenv("PATH", str(tmp_path))  # no ffmpeg anywhere
     monkeypatch.setitem(__import__("matplotlib").rcParams, "animation.ffmpeg_path", "ffmpeg")
+    monkeypatch.setitem(sys.modules, "imageio_ffmpeg", None)  # nor the video extra
     with pytest.raises(render.RenderError, match="needs ffmpeg"):
         render.animate_replay(small_race.replay, save=tmp_path / "race.mp4")
+
+
+def test_league_replay_saves_an_mp4_with_every_frame_through_the_video_extras_ffmpeg(small_race, tmp_path):
+    """`league replay --save race.mp4` with no ffmpeg on the PATH: imageio-ffmpeg's binary writes
+    it; imageio reads back one frame per animation frame."""
+    imageio = pytest.importorskip("imageio.v3", reason="counting MP4 frames needs imageio (the test extra)")
+    replay = save_replay(small_race, tmp_path / "race.json")
+    env = {**os.environ, "PATH": os.path.dirname(sys.executable), "PYTHONPATH": str(REPO), "MPLBACKEND": "agg"}
+    done = subprocess.run([sys.executable, "-m", "league.cli", "replay", str(replay), "--save", str(tmp_path / "race.mp4")],
+                          env=env, capture_output=True, text=True, timeout=300)
+    assert done.returncode == 0, done.stderr
+    assert shutil.which("ffmpeg", path=env["PATH"]) is None  # the extra's binary, not the system's
+    frames = imageio.imread(tmp_path / "race.mp4", plugin="FFMPEG", index=None)
+    animation = render.RaceAnimation(small_race.replay, render._agg_figure((10, 6.5), 80))
+    assert frames.shape == (len(animation.frame_steps()), 520, 800, 3)
+    assert frames[0].std() > 10 and np.abs(frames[-1].astype(int) - frames[0]).mean() > 0.5  # drawn, and moving
+
+
+HUMAN_SCRIPT = """
+import numpy as np, matplotlib.pyplot as plt, league
+from league.agents import load_agent
+env, driver = league.MicroRacerEnv(render_mode="human"), load_agent("heuristic")
+obs, _ = env.reset(seed=3)
+for _ in range(15):
+    obs, *_ = env.step(driver(obs[None])[0])
+figure = plt.figure("MicroRacer")
+figure.canvas.draw()
+pixels = np.asarray(figure.canvas.buffer_rgba())[..., :3]
+window = figure.canvas.manager.window
+frame = np.asarray(figure.axes[0].images[0].get_array())  # what the env drew last
+# the window's pixels, sampled back to the frame's size (the display's DPI scales the window)
+rows, cols = (((np.arange(n) + 0.5) * m / n).astype(int) for n, m in zip(frame.shape[:2], pixels.shape[:2]))
+same = np.mean(np.all(pixels[rows][:, cols] == frame, axis=-1))
+print(type(figure.canvas).__name__, bool(window.winfo_ismapped()), len(plt.get_fignums()), f"{same:.4f}",
+      len(np.unique(frame.reshape(-1, 3), axis=0)))
+env.close()
+"""
+
+
+@pytest.fixture
+def x_display():
+    """A virtual X display of our own (Debian: apt-get install xvfb); its DISPLAY value."""
+    xvfb = shutil.which("Xvfb")
+    if xvfb is None:
+        pytest.skip("the human render mode is tested on a virtual display: apt-get install xvfb")
+    read, write = os.pipe()  # Xvfb picks a free display number and writes it here
+    server = subprocess.Popen([xvfb, "-displayfd", str(write), "-screen", "0", "1024x768x24", "-nolisten", "tcp"],
+                              pass_fds=(write,), stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+    os.close(write)
+    with os.fdopen(read) as pipe:
+        number = pipe.readline().strip()
+    assert server.poll() is None and number, "Xvfb did not start"
+    try:
+        yield f":{number}"
+    finally:
+        server.terminate()
+        server.wait(timeout=10)
+
+
+def test_human_mode_draws_the_race_in_a_window(x_display):
+    env = {**os.environ, "DISPLAY": x_display, "MPLBACKEND": "TkAgg", "PYTHONPATH": str(REPO)}
+    done = subprocess.run([sys.executable, "-c", HUMAN_SCRIPT], env=env, capture_output=True, text=True, timeout=120)
+    assert done.returncode == 0, done.stderr
+    canvas, mapped, windows, same, colours = done.stdout.split()
+    assert (canvas, mapped, windows) == ("FigureCanvasTkAgg", "True", "1")  # one real window, on the screen
+    assert float(same) > 0.95 and int(colours) >= 4  # it shows the env's frame (but where pixels are scaled)
 
 
 def test_showing_without_a_display_is_a_clear_error(monkeypatch):

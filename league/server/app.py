@@ -5,6 +5,7 @@ from contextlib import asynccontextmanager
 from dataclasses import dataclass
 
 from fastapi import FastAPI, Request
+from fastapi.exceptions import RequestValidationError
 from fastapi.concurrency import run_in_threadpool
 from fastapi.responses import JSONResponse
 from fastapi_offline import FastAPIOffline
@@ -72,6 +73,7 @@ def create_app(settings: Settings | None = None, league_: League | None = None) 
     app.state.cache = ResponseCache(settings.public_cache_s)
     app.include_router(api_router, prefix="/api")
     app.add_exception_handler(StarletteHTTPException, _http_error)
+    app.add_exception_handler(RequestValidationError, _validation_error)
     mount_web(app)
     app.add_middleware(BodyLimits, default=Limit.of(64 * KB), limits=body_limits(settings),
                        read_timeout_s=settings.request_body_timeout_s)
@@ -91,3 +93,17 @@ def body_limits(settings: Settings) -> dict[tuple[str, str], Limit]:
 async def _http_error(request: Request, error: StarletteHTTPException) -> JSONResponse:
     return JSONResponse({"detail": error.detail}, status_code=error.status_code,
                         headers=getattr(error, "headers", None))
+
+
+async def _validation_error(request: Request, error: RequestValidationError) -> JSONResponse:
+    """Invalid input: one sentence, as every other error (docs/CONTRACT.md), not pydantic's list."""
+    return JSONResponse({"detail": validation_text(error.errors())}, status_code=422)
+
+
+def validation_text(errors) -> str:
+    """"body.points: List should have at least 1 item after validation, not 0; ..." (where, then what)."""
+    parts = []
+    for item in errors:
+        where = ".".join(str(part) for part in item.get("loc", ()) if part != "body")
+        parts.append(f"{where}: {item.get('msg', 'invalid')}" if where else item.get("msg", "invalid"))
+    return "; ".join(parts) or "invalid request"

@@ -41,7 +41,7 @@ def add_commands(subparsers) -> None:
     commands = users.add_subparsers(dest="users_command", required=True, metavar="{add,list,revoke}")
     add = commands.add_parser("add", help="add an account and print its API token")
     add.add_argument("name")
-    add.add_argument("--role", choices=[INSTRUCTOR, STUDENT], required=True)
+    add.add_argument("--role", choices=[INSTRUCTOR, STUDENT], default=STUDENT, help="default: student")
     add.set_defaults(run=run_users_add)
     listing = commands.add_parser("list", help="list the accounts")
     listing.set_defaults(run=run_users_list)

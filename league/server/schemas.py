@@ -20,8 +20,24 @@ class UserOut(BaseModel):
     active: bool
 
 
+class QuotaOut(BaseModel):
+    limit: int = Field(description="submissions per rolling 24 hours (rejected ones do not count)")
+    used: int
+    remaining: int
+    next_free_at: datetime | None = Field(description="when a used slot frees up; null while some remain")
+
+
+class UserMe(UserOut):
+    upload_quota: QuotaOut | None = Field(description="students' uploads left; null for instructors (no quota)")
+
+
 class UserCreated(UserOut):
     token: str = Field(description="the API token: shown once, store it (Authorization: Bearer TOKEN)")
+
+
+class RosterCreated(BaseModel):
+    created: list[UserCreated]
+    skipped: list[str] = Field(description="names already taken (by students created before, or other users)")
 
 
 class UserCreate(BaseModel):
@@ -97,6 +113,18 @@ class EvaluationSettings(BaseModel):
     seed: int = Field(ge=0, lt=2**63, description="the tracks: the same seed gives everyone the same tracks")
     episodes: int = Field(ge=1, le=1000)
     env_options: dict[str, Any] = Field(default_factory=dict, description="options of league.MicroRacerEnv")
+
+
+class UploadLimits(BaseModel):
+    """What an upload must fit (public: `league check` measures a model against it before uploading)."""
+
+    max_upload_bytes: int
+    quota_per_day: int
+    sandbox_memory_mb: int
+    step_deadline_ms: float
+    first_call_allowance_ms: float
+    episode_deadline_s: float
+    load_timeout_s: float
 
 
 class RerunRequest(BaseModel):

@@ -13,7 +13,7 @@ from sqlalchemy.orm import Session
 
 from league import championship as rules
 from league.server.db import crud
-from league.server.db.models import BASELINE, DONE, Championship, ChampionshipRound, Submission
+from league.server.db.models import BASELINE, DONE, STUDENT, Championship, ChampionshipRound, Submission
 
 
 def finished_heats(rounds: list[ChampionshipRound]) -> list[list[dict]]:
@@ -108,3 +108,24 @@ def _leaderboard_row(rank: int, submission: Submission, evaluation, rating: rule
             "mean_return": evaluation.mean_return, "mean_steps": evaluation.mean_steps,
             "mean_speed": evaluation.mean_speed, "rating": rating.conservative if rating else None,
             "mu": rating.mu if rating else None, "sigma": rating.sigma if rating else None}
+
+
+# --------------------------------------------------------------------------- grades (CSV exports)
+
+
+LEADERBOARD_GRADES = ["rank", "student", "agent", "submission_id", "completed", "episodes", "mean_return",
+                      "mean_steps", "mean_speed", "rating"]
+STANDINGS_GRADES = ["rank", "student", "agent", "submission_id", "points", "wins", "heats", "rating", "mu", "sigma"]
+
+
+def grade_rows(session: Session, rows: list[dict], *, course_id: int | None, columns: list[str]) -> list[list]:
+    """The board's rows of the course's students (rank as the board shows it), then every other
+    student of the course with empty figures: one line per student to grade (or more, for
+    standings, when their active submission changed between rounds). Baselines are left out."""
+    students = [u.name for u in crud.course_users(session, course_id=course_id) if u.role == STUDENT]
+    enrolled = set(students)
+    mine = [{**row, "student": row["owner"], "agent": row["name"], "heats": len(row.get("finishes", ()))}
+            for row in rows if row["owner"] in enrolled]
+    ranked = {row["student"] for row in mine}
+    mine += [{"student": name} for name in students if name not in ranked]
+    return [[row.get(column) for column in columns] for row in mine]

@@ -37,9 +37,14 @@ def test_users_add_prints_a_token_once_and_names_are_unique(tmp_path):
     assert again.returncode == 1
     assert "user name 'prof' is already taken" in again.stderr
 
+    student = league(tmp_path, "users", "add", "ann")  # student: the default role
+    assert student.returncode == 0, student.stderr
+    assert "created student 'ann'" in student.stderr
+
     assert league(tmp_path, "users", "revoke", "prof").returncode == 0
     listing = league(tmp_path, "users", "list").stdout
     assert "prof" in listing and "revoked" in listing
+    assert [line.split()[1:3] for line in listing.splitlines() if " ann " in line] == [["ann", "student"]]
 
 
 def test_a_worker_runs_its_threads_on_the_cpus_it_is_given(tmp_path):

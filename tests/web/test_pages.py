@@ -5,11 +5,14 @@ nothing of any host but the server and threw no script error. Screenshots: test-
 """
 from __future__ import annotations
 
+import csv
+import io
 import itertools
 import json
 import math
 import re
 import uuid
+from pathlib import Path
 
 import pytest
 
@@ -185,6 +188,12 @@ def test_bad_uploads_show_the_servers_error(web, web_server, agent_files, tmp_pa
     token = student_token(web_server, unique("bob"))
     web.login(token)
 
+    # the page states the uploads left today
+    quota = int(web_server.env["LEAGUE_QUOTA_PER_DAY"])
+    web.page.wait_for_selector("#upload-quota:not(:empty)")
+    assert web.page.inner_text("#upload-quota") == \
+        f"{quota} of {quota} uploads left in the last 24 hours (rejected uploads do not count)."
+
     # the page states the server's upload limit, and keeps a bigger file at home
     limit_mb = float(web_server.env["LEAGUE_MAX_UPLOAD_MB"])
     assert f"of at most {limit_mb:g} MB" in web.page.inner_text("#drop-zone")
@@ -221,6 +230,7 @@ def test_bad_uploads_show_the_servers_error(web, web_server, agent_files, tmp_pa
     web.page.wait_for_selector("#upload-message.error")
     assert web.page.inner_text("#upload-message") == f"random.onnx was rejected: {error}"
     assert web.page.inner_text("#detail-error") == f"Rejected: {error}"
+    assert web.page.inner_text("#upload-quota").startswith(f"{quota} of {quota} uploads left")  # rejected: free
     web.screenshot("submissions-rejected")
 
 
@@ -361,6 +371,16 @@ def test_instructor_creates_students_changes_settings_and_reruns(web, web_server
     assert web.page.locator("#token-table tbody tr").count() == 2
     assert {first, second} <= set(web.page.locator("#users tbody td:first-child").all_inner_texts())
 
+    # the same roster again with a late enrolment: the existing names are skipped, and said so
+    late = unique("fay")
+    roster.write_text(f"name\n{first}\n{second}\n{late}\n")
+    web.page.set_input_files("#roster-file", str(roster))
+    web.page.click("#roster-form button[type=submit]")
+    web.page.wait_for_function("() => document.querySelector('#students-message').textContent.includes('Created 1 student ')")
+    assert web.page.inner_text("#students-message") == \
+        f"Created 1 student from roster.csv. Skipped 2 names already taken: {first}, {second}."
+    assert web.page.locator("#token-table tbody tr").all_inner_texts()[0].startswith(late)
+
     # a roster naming a student twice: the server's reason
     roster.write_text(f"name\n{first}x\n{first}x\n")
     web.page.set_input_files("#roster-file", str(roster))
@@ -461,6 +481,7 @@ def test_student_sees_their_agent_on_the_leaderboard(web, web_server, agent_file
     own = web.page.locator("#leaderboard tbody tr.own")
     own.wait_for()
     assert name in own.inner_text()
+    assert web.page.is_hidden("#leaderboard-csv") and web.page.is_hidden("#standings-csv")  # grades: instructors
     # sortable, best first on the first click, and saying which way is better
     header = web.page.locator("#leaderboard th", has_text="Mean return")
     assert "higher is better" in header.inner_text()
@@ -536,6 +557,16 @@ def test_instructor_runs_a_round_opens_a_replay_and_the_standings_break_ties(web
         assert points.split("\n") == [str(row["points"])] + ([note] if note else []), (row, points)
     assert any(notes), f"no tie on points in {rows}"
     web.screenshot("standings-tie-breaks")
+
+    # the instructor downloads the grades: the server's CSV, read back
+    for button, path in (("#standings-csv", f"/api/championships/{championship_id}/standings.csv"),
+                         ("#leaderboard-csv", "/api/leaderboard.csv")):
+        with web.page.expect_download() as event:
+            web.page.click(button)
+        saved = Path(event.value.path()).read_text()
+        served = web_server.client(web_server.instructor_token).get(path).text
+        assert list(csv.DictReader(io.StringIO(saved))) == list(csv.DictReader(io.StringIO(served)))
+        assert saved.startswith("rank,student,agent,submission_id,")
 
 
 def test_student_starts_a_friendly_race_against_the_baselines(web, web_server, agent_files):

@@ -2,10 +2,12 @@
 several resources make (a user's course, environment options)."""
 from __future__ import annotations
 
-from collections.abc import AsyncIterator
+import csv
+import io
+from collections.abc import AsyncIterator, Iterable
 from typing import Annotated
 
-from fastapi import Depends, HTTPException, Path, Query, Request, status
+from fastapi import Depends, HTTPException, Path, Query, Request, Response, status
 from fastapi.security import HTTPAuthorizationCredentials, HTTPBearer
 from sqlalchemy.orm import Session
 
@@ -118,3 +120,19 @@ def check_jobs_in_flight(session: Session, user: User, limit: int) -> None:
         raise HTTPException(status.HTTP_429_TOO_MANY_REQUESTS,
                             f"{waiting} of your uploads or races are still waiting or running (at most {limit} at "
                             "once): upload again when one of them is done")
+
+
+FORMULA_START = ("=", "+", "-", "@", "\t", "\r")  # a spreadsheet runs a cell that starts so as a formula
+
+
+def csv_response(header: list[str], rows: Iterable[list], filename: str) -> Response:
+    """A CSV download; text cells (user and agent names) that a spreadsheet would run as a formula
+    are quoted with a leading apostrophe (numbers are left as they are)."""
+    out = io.StringIO()
+    writer = csv.writer(out, lineterminator="\n")
+    writer.writerow(header)
+    for row in rows:
+        writer.writerow(["'" + cell if isinstance(cell, str) and cell.startswith(FORMULA_START) else
+                         "" if cell is None else cell for cell in row])
+    return Response(out.getvalue(), media_type="text/csv; charset=utf-8",
+                    headers={"Content-Disposition": f'attachment; filename="{filename}"'})

@@ -30,6 +30,10 @@ class InvalidName(ValueError):
     """An invalid or taken user name (message shown to the caller)."""
 
 
+class NameTaken(InvalidName):
+    """A user name already in use."""
+
+
 # --------------------------------------------------------------------------- courses
 
 
@@ -62,7 +66,7 @@ def check_user_name(session: Session, *, name: str) -> str:
     if not NAME_PATTERN.match(name):
         raise InvalidName(f"invalid user name {name!r}: 1-100 letters, digits, spaces or . @ + - _")
     if session.scalar(select(User.id).where(User.name == name)) is not None:
-        raise InvalidName(f"user name {name!r} is already taken")
+        raise NameTaken(f"user name {name!r} is already taken")
     return name
 
 

@@ -70,6 +70,17 @@ export async function api(path, { method = "GET", json, form, auth = true, login
   throw new ApiError(response.status, message);
 }
 
+/** Fetch a file with the token (a link could not send it) and save it as `filename`. */
+export async function download(path, filename) {
+  const response = await fetch(path, { headers: { Authorization: `Bearer ${storedToken()}` } });
+  if (!response.ok) throw new ApiError(response.status, errorText(response, await readBody(response)));
+  const link = document.createElement("a");
+  link.href = URL.createObjectURL(await response.blob());
+  link.download = filename;
+  link.click();
+  setTimeout(() => URL.revokeObjectURL(link.href), 60000);
+}
+
 async function readBody(response) {
   const text = await response.text();
   if (!text) return null;

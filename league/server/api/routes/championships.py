@@ -9,12 +9,13 @@ from sqlalchemy.orm import Session
 
 from league.server.api.cache import cached_json
 from league.server.api.deps import (
-    Id, InstructorUser, PageNumber, PageSize, QueueDep, SessionDep, SettingsDep, check_env_options, user_course,
+    Id, InstructorUser, PageNumber, PageSize, QueueDep, SessionDep, SettingsDep, check_env_options, csv_response,
+    user_course,
 )
 from league.server.db import crud
 from league.server.db.models import Championship, ChampionshipRound
 from league.server.rounds import RoundRefused, retry_round, round_summary, start_round
-from league.server.standings import standings_rows
+from league.server.standings import STANDINGS_GRADES, grade_rows, standings_rows
 from league.server.schemas import ChampionshipCreate, ChampionshipOut, RoundOut, StandingsPage
 
 router = APIRouter(prefix="/championships", tags=["championships"])
@@ -115,6 +116,18 @@ async def read_standings(championship_id: Id, request: Request, page: PageNumber
         return StandingsPage(items=rows[(page - 1) * size: page * size], total=len(rows)).model_dump_json().encode()
 
     return await cached_json(request, ("standings", championship_id, page, size), compute)
+
+
+@router.get("/{championship_id}/standings.csv", response_class=Response, responses={200: {"content": {"text/csv": {}}}})
+def read_standings_csv(championship_id: Id, session: SessionDep, instructor: InstructorUser) -> Response:
+    """Grades (instructors of the championship's course): the standings' lines of your students,
+    then the students who raced in no finished round, with empty figures."""
+    championship = existing_championship(session, championship_id)
+    if championship.course_id != user_course(session, instructor).id:
+        raise HTTPException(status.HTTP_403_FORBIDDEN, "this championship is another course's")
+    rows = grade_rows(session, standings_rows(session, championship), course_id=championship.course_id,
+                      columns=STANDINGS_GRADES)
+    return csv_response(STANDINGS_GRADES, rows, f"standings-{championship_id}.csv")
 
 
 def existing_championship(session: Session, championship_id: int) -> Championship:

@@ -8,7 +8,7 @@ from league.server.api.deps import (
 )
 from league.server.db import crud
 from league.server.db.models import READY, Submission, User
-from league.server.schemas import EvaluationSettings, RerunOut, RerunRequest
+from league.server.schemas import EvaluationSettings, RerunOut, RerunRequest, UploadLimits
 from league.server.jobs.evaluate import queue_evaluation
 
 router = APIRouter(tags=["evaluations"])
@@ -18,6 +18,12 @@ router = APIRouter(tags=["evaluations"])
 def read_evaluation_settings(user: CurrentUser, session: SessionDep) -> EvaluationSettings:
     """The seed, episode count and environment options every submission is evaluated with."""
     return EvaluationSettings(**user_course(session, user).evaluation_settings())
+
+
+@router.get("/settings/limits", response_model=UploadLimits)
+def read_upload_limits(settings: SettingsDep) -> UploadLimits:
+    """The size, quota and sandbox limits an upload is validated against (public)."""
+    return UploadLimits(**{name: getattr(settings, name) for name in UploadLimits.model_fields})
 
 
 @router.put("/settings/evaluation", response_model=EvaluationSettings)

@@ -8,10 +8,10 @@ from fastapi import APIRouter, HTTPException, Request, status
 from fastapi.concurrency import run_in_threadpool
 from starlette.datastructures import UploadFile  # what a parsed form holds
 
-from league.server.api.deps import CurrentUser, Id, InstructorUser, SessionDep
+from league.server.api.deps import CurrentUser, Id, InstructorUser, SessionDep, SettingsDep
 from league.server.db import crud
 from league.server.db.models import STUDENT, User
-from league.server.schemas import UserCreate, UserCreated, UserOut
+from league.server.schemas import QuotaOut, RosterCreated, UserCreate, UserCreated, UserMe, UserOut
 
 router = APIRouter(prefix="/users", tags=["users"])
 MAX_ROSTER_BYTES = 1024 * 1024
@@ -25,10 +25,15 @@ def created_out(user: User, token: str) -> UserCreated:
     return UserCreated(**user_out(user).model_dump(), token=token)
 
 
-@router.get("/me", response_model=UserOut)
-def read_me(user: CurrentUser) -> UserOut:
-    """The account of the token."""
-    return user_out(user)
+@router.get("/me", response_model=UserMe)
+def read_me(user: CurrentUser, session: SessionDep, settings: SettingsDep) -> UserMe:
+    """The account of the token, and (students) how many uploads their quota has left."""
+    quota = None
+    if user.role == STUDENT:
+        usage = crud.quota_usage(session, owner=user, limit=settings.quota_per_day)
+        quota = QuotaOut(limit=usage.limit, used=usage.used, remaining=max(usage.limit - usage.used, 0),
+                         next_free_at=usage.next_free_at)
+    return UserMe(**user_out(user).model_dump(), upload_quota=quota)
 
 
 @router.get("", response_model=list[UserOut])
@@ -55,9 +60,10 @@ ROSTER_FORM = {"requestBody": {"required": True, "content": {"multipart/form-dat
     }}}}}}
 
 
-@router.post("/roster", response_model=list[UserCreated], status_code=status.HTTP_201_CREATED, openapi_extra=ROSTER_FORM)
-async def create_roster(request: Request, instructor: InstructorUser) -> list[UserCreated]:
-    """Create the students of a CSV roster, all or none; the response holds their tokens (shown once).
+@router.post("/roster", response_model=RosterCreated, status_code=status.HTTP_201_CREATED, openapi_extra=ROSTER_FORM)
+async def create_roster(request: Request, instructor: InstructorUser) -> RosterCreated:
+    """Create the students of a CSV roster; names already taken are skipped and listed (late
+    enrolments: upload the whole roster again). The response holds the new tokens (shown once).
     The body is read only once the instructor's token is accepted."""
     async with request.form(max_files=1, max_fields=0) as form:
         file = form.get("file")
@@ -67,22 +73,24 @@ async def create_roster(request: Request, instructor: InstructorUser) -> list[Us
     return await run_in_threadpool(create_students, request.app.state.sessions, instructor.id, roster_names(data))
 
 
-def create_students(sessions, instructor_id: int, names: list[str]) -> list[UserCreated]:
-    """Every student of the list, or none (the 409 names what was wrong)."""
+def create_students(sessions, instructor_id: int, names: list[str]) -> RosterCreated:
+    """Every new student of the list, or none if a name is invalid (the 409 names what was wrong)."""
     with sessions() as session:
         instructor = session.get(User, instructor_id)
-        created, problems = [], []
+        created, skipped, problems = [], [], []
         for name in names:
             try:
                 created.append(crud.create_user(session, name=name, role=STUDENT, course=instructor.course,
                                                 created_by=instructor))
+            except crud.NameTaken:
+                skipped.append(name.strip())
             except crud.InvalidName as error:
                 problems.append(str(error))
         if problems:
             session.rollback()
             raise HTTPException(status.HTTP_409_CONFLICT, "no student was created: " + "; ".join(problems[:20]))
         session.commit()
-        return [created_out(user, token) for user, token in created]
+        return RosterCreated(created=[created_out(user, token) for user, token in created], skipped=skipped)
 
 
 def roster_names(data: bytes) -> list[str]:

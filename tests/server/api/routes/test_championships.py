@@ -4,6 +4,8 @@ baseline and a broken agent -- checked against the points table and raced again 
 is stored."""
 from __future__ import annotations
 
+import csv
+import io
 import threading
 import uuid
 from concurrent.futures import ThreadPoolExecutor
@@ -100,12 +102,19 @@ def test_a_bad_championship_is_refused(app_league, body, detail):
     assert after == before
 
 
-@pytest.mark.parametrize("body", [{"heat_size": 1}, {"points": []}, {"name": ""}, {"seed": -1}])
-def test_a_championship_outside_the_schema_is_refused(app_league, body):
+@pytest.mark.parametrize("body, detail", [
+    ({"heat_size": 1}, "heat_size: Input should be greater than or equal to 2"),
+    ({"points": []}, "points: List should have at least 1 item after validation, not 0"),
+    ({"name": ""}, "name: String should have at least 1 character"),
+    ({"seed": -1, "heat_size": "x"}, "heat_size: Input should be a valid integer, unable to parse string as an "
+                                     "integer; seed: Input should be greater than or equal to 0"),
+])
+def test_a_championship_outside_the_schema_is_refused_in_one_sentence(app_league, body, detail):
+    """Schema errors are {"detail": "text"} as every other error (docs/CONTRACT.md), naming each field."""
     with app_league.client(app_league.instructor_token) as instructor:
         response = create(instructor, **body)
     assert response.status_code == 422
-    assert isinstance(response.json()["detail"], list)
+    assert response.json() == {"detail": detail}
 
 
 def test_unknown_championships_are_404(app_league):
@@ -412,6 +421,30 @@ def test_instructors_read_what_the_cars_sandboxes_printed(season):
     assert season.student_reads_log.json() == {"detail": "only instructors may do this"}
     assert season.other_course_reads_log.status_code == 403
     assert season.other_course_reads_log.json() == {"detail": "this race belongs to another course"}
+
+
+def test_instructors_export_the_standings_as_csv(season):
+    """The standings of the students (not the baseline) as the API gives them, then a student who
+    never raced; read back with the csv module."""
+    server, cid = season.server, season.championship["id"]
+    late = create_student(server, unique("late"))
+    with server.client(server.instructor_token) as instructor:
+        response = instructor.get(f"/api/championships/{cid}/standings.csv")
+        standings = get_json(instructor, f"/api/championships/{cid}/standings")["items"]
+    with late:
+        refused = late.get(f"/api/championships/{cid}/standings.csv")
+        late_name = late.get("/api/users/me").json()["name"]
+    assert refused.status_code == 403
+    assert response.status_code == 200 and response.headers["content-type"].startswith("text/csv")
+    rows = list(csv.DictReader(io.StringIO(response.text)))
+    students = [row for row in standings if row["owner"] != "baselines"]
+    assert len(students) == len(standings) - 1 == 5
+    assert [(r["rank"], r["student"], r["agent"], r["submission_id"], r["points"], r["wins"], r["heats"])
+            for r in rows[:-1]] == [(str(row["rank"]), row["owner"], row["name"], str(row["submission_id"]),
+                                     str(row["points"]), str(row["wins"]), str(len(row["finishes"])))
+                                    for row in students]
+    assert [float(r["rating"]) for r in rows[:-1]] == pytest.approx([row["rating"] for row in students])
+    assert rows[-1] == {**{key: "" for key in rows[-1]}, "student": late_name}
 
 
 def test_heats_are_seeded_then_balanced_by_standing(season):

@@ -2,10 +2,14 @@
 test_championships.py, whose league has no response cache)."""
 from __future__ import annotations
 
-import pytest
-
+import csv
+import io
 import time
 import uuid
+
+import pytest
+
+from league.server.db.models import INSTRUCTOR, Submission
 
 from ... import model_factory as mf
 from ...conftest import (
@@ -73,6 +77,36 @@ def test_the_leaderboard_is_paginated(app_league):
     assert first["total"] == second["total"] == full["total"] >= 3
     assert first["items"] == full["items"][:1]
     assert second["items"] == full["items"][1:2]
+
+
+def parse_csv(response) -> list[dict]:
+    assert response.status_code == 200, response.text
+    assert response.headers["content-type"].startswith("text/csv")
+    return list(csv.DictReader(io.StringIO(response.text)))
+
+
+def test_instructors_export_the_leaderboard_of_their_course_as_csv(app_league):
+    """One line per student of the course, ranked as on the board; students without an evaluated
+    agent last; an agent name a spreadsheet would run is defused."""
+    course = unique("graded course")
+    _, token = app_league.user("prof", role=INSTRUCTOR, course_name=course)
+    (ann, _), (bob, _), (cy, _) = (app_league.user(name, course_name=course) for name in ("ann", "bob", "cy"))
+    app_league.submission(ann, completed=1)
+    best = app_league.submission(ann, completed=3)
+    bob_agent = app_league.submission(bob, completed=2)
+    with app_league.sessions.begin() as session:
+        session.get(Submission, bob_agent.id).name = "=HYPERLINK(\"http://evil.example\")"
+    with app_league.client(token) as instructor:
+        rows = parse_csv(instructor.get("/api/leaderboard.csv"))
+    with app_league.student("nosy")[1] as student:
+        assert student.get("/api/leaderboard.csv").status_code == 403
+
+    assert [(r["student"], r["submission_id"]) for r in rows] == [
+        (ann.name, str(best.id)), (bob.name, str(bob_agent.id)), (cy.name, "")]
+    assert rows[0]["rank"] == "1" and rows[1]["rank"] == "2" and rows[2]["rank"] == ""
+    assert rows[1]["agent"] == "'=HYPERLINK(\"http://evil.example\")"
+    assert (rows[0]["completed"], rows[0]["episodes"], float(rows[0]["mean_return"])) == ("3", "3", 6.0)
+    assert rows[2]["completed"] == rows[2]["mean_return"] == rows[2]["rating"] == ""
 
 
 @pytest.mark.slow

@@ -91,6 +91,17 @@ def test_empty_file_is_refused(app_league, tmp_path):
     assert response.json() == {"detail": "the file is empty"}
 
 
+def test_an_empty_file_is_said_to_be_empty_even_over_the_quota(app_league, tmp_path):
+    user, student = app_league.student("empty-over")
+    for _ in range(4):  # LEAGUE_QUOTA_PER_DAY=4: the quota is spent
+        app_league.submission(user)
+    empty = tmp_path / "empty.onnx"
+    empty.write_bytes(b"")
+    response = upload(student, empty)
+    assert response.status_code == 400
+    assert response.json() == {"detail": "the file is empty"}
+
+
 def test_unknown_file_type_is_refused(app_league, tmp_path):
     student = create_student(app_league, unique("type"))
     script = tmp_path / "agent.py"

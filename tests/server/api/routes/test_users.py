@@ -6,7 +6,9 @@ import subprocess
 import sys
 import uuid
 
-from ...conftest import create_student
+from league.server.db.models import REJECTED
+
+from ...conftest import create_student, upload
 
 
 def unique(name: str) -> str:
@@ -41,21 +43,51 @@ def test_instructor_creates_a_student_whose_token_works(app_league):
         assert student.get("/api/users/me").json()["name"] == name
 
 
-def test_roster_creates_every_student_or_none(app_league):
+def test_roster_creates_the_new_students_and_skips_existing_names(app_league):
     names = [unique("dora"), unique("eve")]
     roster = ("name,email\n" + "".join(f"{n},{n}@school.example\n" for n in names)).encode()
     with app_league.client(app_league.instructor_token) as instructor:
         created = instructor.post("/api/users/roster", files={"file": ("roster.csv", roster, "text/csv")})
         assert created.status_code == 201
-        assert [u["name"] for u in created.json()] == names
-        assert all(u["token"].startswith("lg_") for u in created.json())
+        assert [u["name"] for u in created.json()["created"]] == names and created.json()["skipped"] == []
+        assert all(u["token"].startswith("lg_") for u in created.json()["created"])
 
-        again = ("name\n" + unique("frank") + "\n" + names[0] + "\n").encode()
-        refused = instructor.post("/api/users/roster", files={"file": ("roster.csv", again, "text/csv")})
+        # a late enrolment: the whole roster again, one name more
+        late = unique("frank")
+        again = ("name\n" + names[0] + "\n" + late + "\n" + names[1] + "\n").encode()
+        added = instructor.post("/api/users/roster", files={"file": ("roster.csv", again, "text/csv")})
+        assert added.status_code == 201
+        assert [u["name"] for u in added.json()["created"]] == [late]
+        assert added.json()["skipped"] == [names[0], names[1]]
+
+        # an invalid name: nobody is created
+        bad = ("name\n" + unique("gina") + "\n" + "bad/name" + "\n").encode()
+        refused = instructor.post("/api/users/roster", files={"file": ("roster.csv", bad, "text/csv")})
         assert refused.status_code == 409
-        assert refused.json()["detail"] == f"no student was created: user name {names[0]!r} is already taken"
+        assert refused.json()["detail"] == ("no student was created: invalid user name 'bad/name': "
+                                            "1-100 letters, digits, spaces or . @ + - _")
         listed = [u["name"] for u in instructor.get("/api/users").json()]
-    assert not any(name.startswith("frank-") for name in listed)
+    assert listed.count(names[0]) == 1 and late in listed
+    assert not any(name.startswith("gina-") for name in listed)
+
+
+def test_me_tells_a_student_their_uploads_left(app_league, models):
+    user, student = app_league.student("me")
+    with student:
+        fresh = student.get("/api/users/me").json()["upload_quota"]
+        app_league.submission(user, status=REJECTED)  # free
+        app_league.submission(user)
+        used = student.get("/api/users/me").json()["upload_quota"]
+        for _ in range(3):
+            app_league.submission(user)
+        spent = student.get("/api/users/me").json()["upload_quota"]
+        refused = upload(student, models["heuristic_onnx"])
+    assert fresh == {"limit": 4, "used": 0, "remaining": 4, "next_free_at": None}  # LEAGUE_QUOTA_PER_DAY=4
+    assert used == {"limit": 4, "used": 1, "remaining": 3, "next_free_at": None}
+    assert (spent["used"], spent["remaining"]) == (4, 0)
+    assert refused.status_code == 429 and spent["next_free_at"][:19] in refused.json()["detail"]
+    with app_league.client(app_league.instructor_token) as instructor:
+        assert instructor.get("/api/users/me").json()["upload_quota"] is None  # no quota
 
 
 def test_revoked_student_is_locked_out_and_a_new_token_restores_them(app_league):

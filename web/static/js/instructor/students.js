@@ -2,7 +2,7 @@
 
 import { api } from "../api.js";
 import { $, badge, element, onSubmit, say } from "../dom.js";
-import { dateTime } from "../format.js";
+import { count, dateTime } from "../format.js";
 
 
 export function setUpStudents(me) {
@@ -32,11 +32,12 @@ export function setUpStudents(me) {
     const form = new FormData();
     form.append("file", file, file.name);
     try {
-      const created = await api("/api/users/roster", { method: "POST", form });
+      const { created, skipped } = await api("/api/users/roster", { method: "POST", form });
       $("roster-form").reset();
-      showTokens(created);
+      if (created.length) showTokens(created);
       await refreshUsers(me);
-      say($("students-message"), `Created ${created.length} students from ${file.name}.`, "success");
+      const already = skipped.length ? ` Skipped ${count(skipped.length, "name")} already taken: ${skipped.join(", ")}.` : "";
+      say($("students-message"), `Created ${count(created.length, "student")} from ${file.name}.${already}`, "success");
     } catch (error) {
       say($("students-message"), `The roster was not created: ${error.message}`, "error");
     }

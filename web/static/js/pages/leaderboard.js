@@ -1,7 +1,7 @@
 // The leaderboard page (/): championship standings, the course leaderboard, rounds and races,
 // refreshed every 15 s. Public: the token, when there is one, only highlights the user's rows.
 
-import { api } from "../api.js";
+import { api, download } from "../api.js";
 import { $, badge, element, onClick, say } from "../dom.js";
 import { dateTime, number, ordinal, percent } from "../format.js";
 import { Pager } from "../pager.js";
@@ -91,6 +91,7 @@ async function refreshChampionships() {
   const picker = $("championship");
   const items = Array.isArray(list) ? list : list.items || [];
   standings.emptyText = items.length ? "No standings yet: no round has been run." : "No championship yet.";
+  $("standings-csv").hidden = me?.role !== "instructor" || !items.length;
   if (!items.length) {
     standings.update([]);
     $("rounds").replaceChildren(element("li", { className: "muted", text: "No championship yet." }));
@@ -186,6 +187,16 @@ async function refreshAll() {
   return $("auto-refresh").checked;
 }
 
+// --------------------------------------------------------------------------- grades (instructors)
+
+onClick($("standings-csv"), () => download(`/api/championships/${championshipId}/standings.csv`,
+  `standings-${championshipId}.csv`).catch(showProblemNow("Standings CSV")));
+onClick($("leaderboard-csv"), () => download("/api/leaderboard.csv", "leaderboard.csv").catch(showProblemNow("Grades CSV")));
+
+function showProblemNow(part) {
+  return (error) => say($("notice"), `${part}: ${error.message}`, "error");
+}
+
 const refresher = new Poller(refreshAll, REFRESH_MS);
 $("auto-refresh").addEventListener("change", (event) => (event.target.checked ? refresher.poll() : refresher.stop()));
 onClick($("refresh-now"), () => refresher.poll());
@@ -197,6 +208,7 @@ async function start() {
     say($("account-notice"), `Your token is no longer valid (${me.reason}); log in again to see your rows highlighted.`, "info");
     me = null;
   }
+  document.querySelectorAll("[data-instructor]").forEach((button) => { button.hidden = me?.role !== "instructor"; });
   refresher.poll();
 }
 

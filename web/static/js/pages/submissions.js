@@ -4,7 +4,7 @@
 import { api } from "../api.js";
 import { $, badge, element, onSubmit, say } from "../dom.js";
 import { showEpisodeChart } from "../episode-chart.js";
-import { dateTime, number, outcomeText } from "../format.js";
+import { count, dateTime, number, outcomeText } from "../format.js";
 import { Poller } from "../poller.js";
 import { requireUser, showAccount } from "../session.js";
 import { dropZone } from "../upload-zone.js";
@@ -20,6 +20,7 @@ let selectedId = Number(new URLSearchParams(location.search).get("id")) || null;
 let shownEvaluation = null; // "id:status" of the evaluation whose chart is drawn
 let chosenFile = null;
 let lastUpload = null; // {id, filename}: its outcome replaces the "uploaded" message
+let quotaKey = null; // the submissions' ids and statuses when the quota was last read
 
 /** Validated and, when ready, evaluated (or the evaluation failed): nothing more will change. */
 function settled(submission) {
@@ -32,6 +33,7 @@ function settled(submission) {
 
 async function refresh() {
   submissions = await api("/api/submissions");
+  await refreshQuota();
   renderList();
   reportUpload();
   fillRaceAgents();
@@ -46,6 +48,21 @@ async function refresh() {
     }
   }
   poller.interval = submissions.every(settled) ? SLOW_POLL_MS : FAST_POLL_MS;
+}
+
+/** Uploads left today: read again when a submission comes or changes status (a rejected one is free). */
+async function refreshQuota() {
+  const key = submissions.map((s) => `${s.id}:${s.status}`).join();
+  if (key === quotaKey) return;
+  quotaKey = key;
+  const quota = (await api("/api/users/me")).upload_quota;
+  if (!quota) {
+    $("upload-quota").textContent = "";
+    return;
+  }
+  const next = quota.next_free_at ? `; the next one frees up at ${dateTime(quota.next_free_at)}` : "";
+  $("upload-quota").textContent = `${quota.remaining} of ${count(quota.limit, "upload")} left in the last 24 hours ` +
+    `(rejected uploads do not count)${next}.`;
 }
 
 function renderList() {

@@ -1,0 +1,422 @@
+"""The student's side of a league server from a terminal: `league login`, `check`, `submit`,
+`submissions`, `leaderboard`, `standings`, `race-server`.
+
+A small client of the server's HTTP API (httpx). The server and token come from --server/--token,
+else LEAGUE_SERVER/LEAGUE_TOKEN, else what `league login` stored in the user's config directory
+(platformdirs; the file is readable by its owner only). `league check` runs the server's own
+validation (league.server.sandbox.validation: static checks, load, dry run in a sandbox, timed
+calls) on this machine, against the server's limits when one is configured.
+"""
+from __future__ import annotations
+
+import argparse
+import csv
+import io
+import json
+import os
+import sys
+import time
+from dataclasses import dataclass, replace
+from pathlib import Path
+
+# Exit codes a script can test (also in `league submit --help`).
+EXIT_OK, EXIT_REJECTED, EXIT_USAGE, EXIT_AUTH, EXIT_REFUSED, EXIT_UNREACHABLE, EXIT_TIMEOUT = 0, 1, 2, 3, 4, 5, 6
+EXIT_CODES = f"""exit codes:
+  {EXIT_OK}  done (submit --wait: ready and evaluated; check: the server would accept the file)
+  {EXIT_REJECTED}  the model was rejected (by the check or the server), or its evaluation failed
+  {EXIT_USAGE}  a mistake in the command, or a local problem (missing file, no server configured)
+  {EXIT_AUTH}  the server refused the token (missing, wrong or revoked), or the action is not yours
+  {EXIT_REFUSED}  the server refused the request: quota, jobs in flight, file size or type, ...
+  {EXIT_UNREACHABLE}  the server cannot be reached or failed
+  {EXIT_TIMEOUT}  --wait gave up before the submission was settled"""
+TERMINAL = {"ready", "rejected", "failed"}
+STAGES = ["pending", "validating", "ready", "evaluation queued", "evaluation running", "done"]
+
+
+class ClientError(Exception):
+    """One line for the user and the exit status it means."""
+
+    def __init__(self, message: str, exit_code: int):
+        super().__init__(message)
+        self.exit_code = exit_code
+
+
+# --------------------------------------------------------------------------- configuration
+
+
+def config_path() -> Path:
+    from platformdirs import user_config_dir
+
+    return Path(user_config_dir("microracer-league")) / "client.json"
+
+
+@dataclass(frozen=True)
+class Connection:
+    server: str
+    token: str | None
+
+
+def connection(args: argparse.Namespace, need_token: bool = True) -> Connection:
+    stored = {}
+    path = config_path()
+    if path.is_file():
+        stored = json.loads(path.read_text())
+    server = args.server or os.environ.get("LEAGUE_SERVER") or stored.get("server")
+    token = args.token or os.environ.get("LEAGUE_TOKEN") or stored.get("token")
+    if not server:
+        raise ClientError("no server: run `league login --server URL` or give --server URL (or LEAGUE_SERVER)",
+                          EXIT_USAGE)
+    if need_token and not token:
+        raise ClientError("no token: run `league login` or give --token TOKEN (or LEAGUE_TOKEN)", EXIT_AUTH)
+    return Connection(server.rstrip("/"), token)
+
+
+def store_login(server: str, token: str) -> Path:
+    """Write the server and token for the next commands, readable by this user only."""
+    path = config_path()
+    path.parent.mkdir(parents=True, exist_ok=True)
+    temporary = path.with_suffix(".tmp")
+    temporary.unlink(missing_ok=True)
+    with os.fdopen(os.open(temporary, os.O_WRONLY | os.O_CREAT | os.O_EXCL, 0o600), "w") as handle:
+        json.dump({"server": server, "token": token}, handle)
+    os.replace(temporary, path)
+    return path
+
+
+# --------------------------------------------------------------------------- HTTP
+
+
+class Api:
+    """The server's API; every failure becomes a ClientError with the server's own words."""
+
+    def __init__(self, conn: Connection, timeout: float = 60):
+        import httpx
+
+        self.conn = conn
+        headers = {"Authorization": f"Bearer {conn.token}"} if conn.token else {}
+        self.http = httpx.Client(base_url=conn.server, headers=headers, timeout=timeout)
+
+    def __enter__(self) -> Api:
+        return self
+
+    def __exit__(self, *exc_info) -> None:
+        self.http.close()
+
+    def call(self, method: str, path: str, **kwargs):
+        import httpx
+
+        try:
+            response = self.http.request(method, path, **kwargs)
+        except httpx.HTTPError as error:
+            raise ClientError(f"cannot reach the league server at {self.conn.server}: {error}",
+                              EXIT_UNREACHABLE) from error
+        if response.is_success:
+            return response.json() if "json" in response.headers.get("content-type", "") else response.text
+        detail = _detail(response)
+        if response.status_code in (401, 403):
+            raise ClientError(f"the server refused: {detail}", EXIT_AUTH)
+        if response.status_code >= 500:
+            raise ClientError(f"the server failed ({response.status_code}): {detail}", EXIT_UNREACHABLE)
+        raise ClientError(f"the server refused: {detail}", EXIT_REFUSED)
+
+    def get(self, path: str, **params):
+        return self.call("GET", path, params=params or None)
+
+
+def _detail(response) -> str:
+    try:
+        detail = response.json().get("detail")
+    except (ValueError, AttributeError):
+        detail = None
+    return detail if isinstance(detail, str) and detail else f"{response.status_code} {response.reason_phrase}"
+
+
+# --------------------------------------------------------------------------- check
+
+
+def server_limits(api: Api | None):
+    """The sandbox limits uploads are validated with: the server's (GET /api/settings/limits), or
+    the defaults (and LEAGUE_* variables) of a server started here."""
+    from league.server.config import Settings
+    from league.server.sandbox.limits import SandboxLimits
+
+    settings, max_bytes = Settings(), None
+    if api is not None:
+        served = api.get("/api/settings/limits")
+        max_bytes = served.pop("max_upload_bytes")
+        settings = settings.model_copy(update={key: value for key, value in served.items() if key in Settings.model_fields})
+    # a student's own machine may lack Landlock or seccomp: the check still runs, isolated as far as it can
+    return replace(SandboxLimits.from_settings(settings), require_isolation=False), max_bytes or settings.max_upload_bytes
+
+
+def check_file(path: Path, api: Api | None = None):
+    """The server's validation of `path` (league.server.sandbox.validation.validate_model), run here."""
+    try:
+        from league.server.sandbox.validation import ValidationReport, validate_model
+        from league.server.storage import model_kind_of
+    except ImportError as error:
+        raise ClientError(f"league check runs the server's own checks: pip install 'microracer-league[server]' "
+                          f"({error})", EXIT_USAGE) from error
+    if not path.is_file():
+        raise ClientError(f"no such file: {path}", EXIT_USAGE)
+    limits, max_bytes = server_limits(api)
+    kind, size = model_kind_of(path.name), path.stat().st_size
+    refusal = ("the file is empty" if size == 0 else
+               f"unsupported file type {path.suffix or '(none)'!r}: upload an .onnx or a TorchScript .pt file"
+               if kind is None else
+               f"file too large: the limit is {max_bytes / 2**20:g} MB" if size > max_bytes else None)
+    if refusal:
+        return ValidationReport(False, None, refusal, ""), limits
+    return validate_model(path, kind, limits), limits
+
+
+def check_report(path: Path, report, limits) -> str:
+    deadline = f"{limits.step_deadline_s * 1000:g} ms"
+    if report.ok:
+        return (f"{path.name}: the server would accept it: observation size {report.obs_dim}, "
+                f"{report.ms_per_call:.2f} ms per call (deadline {deadline})")
+    timing = f" ({report.ms_per_call:.2f} ms per call, deadline {deadline})" if report.ms_per_call else ""
+    return f"{path.name}: the server would reject it: {report.error}{timing}"
+
+
+def run_check(args: argparse.Namespace) -> int:
+    api = _optional_api(args)
+    try:
+        report, limits = check_file(Path(args.file), api)
+    finally:
+        if api is not None:
+            api.http.close()
+    print(check_report(Path(args.file), report, limits))
+    if args.log and report.log:
+        print(report.log, file=sys.stderr)
+    return EXIT_OK if report.ok else EXIT_REJECTED
+
+
+def _optional_api(args: argparse.Namespace) -> Api | None:
+    """The configured server, if any (its limits); `league check` works without one."""
+    try:
+        return Api(connection(args, need_token=False))
+    except ClientError:
+        return None
+
+
+# --------------------------------------------------------------------------- commands
+
+
+def run_login(args: argparse.Namespace) -> int:
+    server = args.server or os.environ.get("LEAGUE_SERVER")
+    if not server:
+        raise ClientError("say which server: league login --server URL", EXIT_USAGE)
+    token = args.token or os.environ.get("LEAGUE_TOKEN")
+    if not token:
+        import getpass
+
+        token = getpass.getpass("API token (from your instructor): ").strip()
+    with Api(Connection(server.rstrip("/"), token)) as api:
+        me = api.get("/api/users/me")
+    path = store_login(server.rstrip("/"), token)
+    print(f"logged in to {server} as {me['name']} ({me['role']}); saved in {path}")
+    return EXIT_OK
+
+
+def run_submit(args: argparse.Namespace) -> int:
+    path = Path(args.file)
+    with Api(connection(args)) as api:
+        if not args.no_check:
+            report, limits = check_file(path, api)
+            print(check_report(path, report, limits), file=sys.stderr)
+            if not report.ok:
+                return EXIT_REJECTED
+        elif not path.is_file():
+            raise ClientError(f"no such file: {path}", EXIT_USAGE)
+        with open(path, "rb") as handle:
+            data = {"name": args.name} if args.name else {}
+            created = api.call("POST", "/api/submissions", files={"file": (path.name, handle)}, data=data)
+        print(f"submission {created['id']}: {created['status']}", file=sys.stderr)
+        if not args.wait:
+            print(created["id"])
+            return EXIT_OK
+        submission = wait_settled(api, created["id"], args.timeout, progress=not args.no_progress)
+    return report_submission(submission, args.json)
+
+
+def stage(submission: dict) -> str:
+    evaluation = submission.get("evaluation") or {}
+    if submission["status"] != "ready":
+        return submission["status"]
+    return "done" if evaluation.get("status") == "done" else f"evaluation {evaluation.get('status', 'queued')}"
+
+
+def settled(submission: dict) -> bool:
+    evaluation = submission.get("evaluation") or {}
+    return submission["status"] in TERMINAL and (submission["status"] != "ready"
+                                                 or evaluation.get("status") in ("done", "failed"))
+
+
+def wait_settled(api: Api, submission_id: int, timeout: float, progress: bool = True) -> dict:
+    """Poll the submission until validated and evaluated, with a bar of its stages."""
+    from tqdm import tqdm
+
+    deadline = time.monotonic() + timeout
+    with tqdm(total=len(STAGES) - 1, disable=not progress, file=sys.stderr, bar_format="{desc} {bar} {n}/{total}") as bar:
+        while True:
+            submission = api.get(f"/api/submissions/{submission_id}")
+            now = stage(submission)
+            bar.set_description_str(f"submission {submission_id}: {now}")
+            if now in STAGES:
+                bar.update(STAGES.index(now) - bar.n)
+            if settled(submission):
+                return submission
+            if time.monotonic() > deadline:
+                raise ClientError(f"submission {submission_id} is still {now} after {timeout:g} s; "
+                                  f"see `league submissions`", EXIT_TIMEOUT)
+            time.sleep(1.0)
+
+
+def report_submission(submission: dict, as_json: bool) -> int:
+    from league.evaluation import MetricsResult
+
+    evaluation = submission.get("evaluation")
+    if as_json:
+        print(json.dumps(submission, indent=2))
+    elif submission["status"] != "ready":
+        print(f"submission {submission['id']} was {submission['status']}: {submission['error']}")
+    elif evaluation["status"] != "done":
+        print(f"submission {submission['id']} is ready, but its evaluation failed: {evaluation['error']}")
+    else:
+        result = MetricsResult.from_dict({"episodes": evaluation["episodes"],
+                                          "settings": {**evaluation["settings"], "agent": submission["name"]}})
+        print(f"submission {submission['id']} is ready\n{result.table()}")
+    ok = submission["status"] == "ready" and evaluation and evaluation["status"] == "done"
+    return EXIT_OK if ok else EXIT_REJECTED
+
+
+def run_submissions(args: argparse.Namespace) -> int:
+    with Api(connection(args)) as api:
+        rows = api.get("/api/submissions")
+    table = [[s["id"], s["name"], stage(s), *_figures(s.get("evaluation")), s["error"] or ""] for s in rows]
+    _print_table(["id", "agent", "status", "completed", "mean return", "mean speed", "error"], table, args.csv)
+    return EXIT_OK
+
+
+def _figures(evaluation: dict | None) -> list:
+    if not evaluation or evaluation["status"] != "done":
+        return ["", "", ""]
+    return [f"{evaluation['completed']}/{evaluation['episodes_total']}", f"{evaluation['mean_return']:.3f}",
+            f"{evaluation['mean_speed']:.3f}"]
+
+
+def run_leaderboard(args: argparse.Namespace) -> int:
+    with Api(connection(args, need_token=args.csv)) as api:
+        if args.csv:  # instructors: the grades
+            sys.stdout.write(api.get("/api/leaderboard.csv"))
+            return EXIT_OK
+        rows = api.get("/api/leaderboard", size=100)["items"]
+    _print_table(["rank", "student", "agent", "id", "completed", "mean return", "mean speed", "rating"],
+                 [[r["rank"], r["owner"], r["name"], r["submission_id"], f"{r['completed']}/{r['episodes']}",
+                   f"{r['mean_return']:.3f}", f"{r['mean_speed']:.3f}",
+                   "" if r["rating"] is None else f"{r['rating']:.2f}"] for r in rows], False)
+    return EXIT_OK
+
+
+def run_standings(args: argparse.Namespace) -> int:
+    with Api(connection(args, need_token=args.csv)) as api:
+        if args.csv:  # instructors: the grades
+            sys.stdout.write(api.get(f"/api/championships/{args.championship}/standings.csv"))
+            return EXIT_OK
+        rows = api.get(f"/api/championships/{args.championship}/standings", size=100)["items"]
+    _print_table(["rank", "student", "agent", "id", "points", "wins", "heats", "rating"],
+                 [[r["rank"], r["owner"], r["name"], r["submission_id"], r["points"], r["wins"], len(r["finishes"]),
+                   f"{r['rating']:.2f}"] for r in rows], False)
+    return EXIT_OK
+
+
+def run_race_server(args: argparse.Namespace) -> int:
+    body = {"submission_ids": args.ids, **({"seed": args.seed} if args.seed is not None else {})}
+    with Api(connection(args)) as api:
+        created = api.call("POST", "/api/races", json=body)
+        print(f"race {created['id']}: {api.conn.server}/races/{created['id']}", file=sys.stderr)
+        deadline = time.monotonic() + args.timeout
+        race = api.get(f"/api/races/{created['id']}")
+        while race["status"] not in ("done", "failed"):
+            if time.monotonic() > deadline:
+                raise ClientError(f"race {created['id']} is still {race['status']} after {args.timeout:g} s",
+                                  EXIT_TIMEOUT)
+            time.sleep(1.0)
+            race = api.get(f"/api/races/{created['id']}")
+        if race["status"] == "failed":
+            print(f"race {race['id']} failed: {race['error']}")
+            return EXIT_REJECTED
+        if args.replay:
+            Path(args.replay).write_text(json.dumps(api.get(f"/api/races/{race['id']}/replay")))
+    from league.evaluation import classification_table
+
+    rows = [{**row, "name": f"{row['name']} ({row['owner']})"} for row in race["classification"]]  # as the replay
+    print(f"race {race['id']} on seed {race['seed']}\n{classification_table(rows)}")
+    return EXIT_OK
+
+
+def _print_table(header: list[str], rows: list[list], as_csv: bool) -> None:
+    if as_csv:
+        out = io.StringIO()
+        csv.writer(out, lineterminator="\n").writerows([header, *rows])
+        sys.stdout.write(out.getvalue())
+        return
+    cells = [[str(c) for c in row] for row in [header, *rows]]
+    widths = [max(len(row[i]) for row in cells) for i in range(len(header))]
+    for row in cells:
+        print("  ".join(cell.ljust(width) for cell, width in zip(row, widths)).rstrip())
+
+
+# --------------------------------------------------------------------------- parser
+
+
+def add_commands(subparsers) -> None:
+    server = argparse.ArgumentParser(add_help=False)
+    group = server.add_argument_group("server (else LEAGUE_SERVER / LEAGUE_TOKEN, else what `league login` saved)")
+    group.add_argument("--server", metavar="URL", help="the league server, e.g. https://league.example.org")
+    group.add_argument("--token", help="your API token")
+    formatter = argparse.RawDescriptionHelpFormatter
+
+    def command(name: str, help_: str, run, description: str | None = None):
+        parser = subparsers.add_parser(name, parents=[server], help=help_, description=description or help_,
+                                       epilog=EXIT_CODES, formatter_class=formatter)
+        parser.set_defaults(run=run)
+        return parser
+
+    command("login", "check a token with a league server and save both for the next commands", run_login)
+
+    check = command("check", "run the server's checks on a model file here, before uploading it", run_check,
+                    "The server's own validation, on this machine: static checks (operators, external data, "
+                    "TorchScript rules), loading and a dry run in a sandbox, and the time per call against the "
+                    "server's step deadline (the configured server's limits, else the defaults).")
+    check.add_argument("file", metavar="FILE", help="an ONNX (.onnx) or TorchScript (.pt) file")
+    check.add_argument("--log", action="store_true", help="also print what the sandbox printed")
+
+    submit = command("submit", "upload a model to the league server", run_submit,
+                     "Check the file here (as `league check`), upload it, and with --wait follow its validation "
+                     "and evaluation and print the result.")
+    submit.add_argument("file", metavar="FILE", help="an ONNX (.onnx) or TorchScript (.pt) file")
+    submit.add_argument("--name", help="the submission's name (default: the file name)")
+    submit.add_argument("--wait", action="store_true", help="wait until it is validated and evaluated")
+    submit.add_argument("--no-check", action="store_true", help="upload without checking the file here first")
+    submit.add_argument("--timeout", type=float, default=600, help="seconds --wait waits at most (default 600)")
+    submit.add_argument("--json", action="store_true", help="with --wait: print the submission as JSON")
+    submit.add_argument("--no-progress", action="store_true", help="hide the progress bar")
+
+    listing = command("submissions", "list your submissions and their results", run_submissions)
+    listing.add_argument("--csv", action="store_true", help="print CSV")
+
+    board = command("leaderboard", "print the course leaderboard", run_leaderboard)
+    board.add_argument("--csv", action="store_true", help="instructors: the grades, as CSV")
+
+    standings = command("standings", "print a championship's standings", run_standings)
+    standings.add_argument("championship", type=int, metavar="CHAMPIONSHIP", help="the championship's id")
+    standings.add_argument("--csv", action="store_true", help="instructors: the grades, as CSV")
+
+    race = command("race-server", "race submissions on the server (a friendly race) and print the classification",
+                   run_race_server)
+    race.add_argument("ids", type=int, nargs="+", metavar="SUB_ID", help="submission ids (yours first)")
+    race.add_argument("--seed", type=int, help="the track's seed (default: drawn by the server)")
+    race.add_argument("--replay", metavar="FILE", help="save the race's replay (JSON) for `league replay`")
+    race.add_argument("--timeout", type=float, default=600, help="seconds to wait for the race (default 600)")

@@ -1,0 +1,169 @@
+"""The `league` client commands against a real server (a `league serve` subprocess on SQLite):
+`league check` says what the server says of every model file the server tests upload; login,
+submit --wait, listings, grades and a friendly race from the terminal; bad token, quota and a
+server that is down give their own message and exit code."""
+from __future__ import annotations
+
+import csv
+import io
+import os
+import re
+import stat
+import subprocess
+import sys
+import uuid
+from concurrent.futures import ThreadPoolExecutor
+
+import pytest
+
+from league.agents import load_agent
+from league.client import EXIT_AUTH, EXIT_OK, EXIT_REFUSED, EXIT_REJECTED, EXIT_UNREACHABLE
+from league.evaluation import metrics_run
+
+from .conftest import (
+    REPO, TEST_SETTINGS, baseline_submission, create_student, free_port, fresh_backend, make_server, upload,
+    wait_settled,
+)
+
+EPISODES, SEED = int(TEST_SETTINGS["LEAGUE_EVAL_EPISODES"]), int(TEST_SETTINGS["LEAGUE_EVAL_SEED"])
+# Too slow, said by whichever deadline a busy machine makes it miss first (the load's, a call's, the median's)
+TIMED = {"slow": r"step deadline|too slow|must answer in 20 ms"}
+
+
+def unique(name: str) -> str:
+    return f"{name}-{uuid.uuid4().hex[:6]}"
+
+
+@pytest.fixture(scope="module")
+def server(tmp_path_factory):
+    tmp = tmp_path_factory.mktemp("client")
+    with fresh_backend("sqlite", tmp) as urls:
+        league_server = make_server(tmp, urls)
+        league_server.start_api()
+        try:
+            yield league_server
+        finally:
+            league_server.stop_all()
+
+
+def league(*args: str, config, **env: str) -> subprocess.CompletedProcess:
+    """`league ARGS` as a student runs it: its own config directory, no LEAGUE_* server settings
+    but the ones given."""
+    base = {k: v for k, v in os.environ.items() if not k.startswith("LEAGUE_")}
+    return subprocess.run([sys.executable, "-m", "league.cli", *args], cwd=config,
+                          env={**base, "XDG_CONFIG_HOME": str(config), "PYTHONPATH": str(REPO), **env},
+                          capture_output=True, text=True, timeout=300)
+
+
+def student_token(server, name: str) -> str:
+    with server.client(server.instructor_token) as instructor:
+        response = instructor.post("/api/users", json={"name": name})
+    assert response.status_code == 201, response.text
+    return response.json()["token"]
+
+
+def test_check_rejects_exactly_what_the_server_rejects(server, models, tmp_path):
+    """Every model file of the server tests, good and hostile: uploaded (one student each), and
+    checked here with `league check` against the server's limits; the same verdict and reason."""
+    uploaded = {}
+    for kind, path in models.items():
+        response = upload(create_student(server, unique(kind)), path)
+        assert response.status_code == 201, response.text
+        uploaded[kind] = response.json()["id"]
+    with ThreadPoolExecutor(2) as pool:
+        checked = dict(zip(models, pool.map(
+            lambda path: league("check", str(path), "--server", server.url, config=tmp_path), models.values())))
+    with server.client(server.instructor_token) as instructor:
+        served = {kind: wait_settled(instructor, uploaded[kind], timeout=120) for kind in models}
+
+    for kind, result in checked.items():
+        verdict = served[kind]
+        assert result.returncode == (EXIT_OK if verdict["status"] == "ready" else EXIT_REJECTED), \
+            (kind, verdict["error"], result.stdout, result.stderr)
+        name = models[kind].name
+        if verdict["status"] == "ready":
+            assert re.fullmatch(rf"{re.escape(name)}: the server would accept it: observation size 5, "
+                                r"[\d.]+ ms per call \(deadline 20 ms\)\n", result.stdout), result.stdout
+        elif kind in TIMED:
+            assert re.search(TIMED[kind], verdict["error"]) and re.search(TIMED[kind], result.stdout), \
+                (verdict["error"], result.stdout)
+        else:
+            assert result.stdout.startswith(f"{name}: the server would reject it: {verdict['error']}"), \
+                (verdict["error"], result.stdout)
+    assert sum(v["status"] == "ready" for v in served.values()) == 3  # the good ones: onnx, torchscript, heuristic
+
+
+def test_a_student_logs_in_submits_waits_and_races_from_the_terminal(server, models, tmp_path):
+    name = unique("terminal")
+    token = student_token(server, name)
+
+    login = league("login", "--server", server.url, "--token", token, config=tmp_path)
+    assert login.returncode == EXIT_OK, login.stderr
+    assert f"as {name} (student)" in login.stdout
+    saved = next(tmp_path.rglob("client.json"))
+    assert stat.S_IMODE(saved.stat().st_mode) == 0o600
+
+    submitted = league("submit", str(models["onnx"]), "--name", "my actor", "--wait", config=tmp_path)
+    assert submitted.returncode == EXIT_OK, submitted.stderr
+    assert "the server would accept it" in submitted.stderr  # checked first
+    assert "submission" in submitted.stderr and ": done" in submitted.stderr  # the progress bar's last stage
+    local = metrics_run(load_agent(models["onnx"]), episodes=EPISODES, seed=SEED)
+    lines = submitted.stdout.splitlines()
+    assert re.fullmatch(r"submission \d+ is ready", lines[0])
+    assert lines[1].startswith(f"my actor: {EPISODES} episodes, seed {SEED}")
+    assert lines[2:] == local.table().splitlines()[1:]  # the same figures as `league evaluate`
+
+    listing = league("submissions", "--csv", config=tmp_path)
+    assert listing.returncode == EXIT_OK, listing.stderr
+    rows = list(csv.DictReader(io.StringIO(listing.stdout)))
+    assert [(r["agent"], r["status"], r["completed"]) for r in rows] == [
+        ("my actor", "done", f"{local.completed}/{EPISODES}")]
+
+    baseline = baseline_submission(server)
+    raced = league("race-server", rows[0]["id"], str(baseline["id"]), "--seed", "5",
+                   "--replay", str(tmp_path / "race.json"), config=tmp_path)
+    assert raced.returncode == EXIT_OK, raced.stderr
+    assert raced.stdout.startswith(f"race ") and " on seed 5\n" in raced.stdout
+    assert "my actor" in raced.stdout and (tmp_path / "race.json").stat().st_size > 1000
+    replayed = league("replay", str(tmp_path / "race.json"), config=tmp_path)
+    assert replayed.returncode == EXIT_OK and replayed.stdout.splitlines()[1:] == raced.stdout.splitlines()[1:]
+
+
+def test_instructors_get_the_grades_from_the_terminal(server, tmp_path):
+    name = unique("graded")
+    student_token(server, name)
+    with server.client(server.instructor_token) as instructor:
+        championship = instructor.post("/api/championships", json={"name": unique("cup")}).json()["id"]
+    env = {"LEAGUE_SERVER": server.url, "LEAGUE_TOKEN": server.instructor_token}
+    standings = league("standings", str(championship), "--csv", config=tmp_path, **env)
+    grades = league("leaderboard", "--csv", config=tmp_path, **env)
+    assert standings.returncode == grades.returncode == EXIT_OK, (standings.stderr, grades.stderr)
+    no_round = [row for row in csv.DictReader(io.StringIO(standings.stdout)) if row["student"] == name]
+    assert no_round == [{**{key: "" for key in no_round[0]}, "student": name}]
+    assert name in [row["student"] for row in csv.DictReader(io.StringIO(grades.stdout))]
+    refused = league("standings", str(championship), "--csv", config=tmp_path, LEAGUE_SERVER=server.url,
+                     LEAGUE_TOKEN=student_token(server, unique("nosy")))
+    assert refused.returncode == EXIT_AUTH
+    assert refused.stderr == "league: error: the server refused: only instructors may do this\n"
+
+
+def test_a_bad_token_a_spent_quota_and_a_server_down_say_so(server, models, tmp_path):
+    bad = league("submissions", "--server", server.url, "--token", "lg_wrong", config=tmp_path)
+    assert (bad.returncode, bad.stderr) == (EXIT_AUTH, "league: error: the server refused: invalid token\n")
+
+    env = {"LEAGUE_SERVER": server.url, "LEAGUE_TOKEN": student_token(server, unique("busy"))}
+    for _ in range(int(TEST_SETTINGS["LEAGUE_QUOTA_PER_DAY"])):
+        done = league("submit", str(models["heuristic_onnx"]), "--no-check", config=tmp_path, **env)
+        assert done.returncode == EXIT_OK, done.stderr
+    over = league("submit", str(models["heuristic_onnx"]), "--no-check", config=tmp_path, **env)
+    assert over.returncode == EXIT_REFUSED
+    assert over.stderr.startswith("league: error: the server refused: quota reached: 4 submissions per 24 hours")
+
+    down = f"http://127.0.0.1:{free_port()}"
+    gone = league("submit", str(models["onnx"]), "--no-check", "--server", down, "--token", "lg_x", config=tmp_path)
+    assert gone.returncode == EXIT_UNREACHABLE
+    assert gone.stderr.startswith(f"league: error: cannot reach the league server at {down}: ")
+
+    nothing = league("submissions", config=tmp_path)  # no login, no variables
+    assert nothing.returncode == 2
+    assert "no server: run `league login --server URL`" in nothing.stderr
