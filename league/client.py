@@ -171,11 +171,12 @@ def check_file(path: Path, api: Api | None = None):
 
 
 def check_report(path: Path, report, limits) -> str:
-    deadline = f"{limits.step_deadline_s * 1000:g} ms"
+    budget = f"limit {limits.step_deadline_s * 1000:g} ms"
     if report.ok:
         return (f"{path.name}: the server would accept it: observation size {report.obs_dim}, "
-                f"{report.ms_per_call:.2f} ms per call (deadline {deadline})")
-    timing = f" ({report.ms_per_call:.2f} ms per call, deadline {deadline})" if report.ms_per_call else ""
+                f"{report.cpu_ms_per_observation:.2f} ms of CPU per observation ({budget})")
+    timing = (f" ({report.cpu_ms_per_observation:.2f} ms of CPU per observation, {budget})"
+              if report.cpu_ms_per_observation else "")
     return f"{path.name}: the server would reject it: {report.error}{timing}"
 
 
@@ -388,8 +389,8 @@ def add_commands(subparsers) -> None:
 
     check = command("check", "run the server's checks on a model file here, before uploading it", run_check,
                     "The server's own validation, on this machine: static checks (operators, external data, "
-                    "TorchScript rules), loading and a dry run in a sandbox, and the time per call against the "
-                    "server's step deadline (the configured server's limits, else the defaults).")
+                    "TorchScript rules), loading and a dry run in a sandbox, and the CPU time per observation "
+                    "against the server's limit (the configured server's limits, else the defaults).")
     check.add_argument("file", metavar="FILE", help="an ONNX (.onnx) or TorchScript (.pt) file")
     check.add_argument("--log", action="store_true", help="also print what the sandbox printed")
 

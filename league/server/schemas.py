@@ -121,10 +121,10 @@ class UploadLimits(BaseModel):
     max_upload_bytes: int
     quota_per_day: int
     sandbox_memory_mb: int
-    step_deadline_ms: float
-    first_call_allowance_ms: float
-    episode_deadline_s: float
-    load_timeout_s: float
+    step_deadline_ms: float = Field(description="CPU time of the model per observation of a call")
+    first_call_allowance_ms: float = Field(description="banked extra CPU time for warm-up calls")
+    run_cpu_s: float = Field(description="CPU time of the model over one evaluation or race")
+    load_cpu_s: float = Field(description="CPU time to start the sandbox, load the model and dry-run it")
 
 
 class RerunRequest(BaseModel):
