@@ -599,34 +599,44 @@ cdef class CarBatch:
             scan(g, x, y, heading, self.ry + c * N_RAYS)
         write_observation(self.ry + c * N_RAYS, speed, self.compact, self.ob + c * self.obs_dim)
 
-    def step(self, const float[:, ::1] actions):
-        """Advance every running car by one step; actions (n, 2) [acceleration, turn].
+    def step(self, const float[:, ::1] actions, moving=None):
+        """Advance every running car by one step; actions (n, 2) [acceleration, turn]. With
+        `moving` (bool, n), only those cars act; the others stand still (reward 0).
 
         Updates obs (a crashed car keeps its last valid observation), reward, outcome,
         distance, steps_taken and, for a car finishing in this step, finish_time
         interpolated inside the step. Returns the number of cars still running.
         """
         cdef int c, running = 0
+        cdef const unsigned char[::1] acts = self._moving(moving)
         if actions.shape[0] != self.n or actions.shape[1] != 2:
             raise ValueError(f"actions must have shape ({self.n}, 2), got ({actions.shape[0]}, {actions.shape[1]})")
         for c in range(self.n):
-            if self.oc[c] == RUNNING and (isnan(actions[c, 0]) or isnan(actions[c, 1])):
+            if self.oc[c] == RUNNING and acts[c] and (isnan(actions[c, 0]) or isnan(actions[c, 1])):
                 raise ValueError(f"the action of car {c} contains NaN; actions must be finite numbers in [-1, 1]")
         self.steps += 1
         with nogil:
             for c in range(self.n):
                 self.rw[c] = 0.0
-                if self.oc[c] == RUNNING:
+                if self.oc[c] == RUNNING and acts[c]:
                     self.move(c, actions[c, 0], actions[c, 1])
-                    running += self.oc[c] == RUNNING
+                running += self.oc[c] == RUNNING
         return running
 
-    def step_episodes(self, const float[:, ::1] actions, long max_steps):
+    def _moving(self, moving) -> cnp.ndarray:
+        if moving is None:
+            return np.ones(self.n, dtype=np.uint8)
+        moving = np.asarray(moving, dtype=bool)
+        if moving.shape != (self.n,):
+            raise ValueError(f"moving must have shape ({self.n},), got {moving.shape}")
+        return moving.view(np.uint8)
+
+    def step_episodes(self, const float[:, ::1] actions, long max_steps, moving=None):
         """`step` for cars in independent episodes: returns (terminated, truncated), bool arrays
         of the cars that stopped in this step, and of those still running that have now taken
-        `max_steps` steps of their own episode."""
-        running_before = self.outcome == RUNNING
-        self.step(actions)
+        `max_steps` steps of their own episode (cars outside `moving` are neither)."""
+        running_before = (self.outcome == RUNNING) & self._moving(moving).view(bool)
+        self.step(actions, moving)
         terminated, truncated = np.zeros(self.n, dtype=bool), np.zeros(self.n, dtype=bool)
         cdef const unsigned char[::1] before = running_before.view(np.uint8)
         cdef unsigned char[::1] stopped = terminated.view(np.uint8), timed_out = truncated.view(np.uint8)

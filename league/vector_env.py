@@ -59,6 +59,11 @@ class MicroRacerVectorEnv(VectorEnv):
     `reset(options=...)` takes the single env's options ("track", "initial_speed") for every
     sub-env it resets, and "reset_mask" (a bool array: reset only those sub-envs).
 
+    ## Stepping some sub-envs
+    `step(actions, moving=mask)` (an addition to Gymnasium's interface) steps only the sub-envs
+    in the bool array `mask`: the others stay exactly as they are (no move, no autoreset, reward
+    0, not done). The baselines use it for the thesis' extra neutral step of some cars.
+
     ## Rendering
     `render_mode="rgb_array"`: `render()` draws sub-env 0 (its track, car and trail).
 
@@ -121,18 +126,20 @@ class MicroRacerVectorEnv(VectorEnv):
         self._needs_reset[mask] = False
         return self.cars.obs.copy(), self._infos(np.zeros(self.num_envs, dtype=bool))
 
-    def step(self, actions):
+    def step(self, actions, moving=None):
         cars, mode = self.cars, self.autoreset_mode
-        if mode == AutoresetMode.DISABLED and self._needs_reset.any():
+        moving = np.ones(self.num_envs, dtype=bool) if moving is None else np.asarray(moving, dtype=bool)
+        if mode == AutoresetMode.DISABLED and (self._needs_reset & moving).any():
             raise RuntimeError(f"sub-envs {np.flatnonzero(self._needs_reset).tolist()} are done: reset them with "
                                "reset(options={'reset_mask': mask}) before stepping (autoreset_mode DISABLED)")
-        moving_first = cars.outcome[0] == RUNNING
-        terminated, truncated = cars.step_episodes(as_actions(actions, self.num_envs), self.options.max_episode_steps)
+        moving_first = cars.outcome[0] == RUNNING and moving[0]
+        terminated, truncated = cars.step_episodes(as_actions(actions, self.num_envs), self.options.max_episode_steps,
+                                                   moving)
         rewards = cars.reward.copy()
         if self.render_mode is not None and moving_first:
             self._trail.append((float(cars.x[0]), float(cars.y[0])))
         done = terminated | truncated
-        restart, final = self._needs_reset, None  # next step: those done in the previous step
+        restart, final = self._needs_reset & moving, None  # next step: those done in the previous step
         if mode == AutoresetMode.SAME_STEP:
             restart = done
             if done.any():
@@ -143,7 +150,10 @@ class MicroRacerVectorEnv(VectorEnv):
         if restart.any():
             for i in np.flatnonzero(restart):
                 self._start_episode(i)
-        self._needs_reset = done if mode != AutoresetMode.SAME_STEP else np.zeros(self.num_envs, dtype=bool)
+        if mode == AutoresetMode.SAME_STEP:
+            self._needs_reset = np.zeros(self.num_envs, dtype=bool)
+        else:
+            self._needs_reset = np.where(moving, done, self._needs_reset)
         infos = self._infos(truncated & ~restart)
         if final is not None:
             _add_final(infos, *final, done)

@@ -64,6 +64,29 @@ def test_every_option_as_the_single_env(options):
     run_against_single_envs(150, num_envs=3, **options)
 
 
+def test_stepping_some_sub_envs_leaves_the_others_exactly_as_they_were():
+    venv = league.vector_env(num_envs=4, max_episode_steps=30)
+    singles = {0: league.MicroRacerEnv(max_episode_steps=30), 2: league.MicroRacerEnv(max_episode_steps=30)}
+    obs, _ = venv.reset(seed=5)
+    for i, env in singles.items():
+        env.reset(seed=5 + i)
+    moving, still, done = np.array([True, False, True, False]), obs[[1, 3]].copy(), {0: False, 2: False}
+    for _ in range(80):  # through the time limit and the next-step autoreset of the moving ones
+        actions = drive(obs)
+        step = venv.step(actions, moving=moving)
+        obs, reward, terminated, truncated, _ = step
+        np.testing.assert_array_equal(obs[[1, 3]], still)
+        assert not (reward[[1, 3]].any() or terminated[[1, 3]].any() or truncated[[1, 3]].any())
+        for i, env in singles.items():
+            if done[i]:
+                reset_obs, info = env.reset()
+                single = (reset_obs, 0.0, False, False, info)
+            else:
+                single = env.step(actions[i])
+            assert_same_step(step, single, i)
+            done[i] = single[2] or single[3]
+
+
 def test_truncation_counts_each_cars_own_steps():
     venv = league.vector_env(num_envs=2, max_episode_steps=40, obstacles=False, chicanes=False)
     obs, _ = venv.reset(seed=2)

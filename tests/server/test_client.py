@@ -83,7 +83,7 @@ def test_check_rejects_exactly_what_the_server_rejects(server, models, tmp_path)
         name = models[kind].name
         if verdict["status"] == "ready":
             assert re.fullmatch(rf"{re.escape(name)}: the server would accept it: observation size 5, "
-                                r"[\d.]+ ms per call \(deadline 20 ms\)\n", result.stdout), result.stdout
+                                r"[\d.]+ ms of CPU per observation \(limit 20 ms\)\n", result.stdout), result.stdout
         elif kind in TIMED:
             assert re.search(TIMED[kind], verdict["error"]) and re.search(TIMED[kind], result.stdout), \
                 (verdict["error"], result.stdout)

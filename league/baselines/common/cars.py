@@ -1,4 +1,4 @@
-"""The cars a run collects from: K single-car MicroRacer environments stepped together.
+"""The cars a run collects from: K single-car MicroRacer episodes stepped together.
 
 This is the baselines' environment wrapper (`Cars`), kept apart so that the way of collecting
 can change here alone.
@@ -8,9 +8,10 @@ from __future__ import annotations
 from typing import NamedTuple
 
 import numpy as np
+from gymnasium.vector import AutoresetMode
 
 from league.baselines.common.args import CommonArgs, TrainError, env_options_of
-from league.env import MicroRacerEnv
+from league.vector_env import vector_env
 
 NEUTRAL_ACTION = (0.0, 0.0)  # [acceleration, turn]: keep speed and heading (thesis, section 4.1)
 
@@ -33,27 +34,28 @@ class CarStep(NamedTuple):
 
 
 class Cars:
-    """K independent single-car MicroRacer environments stepped together, each on its own tracks.
+    """K independent single-car MicroRacer episodes stepped together, each on its own tracks: a
+    `league.vector_env` (one call of the compiled core per step, no Python loop over cars).
 
-    A car whose episode ends is reset at once to a new random track, so every slot always
-    drives: `step` returns the true next observations (for the replay buffer) and `obs` holds
-    the observations to act on next. K separate cars are as fast as the batched PettingZoo
-    interface for training (a step is ~3 µs against ~2 ms of gradient updates per
-    transition) and see K times more tracks, where the ParallelEnv's cars share one track
-    and wait for the slowest.
+    A car whose episode ends is reset at once to a new random track (same-step autoreset), so
+    every slot always drives: `step` returns the true next observations (for the replay buffer)
+    and `obs` holds the observations to act on next. K separate cars see K times more tracks
+    than the ParallelEnv's cars, which share one track and wait for the slowest. Car i's tracks
+    and trajectory are those of `MicroRacerEnv` seeded with the run's i-th seed.
 
     The thesis (section 4.1) "randomly performs, after a chosen action, another one composed
     of [0, 0], which keeps the same speed and direction", to loosen the agent's coupling to
     the time step: with probability ``neutral_prob`` a car's decision lasts two steps, the
-    second one neutral, and the transition carries the sum of both rewards.
+    second one neutral (only those cars move in it), and the transition carries the sum of
+    both rewards.
     """
 
     def __init__(self, n_cars: int, seed: int | list[int], neutral_prob: float = 0.0, **env_options):
         if n_cars < 1:
             raise TrainError(f"--envs must be at least 1, got {n_cars}")
-        self.envs = [MicroRacerEnv(**env_options) for _ in range(n_cars)]
+        self.env = vector_env(num_envs=n_cars, autoreset_mode=AutoresetMode.SAME_STEP, **env_options)
         self.n = n_cars
-        self.obs_dim = self.envs[0].observation_space.shape[0]
+        self.obs_dim = self.env.single_observation_space.shape[0]
         self.neutral_prob = neutral_prob
         sequence = np.random.SeedSequence(seed)
         self.rng = np.random.default_rng(sequence.spawn(1)[0])
@@ -65,49 +67,50 @@ class Cars:
         self.episodes: list[EpisodeStats] = []  # finished since the last `pop_episodes`
 
     def reset(self) -> np.ndarray:
-        for i, env in enumerate(self.envs):
-            self.obs[i] = env.reset(seed=self._seeds[i])[0]
+        self.obs = self.env.reset(seed=self._seeds)[0]
         return self.obs.copy()
 
     def step(self, actions: np.ndarray) -> CarStep:
-        n = self.n
-        next_obs = np.empty_like(self.obs)
-        rewards = np.zeros(n, dtype=np.float32)
-        terminated = np.zeros(n, dtype=bool)
-        truncated = np.zeros(n, dtype=bool)
-        finished = np.zeros(n, dtype=bool)
-        neutral = self.rng.random(n) < self.neutral_prob
-        for i, env in enumerate(self.envs):
-            obs, reward, term, trunc, info = self._env_step(i, actions[i])
-            if neutral[i] and not (term or trunc):
-                obs, reward2, term, trunc, info = self._env_step(i, NEUTRAL_ACTION)
-                reward += reward2
-            next_obs[i], rewards[i], terminated[i], truncated[i] = obs, reward, term, trunc
-            if term or trunc:
-                finished[i] = info["outcome"] == "finished"
-                self._end_episode(i, "timeout" if trunc and not term else info["outcome"])
-                self.obs[i] = env.reset()[0]
-            else:
-                self.obs[i] = obs
-        return CarStep(next_obs, rewards, terminated, truncated, finished)
+        neutral = self.rng.random(self.n) < self.neutral_prob
+        ended: list[tuple[int, EpisodeStats]] = []
+        next_obs, rewards, terminated, truncated, outcome = self._step(actions, None, ended)
+        second = neutral & ~(terminated | truncated)
+        if second.any():
+            obs2, rewards2, terminated2, truncated2, outcome2 = self._step(np.zeros((self.n, 2), np.float32), second,
+                                                                          ended)
+            next_obs[second], rewards[second] = obs2[second], rewards[second] + rewards2[second]
+            terminated[second], truncated[second], outcome[second] = \
+                terminated2[second], truncated2[second], outcome2[second]
+        self.episodes += [stats for _, stats in sorted(ended, key=lambda item: item[0])]  # by car, as one loop would
+        finished = (terminated | truncated) & (outcome == "finished")
+        return CarStep(next_obs, rewards.astype(np.float32), terminated, truncated, finished)
 
-    def _env_step(self, i: int, action) -> tuple:
-        obs, reward, terminated, truncated, info = self.envs[i].step(action)
-        self._return[i] += reward
-        self._steps[i] += 1
-        if not (terminated or truncated):
-            self._speed_sum[i] += info["speed"]
-        return obs, reward, terminated, truncated, info
+    def _step(self, actions: np.ndarray, moving: np.ndarray | None, ended: list) -> tuple:
+        """One step of the cars in `moving` (all: None): their last observations (the final one of
+        an episode that ended), rewards, ends and outcomes; `obs` becomes what to act on next."""
+        obs, rewards, terminated, truncated, infos = self.env.step(actions, moving)
+        moved = np.ones(self.n, dtype=bool) if moving is None else moving
+        done = terminated | truncated
+        self._return[moved] += rewards[moved]
+        self._steps[moved] += 1
+        going = moved & ~done
+        self._speed_sum[going] += infos["speed"][going]
+        last_obs, outcome = obs.copy(), infos["outcome"].copy()
+        for i in np.flatnonzero(done):
+            last_obs[i], outcome[i] = infos["final_obs"][i], infos["final_info"]["outcome"][i]
+            ended.append((i, self._end_episode(i, "timeout" if truncated[i] and not terminated[i] else outcome[i])))
+        self.obs = np.where(moved[:, None], obs, self.obs)
+        return last_obs, rewards, terminated, truncated, outcome
 
-    def _end_episode(self, i: int, outcome: str) -> None:
+    def _end_episode(self, i: int, outcome: str) -> EpisodeStats:
         steps = int(self._steps[i])
-        self.episodes.append(EpisodeStats(float(self._return[i]), steps, outcome, float(self._speed_sum[i]) / steps))
+        stats = EpisodeStats(float(self._return[i]), steps, str(outcome), float(self._speed_sum[i]) / steps)
         self._return[i], self._steps[i], self._speed_sum[i] = 0.0, 0, 0.0
+        return stats
 
     def pop_episodes(self) -> list[EpisodeStats]:
         episodes, self.episodes = self.episodes, []
         return episodes
-
 
 
 def make_cars(args: CommonArgs, seed_offset: int = 0) -> Cars:
