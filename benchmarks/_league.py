@@ -90,7 +90,9 @@ class League:
     def __init__(self, folder: Path, *, embedded: bool, workers: int = 0, settings: dict[str, str] | None = None):
         self.folder, self.port = folder, free_port()
         self.url = f"http://127.0.0.1:{self.port}"
-        self.env = {**os.environ, "LEAGUE_DATA_DIR": str(folder), "PYTHONPATH": str(ROOT), **(settings or {})}
+        self.env = {**os.environ, "LEAGUE_DATA_DIR": str(folder), "PYTHONPATH": str(ROOT),
+                    "LEAGUE_BASELINES_DIR": str(folder / "baselines"),  # empty: the heuristic driver only
+                    **(settings or {})}
         self.token = self._run("users", "add", "bench", "--role", "instructor").strip()
         self.workers: list[subprocess.Popen] = []  # running (started and not stopped yet)
         self.workers_started = 0

@@ -176,6 +176,7 @@ def make_server(tmp_path: Path, urls: tuple[str, str, str], **settings: str) -> 
     env = {**os.environ, **TEST_SETTINGS, **settings, "LEAGUE_DATA_DIR": str(data_dir),
            "LEAGUE_DATABASE_URL": database_url, "LEAGUE_QUEUE_URL": queue_url, "LEAGUE_QUEUE_NAME": queue_name,
            "LEAGUE_CPU_SLOTS_DIR": str(tmp_path / "cpu-slots"),  # this test's workers are one machine's
+           "LEAGUE_BASELINES_DIR": str(data_dir / "baselines"),  # empty: the heuristic driver is the baseline
            "PYTHONPATH": str(REPO)}
     server = LeagueServer(env, data_dir)
     added = server.command("users", "add", "prof", "--role", "instructor")

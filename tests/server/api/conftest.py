@@ -93,6 +93,7 @@ def in_process_league(kind: str, tmp_path: Path, **settings):
     with fresh_backend(kind, tmp_path) as (database_url, queue_url, queue_name):
         values = {key.removeprefix("LEAGUE_").lower(): value for key, value in TEST_SETTINGS.items()}
         values.update(public_cache_s=0)  # every answer fresh: tests independent of their order
+        values.update(baselines_dir=tmp_path / "baselines")  # empty: the heuristic driver is the baseline
         settings = Settings(_env_file=None, **{**values, **settings}, data_dir=tmp_path / "data",
                             database_url=database_url, queue_url=queue_url, queue_name=queue_name)
         app = create_app(settings)
