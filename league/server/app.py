@@ -69,7 +69,7 @@ def create_app(settings: Settings | None = None, league_: League | None = None) 
                                      "evaluated on the course's tracks.")
     app.state.league, app.state.settings, app.state.sessions = league_, settings, league_.sessions
     app.state.queue, app.state.store = league_.queue, league_.store
-    app.state.cache = ResponseCache(settings.public_cache_s)
+    app.state.cache = ResponseCache(settings.public_cache_s, settings.public_cache_max_age_s)
     app.include_router(api_router, prefix="/api")
     app.add_exception_handler(StarletteHTTPException, _http_error)
     mount_web(app)

@@ -45,7 +45,12 @@ class Settings(BaseSettings):
     # races and championships
     max_race_cars: int = Field(10, description="cars in one race or championship heat")
     race_quota_per_day: int = Field(20, description="friendly races a student may start per rolling 24 h")
-    public_cache_s: float = Field(2.0, description="seconds the leaderboard and standings are served from memory")
+    public_cache_s: float = Field(2.0, ge=0, description="seconds the leaderboard and standings are served from "
+                                                         "memory while the database's state stamp is unchanged "
+                                                         "(a finished evaluation or heat is shown at once)")
+    public_cache_max_age_s: float = Field(5.0, ge=0, description="the oldest leaderboard or standings answer ever "
+                                                                 "served: past public_cache_s one is served while "
+                                                                 "its successor is computed, up to this age")
 
     # sandbox limits
     sandbox_memory_mb: int = Field(512, description="address space a model may use on top of its runtime")

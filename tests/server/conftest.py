@@ -222,6 +222,20 @@ def submission(client: httpx.Client, submission_id: int) -> dict:
     return response.json()
 
 
+def episodes(client: httpx.Client, submission_id: int, evaluation_id: int, limit: int = 1000) -> list[dict]:
+    """Every episode of an evaluation, page after page (the status answer carries none)."""
+    items: list[dict] = []
+    while True:
+        response = client.get(f"/api/submissions/{submission_id}/episodes",
+                              params={"evaluation_id": evaluation_id, "offset": len(items), "limit": limit})
+        assert response.status_code == 200, response.text
+        page = response.json()
+        assert page["evaluation_id"] == evaluation_id
+        items += page["items"]
+        if len(items) >= page["total"] or not page["items"]:
+            return items
+
+
 def settled(value: dict) -> bool:
     """Validation finished, and if the submission is ready, its evaluation too."""
     if value["status"] not in TERMINAL:
