@@ -31,7 +31,7 @@ MULTIPART_SLACK = 64 * 1024  # bytes of multipart framing and form fields allowe
 
 @dataclass
 class League:
-    """What the app and an embedded worker share."""
+    """What the app works with (its worker process opens its own)."""
 
     settings: Settings
     engine: Engine
