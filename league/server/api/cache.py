@@ -6,8 +6,9 @@ Each kept answer carries the database's state stamp it was computed under
 heat is done the stamp changes, and the next request computes the new answer. Under an
 unchanged stamp an answer is fresh for `ttl_s`; until `max_age_s` it is still served while one
 background thread computes its successor (stale-while-revalidate); older, it is computed again
-before it is served. So a change the stamp reads is visible on the next request, any other (e.g.
-a job finished by a worker whose clock is behind) within max_age_s.
+before it is served. So a change the stamp reads is visible on the next request, any other within
+max_age_s (e.g. a job whose finish time is older than one already read: stamped by a worker whose
+clock is behind, or committed just after a job that finished later).
 """
 from __future__ import annotations
 
