@@ -55,12 +55,13 @@ def bench_evaluation(model: Path, episodes: int) -> float:
 
 
 def keep_evaluating(client, stop: threading.Event, busy: list[int], submission_id: int) -> None:
-    """Re-run one submission's evaluation whenever the queue runs dry, and count the jobs that ran."""
+    """Keep one re-run of a submission's evaluation waiting behind the running one, and count the jobs
+    that ran."""
     while not stop.is_set():
         running = client.get("/api/jobs", params={"status": "running"}).json()
         queued = client.get("/api/jobs", params={"status": "queued"}).json()
         busy.append(len(running))
-        if not running and not queued:
+        if not queued:
             client.post("/api/evaluations/rerun", json={"submission_id": submission_id})
         stop.wait(0.5)
 
@@ -85,13 +86,14 @@ def bench_status(model: Path, rate: float, seconds: float, embedded: bool, root:
                     **({"root": root} if root else {})) as league:
             client = league.client()
             polled, evaluating = evaluated(client, model), evaluated(client, model)
+            path = f"/api/submissions/{polled}"
+            idle = np.array(measure_latency(league.url, league.token, path, rate, seconds)) * 1000
             stop, busy = threading.Event(), []
             loader = threading.Thread(target=keep_evaluating, args=(client, stop, busy, evaluating))
             loader.start()
             time.sleep(2)  # evaluations under way
             try:
-                latencies = np.array(measure_latency(league.url, league.token, f"/api/submissions/{polled}",
-                                                     rate, seconds)) * 1000
+                latencies = np.array(measure_latency(league.url, league.token, path, rate, seconds)) * 1000
             finally:
                 stop.set()
                 loader.join()
@@ -102,7 +104,8 @@ def bench_status(model: Path, rate: float, seconds: float, embedded: bool, root:
           f"{f' (source tree {root})' if root else ''}:")
     print(f"    p50 {p50:.1f} ms, p95 {p95:.1f} ms, p99 {p99:.1f} ms, max {latencies.max():.1f} ms "
           f"(target p99 <= {P99_TARGET_MS:g} ms: {verdict}); a job was running in "
-          f"{100 * np.mean(np.array(busy) > 0):.0f}% of the samples", flush=True)
+          f"{100 * np.mean(np.array(busy) > 0):.0f}% of the samples; idle before: p50 "
+          f"{np.percentile(idle, 50):.1f} ms, p99 {np.percentile(idle, 99):.1f} ms", flush=True)
     return float(p99)
 
 
