@@ -83,7 +83,7 @@ def backend(kind: str, folder: Path) -> Iterator[dict[str, str]]:
 
 
 class League:
-    """`league serve` (API + embedded worker, or API only) and `league worker`s on loopback, in
+    """`league serve` (API + its worker process, or API only) and `league worker`s on loopback, in
     `folder` (the data directory); `settings` are LEAGUE_* variables. Use it as a context manager
     (or call stop()): every process it started is stopped."""
 

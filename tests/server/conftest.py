@@ -187,7 +187,7 @@ def make_server(tmp_path: Path, urls: tuple[str, str, str], **settings: str) -> 
 
 @pytest.fixture(scope="package", params=BACKENDS)
 def league_server(request, tmp_path_factory):
-    """A running `league serve` (API + embedded worker) per backend, shared by the API tests."""
+    """A running `league serve` (API + its worker process) per backend, shared by the API tests."""
     tmp_path = tmp_path_factory.mktemp(f"league-{request.param}")
     with fresh_backend(request.param, tmp_path) as urls:
         server = make_server(tmp_path, urls)
