@@ -5,7 +5,7 @@
 FROM python:3.11-slim
 
 ENV PYTHONDONTWRITEBYTECODE=1 PYTHONUNBUFFERED=1 PIP_NO_CACHE_DIR=1 \
-    LEAGUE_DATA_DIR=/data LEAGUE_BASELINES_DIR=/app/agents_submissions/baselines
+    LEAGUE_DATA_DIR=/data
 
 # A C compiler for the simulator's Cython core.
 RUN apt-get update && apt-get install -y --no-install-recommends build-essential \
@@ -13,7 +13,7 @@ RUN apt-get update && apt-get install -y --no-install-recommends build-essential
 
 WORKDIR /app
 COPY . /app
-RUN pip install ".[server,torch]" && mkdir -p /data /app/agents_submissions/baselines
+RUN pip install ".[server,torch]" && mkdir -p /data  # the bundled baseline agents are package data
 
 # Runs as root so that each sandbox can enter its own network namespace and then drop to
 # `nobody` (see league/server/sandbox/child.py); the API and workers never load a model.

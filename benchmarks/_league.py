@@ -105,14 +105,18 @@ def backend(kind: str, folder: Path) -> Iterator[dict[str, str]]:
 
 
 class League:
-    """`league serve` (API + embedded worker, or API only) and `league worker`s on loopback, in
+    """`league serve` (API + its worker process, or API only) and `league worker`s on loopback, in
     `folder` (the data directory); `settings` are LEAGUE_* variables. Use it as a context manager
     (or call stop()): every process it started is stopped."""
 
-    def __init__(self, folder: Path, *, embedded: bool, workers: int = 0, settings: dict[str, str] | None = None):
-        self.folder, self.port = folder, free_port()
+    def __init__(self, folder: Path, *, embedded: bool, workers: int = 0, settings: dict[str, str] | None = None,
+                 root: Path = ROOT):
+        """`root`: the source tree the servers run (another checkout, e.g. to compare with a commit)."""
+        self.folder, self.port, self.root = folder, free_port(), root
         self.url = f"http://127.0.0.1:{self.port}"
-        self.env = {**os.environ, "LEAGUE_DATA_DIR": str(folder), "PYTHONPATH": str(ROOT), **(settings or {})}
+        self.env = {**os.environ, "LEAGUE_DATA_DIR": str(folder), "PYTHONPATH": str(root),
+                    "LEAGUE_BASELINES_DIR": str(folder / "baselines"),  # empty: the heuristic driver only
+                    **(settings or {})}
         self.token = self._run("users", "add", "bench", "--role", "instructor").strip()
         self.workers: list[subprocess.Popen] = []  # running (started and not stopped yet)
         self.workers_started = 0
@@ -133,13 +137,13 @@ class League:
         self.stop()
 
     def _run(self, *args: str) -> str:
-        return subprocess.run([sys.executable, "-m", "league.server", *args], env=self.env, check=True,
+        return subprocess.run([sys.executable, "-m", "league.server", *args], env=self.env, cwd=self.root, check=True,
                               capture_output=True, text=True, timeout=120).stdout
 
     def _spawn(self, *args: str, log: str, settings: dict[str, str] | None = None) -> subprocess.Popen:
         with open(self.folder / log, "ab") as output:
             return subprocess.Popen([sys.executable, "-m", "league.server", *args], env={**self.env, **(settings or {})},
-                                    stdout=output, stderr=subprocess.STDOUT)
+                                    cwd=self.root, stdout=output, stderr=subprocess.STDOUT)
 
     def _wait_healthy(self, timeout: float = 60) -> None:
         import httpx

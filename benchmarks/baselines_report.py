@@ -6,7 +6,7 @@
     done; done
     # 2. evaluate every run's exported actor, print the README table, draw the curves, bundle
     python benchmarks/baselines_report.py runs --curves docs/baselines_curves.png \
-        --bundle agents_submissions/baselines
+        --bundle league/baselines/agents
 
 Every run's deterministic actor (by default the one of its best periodic evaluation on
 validation tracks of seed 12345, ranked by racing score = completed fraction × mean speed)

@@ -1,6 +1,7 @@
 """Benchmark of the league server: sandboxed evaluations, and status answers under load.
 
     python benchmarks/bench_server.py [--episodes 100] [--uploads 20] [--rate 200] [--seconds 10]
+    python benchmarks/bench_server.py --status-trees OLD_CHECKOUT .   # (d) of `league serve`, per source tree
 
 (a) 100 episodes of a thesis-size ONNX actor (5 -> 64 -> 64 -> 2), one core, three ways: the
     plain per-episode loop a student writes (no sandbox), lockstep metrics_run without a sandbox,
@@ -9,9 +10,11 @@
 (b) from upload to figures, a `league worker` on one CPU: target >= 1x the plain loop of (a);
 (c) 20 uploads at once to that worker (validation and evaluation each): target >= 100
     evaluations per core-minute;
-(d) GET /api/submissions/{id} at 200 requests/s on loopback while a `league worker` process
-    keeps evaluating (re-runs of every submission): target p99 <= 50 ms; then the same with
-    the worker embedded in `league serve` (one process, the default setup);
+(d) GET /api/submissions/{id} of an evaluated submission (100 episodes) at 200 requests/s on
+    loopback while a worker keeps evaluating another one (re-runs): target p99 <= 50 ms; with
+    a `league worker` beside `league serve --no-worker`, then with `league serve` alone (the
+    default setup; its worker is its child process). --status-trees runs the latter only, once
+    per source tree given (e.g. a checkout of an older commit, then this one);
 (e) the same evaluation as (a) as a job of a `league worker` that may use every CPU (as a
     course runs it): the job's run time with the worker's CPU placement (its thread and the
     sandbox on one CPU, the default) and without it (LEAGUE_CPU_PLACEMENT=false).
@@ -119,47 +122,61 @@ def wait_ready(client, submission_ids: list[int], timeout: float = 600) -> None:
 # --------------------------------------------------------------------------- (d) status latency
 
 
-def keep_evaluating(client, stop: threading.Event, busy: list[int]) -> None:
-    """Re-run every evaluation whenever the queue runs dry, and count the jobs that ran."""
+def keep_evaluating(client, stop: threading.Event, busy: list[int], submission_id: int) -> None:
+    """Keep one re-run of a submission's evaluation waiting behind the running one, and count the jobs
+    that ran."""
     while not stop.is_set():
         running = client.get("/api/jobs", params={"status": "running"}).json()
         queued = client.get("/api/jobs", params={"status": "queued"}).json()
         busy.append(len(running))
-        if not running and not queued:
-            client.post("/api/evaluations/rerun", json={"all": True})
+        if not queued:
+            client.post("/api/evaluations/rerun", json={"submission_id": submission_id})
         stop.wait(0.5)
 
 
-def bench_status(model: Path, rate: float, seconds: float, embedded: bool) -> float:
+def evaluated(client, model: Path, timeout: float = 300) -> int:
+    """Upload `model`; its id once its evaluation is done."""
+    with open(model, "rb") as handle:
+        submission_id = client.post("/api/submissions", files={"file": (model.name, handle)}).json()["id"]
+    deadline = time.monotonic() + timeout
+    while (client.get(f"/api/submissions/{submission_id}").json().get("evaluation") or {}).get("status") != "done":
+        if time.monotonic() > deadline:
+            raise TimeoutError(f"submission {submission_id} was not evaluated in {timeout:g} s")
+        time.sleep(0.5)
+    return submission_id
+
+
+def bench_status(model: Path, rate: float, seconds: float, embedded: bool, root: Path | None = None) -> float:
     import numpy as np
 
     with tempfile.TemporaryDirectory(prefix="league-bench-") as tmp:
-        with League(Path(tmp), embedded=embedded, workers=0 if embedded else 1,
-                    settings={"LEAGUE_EVAL_EPISODES": "20"}) as league:
+        with League(Path(tmp), embedded=embedded, workers=0 if embedded else 1, settings={"LEAGUE_EVAL_EPISODES": "100"},
+                    **({"root": root} if root else {})) as league:
             client = league.client()
-            with open(model, "rb") as handle:
-                submission_id = client.post("/api/submissions", files={"file": (model.name, handle)}).json()["id"]
+            polled, evaluating = evaluated(client, model), evaluated(client, model)
+            path = f"/api/submissions/{polled}"
+            idle = np.array(measure_latency(league.url, league.token, path, rate, seconds)) * 1000
             stop, busy = threading.Event(), []
-            loader = threading.Thread(target=keep_evaluating, args=(client, stop, busy))
+            loader = threading.Thread(target=keep_evaluating, args=(client, stop, busy, evaluating))
             loader.start()
             time.sleep(2)  # evaluations under way
             try:
-                latencies = np.array(measure_latency(league.url, league.token, f"/api/submissions/{submission_id}",
-                                                     rate, seconds)) * 1000
+                latencies = np.array(measure_latency(league.url, league.token, path, rate, seconds)) * 1000
             finally:
                 stop.set()
                 loader.join()
     p50, p95, p99 = np.percentile(latencies, [50, 95, 99])
-    where = "embedded in `league serve`" if embedded else "in a `league worker` process"
-    verdict = "ok" if p99 <= P99_TARGET_MS else "OVER TARGET"
-    print(f"(d) GET status, {len(latencies)} requests at {rate:g}/s, evaluations running {where}:")
+    where = "by `league serve`" if embedded else "in a `league worker` process"
+    print(f"(d) GET status, {len(latencies)} requests at {rate:g}/s, evaluations running {where}"
+          f"{f' (source tree {root})' if root else ''}:")
     print(f"    p50 {p50:.1f} ms, p95 {p95:.1f} ms, p99 {p99:.1f} ms, max {latencies.max():.1f} ms "
-          f"(target p99 <= {P99_TARGET_MS:g} ms: {verdict}); a job was running in "
-          f"{100 * np.mean(np.array(busy) > 0):.0f}% of the samples")
+          f"(target p99 <= {P99_TARGET_MS:g} ms: {verdict(p99 <= P99_TARGET_MS)}); a job was running in "
+          f"{100 * np.mean(np.array(busy) > 0):.0f}% of the samples; idle before: p50 "
+          f"{np.percentile(idle, 50):.1f} ms, p99 {np.percentile(idle, 99):.1f} ms", flush=True)
     return float(p99)
 
 
-# --------------------------------------------------------------------------- (c) evaluation job
+# --------------------------------------------------------------------------- (e) evaluation job
 
 
 def bench_evaluation_job(model: Path, episodes: int, placement: bool) -> float:
@@ -195,9 +212,16 @@ def main() -> None:
     parser.add_argument("--seconds", type=float, default=10.0, help="length of the GET load")
     parser.add_argument("--uploads", type=int, default=20, help="uploads at once in (c)")
     parser.add_argument("--only-jobs", action="store_true", help="only (e)")
+    parser.add_argument("--status-trees", type=Path, nargs="+", metavar="TREE",
+                        help="only (d) with `league serve`, run from each of these source trees in turn")
     args = parser.parse_args()
     with tempfile.TemporaryDirectory(prefix="league-bench-model-") as folder:
         model = thesis_actor(Path(folder))
+        if args.status_trees:
+            p99s = [bench_status(model, args.rate, args.seconds, embedded=True, root=tree.resolve())
+                    for tree in args.status_trees]
+            print("    p99: " + ", ".join(f"{tree}: {p99:.1f} ms" for tree, p99 in zip(args.status_trees, p99s)))
+            return
         if not args.only_jobs:
             plain = bench_evaluation(model, args.episodes)
             bench_worker_on_one_cpu(model, args.episodes, plain, args.uploads)

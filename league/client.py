@@ -238,7 +238,22 @@ def run_submit(args: argparse.Namespace) -> int:
             print(created["id"])
             return EXIT_OK
         submission = wait_settled(api, created["id"], args.timeout, progress=not args.no_progress)
+        evaluation = submission.get("evaluation")
+        if evaluation and evaluation["status"] == "done":  # the status answer links to its episodes
+            evaluation["episodes"] = all_episodes(api, submission["links"]["episodes"])
     return report_submission(submission, args.json)
+
+
+def all_episodes(api: Api, link: str) -> list[dict]:
+    """Every episode of an evaluation, from its paged endpoint (`link`: the status answer's)."""
+    import httpx
+
+    url, episodes = httpx.URL(link), []
+    while True:
+        page = api.get(url.path, **dict(url.params), offset=len(episodes), limit=EPISODE_PAGE)
+        episodes += page["items"]
+        if len(episodes) >= page["total"] or not page["items"]:
+            return episodes
 
 
 def stage(submission: dict) -> str:
@@ -272,6 +287,9 @@ def wait_settled(api: Api, submission_id: int, timeout: float, progress: bool = 
                 raise ClientError(f"submission {submission_id} is still {now} after {timeout:g} s; "
                                   f"see `league submissions`", EXIT_TIMEOUT)
             time.sleep(1.0)
+
+
+EPISODE_PAGE = 1000  # the most the server gives in one page
 
 
 def report_submission(submission: dict, as_json: bool) -> int:

@@ -32,7 +32,7 @@ MULTIPART_SLACK = 64 * 1024  # bytes of multipart framing and form fields allowe
 
 @dataclass
 class League:
-    """What the app and an embedded worker share."""
+    """What the app works with (its worker process opens its own)."""
 
     settings: Settings
     engine: Engine
@@ -70,7 +70,7 @@ def create_app(settings: Settings | None = None, league_: League | None = None) 
                                      "evaluated on the course's tracks.")
     app.state.league, app.state.settings, app.state.sessions = league_, settings, league_.sessions
     app.state.queue, app.state.store = league_.queue, league_.store
-    app.state.cache = ResponseCache(settings.public_cache_s)
+    app.state.cache = ResponseCache(settings.public_cache_s, settings.public_cache_max_age_s)
     app.include_router(api_router, prefix="/api")
     app.add_exception_handler(StarletteHTTPException, _http_error)
     app.add_exception_handler(RequestValidationError, _validation_error)

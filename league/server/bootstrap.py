@@ -1,7 +1,8 @@
-"""A populated league from the first start: the default course, and the bundled baseline agents
-(DATA_DIR/baselines/*.onnx|*.pt) registered under the `baselines` account and evaluated.
+"""A populated league from the first start: the default course, and the baseline agents (*.onnx|*.pt
+of LEAGUE_BASELINES_DIR, by default the ones bundled with the package, league/baselines/agents)
+registered under the `baselines` account and evaluated.
 
-Without bundled agents there, the heuristic driver is exported to ONNX
+In an empty LEAGUE_BASELINES_DIR the heuristic driver is exported to ONNX
 (league.agents.export_heuristic_onnx), so a new user sees a working leaderboard at once.
 """
 from __future__ import annotations

@@ -6,24 +6,29 @@ returns the exit status. `python -m league.server ...` runs the same commands.
 from __future__ import annotations
 
 import argparse
+import ctypes
 import logging
+import os
+import signal
+import subprocess
 import sys
 
 from league.server.config import Settings
 from league.server.db.models import INSTRUCTOR, STUDENT
 
 log = logging.getLogger("league.server")
+PR_SET_PDEATHSIG = 1  # prctl(2)
 
 
 def add_commands(subparsers) -> None:
-    serve = subparsers.add_parser("serve", help="run the league server: the API and an embedded worker",
+    serve = subparsers.add_parser("serve", help="run the league server: the API and a worker",
                                   description="Run the API (OpenAPI docs at /docs) and, unless --no-worker, a "
-                                              "worker in the same process. Settings come from LEAGUE_* "
-                                              "variables and .env (see league/server/config.py).")
+                                              "`league worker` as its child process (stopped with it). Settings "
+                                              "come from LEAGUE_* variables and .env (see league/server/config.py).")
     serve.add_argument("--host", default="127.0.0.1", help="address to listen on (default 127.0.0.1)")
     serve.add_argument("--port", type=int, default=8000, help="port (default 8000)")
     serve.add_argument("--no-worker", action="store_true", help="API only: jobs are run by `league worker`s")
-    serve.add_argument("--threads", type=int, help="jobs the embedded worker runs at once")
+    serve.add_argument("--threads", type=int, help="jobs its worker runs at once")
     serve.set_defaults(run=run_serve)
 
     worker = subparsers.add_parser("worker", help="run a worker (more of them: on this or other machines)",
@@ -58,25 +63,53 @@ def run_serve(args: argparse.Namespace) -> int:
     import uvicorn
 
     from league.server.app import create_app, open_league, prepare_league
-    from league.server.jobs.handlers import HANDLERS
-    from league.server.jobs.runner import WorkerContext
-    from league.server.jobs.worker import Worker
 
     _logging()
     settings = Settings()
     league_ = open_league(settings)
     prepare_league(league_)
-    worker = None
-    if not args.no_worker:
-        context = WorkerContext(settings, league_.sessions, league_.queue, league_.store, HANDLERS)
-        worker = Worker(context, threads=args.threads or settings.worker_threads, embedded=True)
-        worker.start()
+    worker = None if args.no_worker else start_child_worker(args.threads)
+    # uvicorn raises the SIGTERM or SIGINT it stopped on again once it is done: end here, not die there
+    signal.signal(signal.SIGTERM, _exit_on_signal)
     try:
         uvicorn.run(create_app(settings, league_), host=args.host, port=args.port, log_level="info")
+    except KeyboardInterrupt:
+        pass
     finally:
         if worker is not None:
-            worker.stop()
+            stop_child_worker(worker)
     return 0
+
+
+def _exit_on_signal(signum, frame) -> None:
+    raise SystemExit(0)
+
+
+def start_child_worker(threads: int | None) -> subprocess.Popen:
+    """`league worker` as a child process: jobs never share the API's GIL. It gets SIGTERM (hands its
+    jobs back, stops its sandboxes) when we stop, and also if we die (PR_SET_PDEATHSIG); in a session
+    of its own, so a Ctrl-C reaches only us and we stop it at once instead of waiting for its jobs."""
+    prctl, parent = ctypes.CDLL(None, use_errno=True).prctl, os.getpid()  # resolved before the fork
+
+    def die_with_parent() -> None:
+        prctl(PR_SET_PDEATHSIG, signal.SIGTERM)
+        if os.getppid() != parent:  # we died before prctl
+            os.kill(os.getpid(), signal.SIGTERM)
+
+    command = [sys.executable, "-m", "league.server", "worker", *(["--threads", str(threads)] if threads else [])]
+    worker = subprocess.Popen(command, preexec_fn=die_with_parent, start_new_session=True)
+    log.info("serve: worker process %d started", worker.pid)
+    return worker
+
+
+def stop_child_worker(worker: subprocess.Popen, timeout_s: float = 30) -> None:
+    worker.terminate()
+    try:
+        worker.wait(timeout_s)
+    except subprocess.TimeoutExpired:
+        log.warning("serve: worker process %d did not stop in %g s: killed", worker.pid, timeout_s)
+        worker.kill()
+        worker.wait()
 
 
 def run_worker(args: argparse.Namespace) -> int:
@@ -94,7 +127,7 @@ def run_worker(args: argparse.Namespace) -> int:
     context = worker_context(settings)
     log.info("worker: database %s, queue %s", context.sessions.kw["bind"].url.render_as_string(),
              type(context.queue.huey).__name__)
-    Worker(context, threads=args.threads or settings.worker_threads, embedded=False).run_forever()
+    Worker(context, threads=args.threads or settings.worker_threads).run_forever()
     return 0
 
 

@@ -14,6 +14,7 @@ from pydantic import Field
 from pydantic_settings import BaseSettings, SettingsConfigDict
 
 MB = 1024 * 1024
+BUNDLED_BASELINES = Path(__file__).resolve().parents[1] / "baselines" / "agents"  # package data: travels with it
 
 
 class Settings(BaseSettings):
@@ -23,12 +24,14 @@ class Settings(BaseSettings):
     model_config = SettingsConfigDict(env_prefix="LEAGUE_", env_file=".env", extra="ignore")
 
     # where things live
-    data_dir: Path = Field(Path("agents_submissions"), description="submission store, SQLite files, baselines/")
+    data_dir: Path = Field(Path("agents_submissions"), description="submission store, SQLite files")
     database_url: str | None = Field(None, description="SQLAlchemy URL; default sqlite:///DATA_DIR/league.db")
     queue_url: str | None = Field(None, description="redis://host:port/db, or default SQLite DATA_DIR/queue.db")
     queue_name: str = Field("league", description="Huey queue name (the Redis key prefix)")
-    baselines_dir: Path | None = Field(None, description="bundled agents registered on an empty database; "
-                                                         "default DATA_DIR/baselines")
+    baselines_dir: Path | None = Field(None, description="agents registered under the `baselines` account on an "
+                                                         "empty database; default: the ones bundled with the "
+                                                         "package (league/baselines/agents); an empty "
+                                                         "directory: the heuristic driver")
     bootstrap: bool = Field(True, description="register and evaluate the baselines on an empty database")
 
     # uploads and quotas
@@ -42,7 +45,12 @@ class Settings(BaseSettings):
     # races and championships
     max_race_cars: int = Field(10, description="cars in one race or championship heat")
     race_quota_per_day: int = Field(20, description="friendly races a student may start per rolling 24 h")
-    public_cache_s: float = Field(2.0, description="seconds the leaderboard and standings are served from memory")
+    public_cache_s: float = Field(2.0, ge=0, description="seconds the leaderboard and standings are served from "
+                                                         "memory while the database's state stamp is unchanged "
+                                                         "(a finished evaluation or heat is shown at once)")
+    public_cache_max_age_s: float = Field(5.0, ge=0, description="the oldest leaderboard or standings answer ever "
+                                                                 "served: past public_cache_s one is served while "
+                                                                 "its successor is computed, up to this age")
 
     # sandbox limits
     sandbox_memory_mb: int = Field(512, description="address space a model may use on top of its runtime")
@@ -101,7 +109,7 @@ class Settings(BaseSettings):
 
     @property
     def resolved_baselines_dir(self) -> Path:
-        return self.baselines_dir or self.data_dir / "baselines"
+        return self.baselines_dir or BUNDLED_BASELINES
 
     def default_evaluation(self) -> dict[str, Any]:
         return {"seed": self.eval_seed, "episodes": self.eval_episodes, "env_options": dict(self.eval_env_options)}

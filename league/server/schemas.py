@@ -73,9 +73,14 @@ class EvaluationOut(BaseModel):
     finished_at: datetime | None
 
 
-class EvaluationDetail(EvaluationOut):
-    log: str | None
-    episodes: list[EpisodeOut]
+class EvaluationSummary(EvaluationOut):
+    log: str | None = Field(description="what the evaluation's sandbox printed (truncated)")
+
+
+class EpisodePage(BaseModel):
+    evaluation_id: int
+    total: int = Field(description="episodes of the evaluation")
+    items: list[EpisodeOut]
 
 
 class SubmissionCreated(BaseModel):
@@ -104,9 +109,17 @@ class SubmissionOut(BaseModel):
     evaluation: EvaluationOut | None = None
 
 
+class SubmissionLinks(BaseModel):
+    episodes: str | None = Field(description="the latest evaluation's episodes, paged (?offset=&limit=); "
+                                             "null before an evaluation")
+
+
 class SubmissionDetail(SubmissionOut):
+    """The status answer pollers read: small (no episodes), with an ETag (If-None-Match: 304)."""
+
     log: str | None = Field(description="what the validation sandbox printed (truncated)")
-    evaluation: EvaluationDetail | None = None
+    evaluation: EvaluationSummary | None = None
+    links: SubmissionLinks
 
 
 class EvaluationSettings(BaseModel):

@@ -176,6 +176,7 @@ def make_server(tmp_path: Path, urls: tuple[str, str, str], **settings: str) -> 
     env = {**os.environ, **TEST_SETTINGS, **settings, "LEAGUE_DATA_DIR": str(data_dir),
            "LEAGUE_DATABASE_URL": database_url, "LEAGUE_QUEUE_URL": queue_url, "LEAGUE_QUEUE_NAME": queue_name,
            "LEAGUE_CPU_SLOTS_DIR": str(tmp_path / "cpu-slots"),  # this test's workers are one machine's
+           "LEAGUE_BASELINES_DIR": str(data_dir / "baselines"),  # empty: the heuristic driver is the baseline
            "PYTHONPATH": str(REPO)}
     server = LeagueServer(env, data_dir)
     added = server.command("users", "add", "prof", "--role", "instructor")
@@ -186,7 +187,7 @@ def make_server(tmp_path: Path, urls: tuple[str, str, str], **settings: str) -> 
 
 @pytest.fixture(scope="package", params=BACKENDS)
 def league_server(request, tmp_path_factory):
-    """A running `league serve` (API + embedded worker) per backend, shared by the API tests."""
+    """A running `league serve` (API + its worker process) per backend, shared by the API tests."""
     tmp_path = tmp_path_factory.mktemp(f"league-{request.param}")
     with fresh_backend(request.param, tmp_path) as urls:
         server = make_server(tmp_path, urls)
@@ -219,6 +220,20 @@ def submission(client: httpx.Client, submission_id: int) -> dict:
     response = client.get(f"/api/submissions/{submission_id}")
     assert response.status_code == 200, response.text
     return response.json()
+
+
+def episodes(client: httpx.Client, submission_id: int, evaluation_id: int, limit: int = 1000) -> list[dict]:
+    """Every episode of an evaluation, page after page (the status answer carries none)."""
+    items: list[dict] = []
+    while True:
+        response = client.get(f"/api/submissions/{submission_id}/episodes",
+                              params={"evaluation_id": evaluation_id, "offset": len(items), "limit": limit})
+        assert response.status_code == 200, response.text
+        page = response.json()
+        assert page["evaluation_id"] == evaluation_id
+        items += page["items"]
+        if len(items) >= page["total"] or not page["items"]:
+            return items
 
 
 def settled(value: dict) -> bool:

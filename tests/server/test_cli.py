@@ -7,7 +7,11 @@ import sys
 import time
 from pathlib import Path
 
+import pytest
+
 from league.cli import build_parser
+
+from .conftest import create_student, fresh_backend, make_server, submission, upload, wait_for
 
 REPO = Path(__file__).resolve().parents[2]
 
@@ -75,3 +79,74 @@ def test_a_worker_refuses_cpus_it_cannot_have(tmp_path):
     backwards = league(tmp_path, "worker", "--cpus", "3-1")
     assert backwards.returncode == 2
     assert "'3-1' is not a CPU number or range such as 2 or 0-3" in backwards.stderr
+
+
+# --------------------------------------------------------------------------- `league serve` and its worker process
+
+
+def process_table() -> dict[int, tuple[int, str]]:
+    """pid -> (parent pid, start time) of every live process (zombies are over: left out)."""
+    table = {}
+    for entry in Path("/proc").iterdir():
+        if entry.name.isdigit():
+            try:
+                fields = (entry / "stat").read_text().rsplit(")", 1)[1].split()
+            except OSError:  # ended meanwhile
+                continue
+            if fields[0] != "Z":
+                table[int(entry.name)] = (int(fields[1]), fields[19])
+    return table
+
+
+def descendants(pid: int) -> dict[int, str]:
+    """pid -> start time of every process below `pid`."""
+    table, found, frontier = process_table(), {}, [pid]
+    while frontier:
+        parent = frontier.pop()
+        for child, (ppid, started) in table.items():
+            if ppid == parent and child not in found:
+                found[child] = started
+                frontier.append(child)
+    return found
+
+
+def still_running(processes: dict[int, str]) -> list[int]:
+    table = process_table()
+    return [pid for pid, started in processes.items() if pid in table and table[pid][1] == started]
+
+
+def cmdline(pid: int) -> list[str]:
+    return Path(f"/proc/{pid}/cmdline").read_bytes().decode().rstrip("\0").split("\0")
+
+
+@pytest.mark.parametrize("signal_", ["SIGTERM", "SIGKILL"])
+def test_serve_runs_its_worker_as_a_child_process_and_nothing_outlives_it(tmp_path, models, signal_):
+    """The API's process runs no job (its event loop never waits for a job's GIL): its worker is a
+    `league worker` child, whose sandboxes run below it; stopping serve (or killing it) stops them all."""
+    with fresh_backend("sqlite", tmp_path) as urls:
+        server = make_server(tmp_path, urls, LEAGUE_EVAL_EPISODES="40")
+        server.start_api()
+        try:
+            student = create_student(server, "kid")
+            submission_id = upload(student, models["onnx"]).json()["id"]
+            wait_for(lambda: (submission(student, submission_id)["evaluation"] or {}).get("status"),
+                     lambda status: status == "running", timeout=60)
+            below = descendants(server.api.pid)
+            children = [pid for pid in below if process_table()[pid][0] == server.api.pid]
+            workers = [pid for pid in children if cmdline(pid)[-2:] == ["league.server", "worker"]]
+            assert len(workers) == 1, [cmdline(pid) for pid in children]  # (the other: the isolation probe's)
+            assert len(descendants(workers[0])) >= 1  # the worker's sandbox processes, evaluating
+            assert threading_free_of_jobs(server.api.pid)
+            server.stop(server.api, kill=signal_ == "SIGKILL")
+            left = wait_for(lambda: still_running(below), lambda pids: pids == [], timeout=30, interval=0.2)
+        finally:
+            server.stop_all()
+    assert left == []
+    if signal_ == "SIGTERM":
+        assert server.api.returncode == 0
+
+
+def threading_free_of_jobs(pid: int) -> bool:
+    """No job thread in the API's process: Huey's and the reaper's threads are named."""
+    names = [(task / "comm").read_text().strip() for task in Path(f"/proc/{pid}/task").iterdir()]
+    return not any(name.startswith(("league-reaper", "Worker-", "Scheduler")) for name in names)

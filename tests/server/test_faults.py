@@ -8,7 +8,7 @@ import pytest
 from league.agents import load_agent
 from league.evaluation import metrics_run
 
-from .conftest import TEST_SETTINGS, create_student, make_server, submission, upload, wait_for, wait_settled
+from .conftest import TEST_SETTINGS, create_student, episodes, make_server, submission, upload, wait_for, wait_settled
 
 LONG_EPISODES = "40"  # an evaluation of a few seconds: long enough to be killed in the middle
 LEASE_S = float(TEST_SETTINGS["LEAGUE_LEASE_TIMEOUT_S"])
@@ -43,18 +43,19 @@ def test_worker_killed_mid_evaluation_the_evaluation_completes_once(backend, tmp
         elsewhere = tmp_path / "another-machine"
         server.start_worker(LEAGUE_DATA_DIR=str(elsewhere))  # no shared disk: models come from the database
         result = wait_settled(student, submission_id, timeout=120)
+        served = episodes(student, submission_id, result["evaluation"]["id"], limit=7)
         jobs = jobs_of(server, submission_id)
     finally:
         server.stop_all()
     evaluation = result["evaluation"]
     assert result["status"] == "ready" and evaluation["status"] == "done", evaluation["error"]
-    assert [e["index"] for e in evaluation["episodes"]] == list(range(int(LONG_EPISODES)))
+    assert [e["index"] for e in served] == list(range(int(LONG_EPISODES)))
     evaluate_job = next(j for j in jobs if j["kind"] == "evaluate")
     assert (evaluate_job["status"], evaluate_job["attempts"]) == ("done", 2)
     assert "stopped heart-beating" in evaluate_job["error"]
     assert (elsewhere / "blobs" / result["sha256"][:2] / result["sha256"]).read_bytes() == models["onnx"].read_bytes()
     local = metrics_run(load_agent(models["onnx"]), episodes=int(LONG_EPISODES), seed=11).to_dict()
-    assert [(e["seed"], e["steps"], e["outcome"]) for e in evaluation["episodes"]] == \
+    assert [(e["seed"], e["steps"], e["outcome"]) for e in served] == \
         [(e["seed"], e["steps"], e["outcome"]) for e in local["episodes"]]
     assert evaluation["mean_return"] == pytest.approx(local["mean_return"], abs=1e-9)
 
@@ -74,6 +75,7 @@ def test_restart_loses_nothing_and_leaves_nothing_stuck(backend, tmp_path, model
         server.start_api()
         after = {i: submission(student, i) for i in done}
         finished = wait_settled(student, interrupted, timeout=120)
+        finished_episodes = episodes(student, interrupted, finished["evaluation"]["id"])
         with server.client(server.instructor_token) as instructor:
             unfinished = [j for j in instructor.get("/api/jobs").json() if j["status"] in ("queued", "running")]
         server.stop(server.api)  # a clean stop (SIGTERM) and a second restart
@@ -83,7 +85,7 @@ def test_restart_loses_nothing_and_leaves_nothing_stuck(backend, tmp_path, model
         server.stop_all()
     assert stored(after) == stored(before)
     assert finished["status"] == "ready" and finished["evaluation"]["status"] == "done"
-    assert len(finished["evaluation"]["episodes"]) == int(LONG_EPISODES)
+    assert len(finished_episodes) == int(LONG_EPISODES)
     assert unfinished == []
     assert stored(again) == stored({**before, interrupted: finished})
     # "active" is derived, not stored: the latest ready submission, once the interrupted one is ready

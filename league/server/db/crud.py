@@ -14,7 +14,7 @@ from sqlalchemy.orm import Session
 
 from league.server.db.models import (
     BASELINE, EVALUATE, FAILED, QUEUED, READY, REJECTED, RUNNING, STUDENT, VALIDATE, Blob, Championship, ChampionshipRound,
-    Course, Evaluation, Job, Race, RaceReplay, Submission, User, utcnow,
+    Course, EpisodeResult, Evaluation, Job, Race, RaceReplay, Submission, User, utcnow,
 )
 from league.server.security import hash_token, new_token
 
@@ -213,6 +213,15 @@ def latest_evaluation(session: Session, *, submission_id: int) -> Evaluation | N
                           .order_by(Evaluation.id.desc()).limit(1))
 
 
+def episode_page(session: Session, *, evaluation_id: int, offset: int, limit: int) -> tuple[list[EpisodeResult], int]:
+    """Episodes of an evaluation in order, from `offset`; and how many it has."""
+    rows = session.scalars(select(EpisodeResult).where(EpisodeResult.evaluation_id == evaluation_id)
+                           .order_by(EpisodeResult.index).offset(offset).limit(limit))
+    total = session.scalar(select(func.count()).select_from(EpisodeResult)
+                           .where(EpisodeResult.evaluation_id == evaluation_id))
+    return list(rows), total or 0
+
+
 def latest_evaluations(session: Session, *, submission_ids: list[int],
                        status: str | None = None) -> dict[int, Evaluation]:
     """Each submission's newest evaluation, or its newest one in `status`."""
@@ -279,6 +288,17 @@ def leaderboard_owners(session: Session, *, course_id: int | None) -> list[User]
     """The course's active students and the baselines' account (its agents are on every board)."""
     return list(session.scalars(select(User).where(
         ((User.course_id == course_id) & (User.role == STUDENT) & User.revoked_at.is_(None)) | (User.role == BASELINE))))
+
+
+def public_state_stamp(session: Session) -> tuple:
+    """What the public answers (leaderboard, standings) are computed from changes with this, read
+    from indexes: the newest finished job (an evaluation's or a heat's results are written as its
+    job ends), the newest change of a submission (ready, public), revocations (the board's students)."""
+    return tuple(session.execute(select(
+        select(func.max(Job.finished_at)).scalar_subquery(),
+        select(func.max(Submission.updated_at)).scalar_subquery(),
+        select(func.max(User.revoked_at)).scalar_subquery(),
+        select(func.count(User.revoked_at)).scalar_subquery())).one())
 
 
 # --------------------------------------------------------------------------- races and championships

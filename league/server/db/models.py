@@ -80,7 +80,7 @@ class User(Base):
     token_hash: Mapped[str | None] = mapped_column(String(64), unique=True)  # sha256 hex of the bearer token
     created_at: Mapped[datetime] = mapped_column(default=utcnow)
     created_by_id: Mapped[int | None] = mapped_column(ForeignKey("users.id"))
-    revoked_at: Mapped[datetime | None] = mapped_column(default=None)
+    revoked_at: Mapped[datetime | None] = mapped_column(default=None, index=True)  # indexed: the state stamp
     # the submission that races in championships; None: the latest ready one
     active_submission_id: Mapped[int | None] = mapped_column(Integer, default=None)  # no FK: users <-> submissions
 
@@ -122,7 +122,7 @@ class Submission(Base):
     obs_dim: Mapped[int | None] = mapped_column(Integer, default=None)
     public: Mapped[bool] = mapped_column(default=False)
     created_at: Mapped[datetime] = mapped_column(default=utcnow)
-    updated_at: Mapped[datetime] = mapped_column(default=utcnow, onupdate=utcnow)
+    updated_at: Mapped[datetime] = mapped_column(default=utcnow, onupdate=utcnow, index=True)  # the state stamp
 
     owner: Mapped[User] = relationship(lazy="joined")
 
@@ -148,7 +148,8 @@ class Evaluation(Base):
     created_at: Mapped[datetime] = mapped_column(default=utcnow)
     finished_at: Mapped[datetime | None] = mapped_column(default=None)
 
-    episodes: Mapped[list[EpisodeResult]] = relationship(order_by="EpisodeResult.index", lazy="selectin")
+    # loaded only when read: status answers and listings carry no episodes (crud.episode_page pages them)
+    episodes: Mapped[list[EpisodeResult]] = relationship(order_by="EpisodeResult.index", lazy="select")
 
 
 class EpisodeResult(Base):
@@ -195,7 +196,7 @@ class Job(Base):
     enqueued_at: Mapped[datetime] = mapped_column(default=utcnow)
     started_at: Mapped[datetime | None] = mapped_column(default=None)
     heartbeat_at: Mapped[datetime | None] = mapped_column(default=None)
-    finished_at: Mapped[datetime | None] = mapped_column(default=None)
+    finished_at: Mapped[datetime | None] = mapped_column(default=None, index=True)  # the state stamp
 
 
 class Championship(Base):

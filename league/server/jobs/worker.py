@@ -1,7 +1,7 @@
 """Workers: a Huey consumer that runs league jobs, and the reaper that keeps jobs from getting stuck.
 
-`league worker` runs one in the foreground (Huey handles SIGINT/SIGTERM); `league serve` runs
-one in background threads of the API process, for the one-command embedded league.
+`league worker` runs one in the foreground (Huey handles SIGINT/SIGTERM); `league serve` starts
+one as its child process (league/server/cli.py), for the one-command embedded league.
 """
 from __future__ import annotations
 
@@ -24,13 +24,6 @@ from league.server.storage import BlobStore
 
 log = logging.getLogger("league.server.worker")
 MAX_POLL_DELAY_S = 1.0  # an idle SQLite-queue worker looks for work at least this often (Redis blocks instead)
-
-
-class _EmbeddedConsumer(Consumer):
-    """A consumer started from a process that owns its signals (uvicorn's)."""
-
-    def _set_signal_handlers(self) -> None:
-        pass
 
 
 class Reaper:
@@ -60,27 +53,15 @@ class Reaper:
 
 
 class Worker:
-    def __init__(self, context: WorkerContext, *, threads: int, embedded: bool):
+    def __init__(self, context: WorkerContext, *, threads: int):
         context.queue.runner = lambda job_id: run_job(context, job_id)
         settings = context.settings
         if settings.cpu_placement and context.placement is None:
             context.placement = Placement(threads, Path(settings.cpu_slots_dir) if settings.cpu_slots_dir else None)
-        consumer_class = _EmbeddedConsumer if embedded else Consumer
         self.context = context
-        self.consumer = consumer_class(context.queue.huey, workers=threads, periodic=False,
+        self.consumer = Consumer(context.queue.huey, workers=threads, periodic=False,
                                        max_delay=MAX_POLL_DELAY_S, check_worker_health=True)
         self.reaper = Reaper(context)
-
-    def start(self) -> None:
-        """Run in background threads (embedded in `league serve`)."""
-        self.consumer.start()
-        self.reaper.start()
-
-    def stop(self) -> None:
-        self.consumer.stop(graceful=False)
-        self._hand_back()
-        self.reaper.stop()
-        self._release_cpus()
 
     def run_forever(self) -> None:
         """Run in the foreground until SIGINT (graceful: running jobs finish) or SIGTERM (they are handed back)."""

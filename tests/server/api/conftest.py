@@ -86,6 +86,27 @@ class InProcessLeague:
         return submission
 
 
+    def finish_job(self, job_id: int, outcome) -> None:
+        """Run a job's lease as a worker does (claim, then write its outcome as the job ends), with an
+        outcome given here instead of computed in a sandbox."""
+        from league.server.jobs.handlers import HANDLERS
+        from league.server.jobs.leases import claim, complete
+
+        assert claim(self.sessions, HANDLERS, job_id=job_id, attempt_id="test") is not None
+        complete(self.sessions, HANDLERS, job_id=job_id, attempt_id="test", outcome=outcome)
+
+
+def evaluation_outcome(completed: int, episodes: int = 3):
+    """What an evaluation job returns (MetricsResult.to_dict()), made up: `completed` of `episodes` finished."""
+    from league.server.jobs.evaluate import EvaluationOutcome
+
+    rows = [{"seed": 1000 + i, "steps": 100 + i, "return": float(completed), "mean_speed": 0.3,
+             "outcome": "finished" if i < completed else "off_road", "reason": None} for i in range(episodes)]
+    return EvaluationOutcome({"episodes": rows, "completed": completed, "episodes_total": episodes,
+                              "mean_return": float(completed), "mean_steps": 100.0, "mean_speed": 0.3,
+                              "settings": {"seed": 0}}, None, "evaluated in a test")
+
+
 @contextlib.contextmanager
 def in_process_league(kind: str, tmp_path: Path, **settings):
     """The app with the test settings (and `settings`) on a fresh database of `kind`; an instructor;
@@ -93,6 +114,7 @@ def in_process_league(kind: str, tmp_path: Path, **settings):
     with fresh_backend(kind, tmp_path) as (database_url, queue_url, queue_name):
         values = {key.removeprefix("LEAGUE_").lower(): value for key, value in TEST_SETTINGS.items()}
         values.update(public_cache_s=0)  # every answer fresh: tests independent of their order
+        values.update(baselines_dir=tmp_path / "baselines")  # empty: the heuristic driver is the baseline
         settings = Settings(_env_file=None, **{**values, **settings}, data_dir=tmp_path / "data",
                             database_url=database_url, queue_url=queue_url, queue_name=queue_name)
         app = create_app(settings)

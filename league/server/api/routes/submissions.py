@@ -3,16 +3,20 @@ from __future__ import annotations
 
 from pathlib import PurePath
 
-from fastapi import APIRouter, HTTPException, Request, status
+from typing import Annotated
+
+from fastapi import APIRouter, HTTPException, Query, Request, Response, status
 from fastapi.concurrency import run_in_threadpool
 from starlette.datastructures import UploadFile  # what a parsed form holds
 
+from league.server.api.cache import etag_response
 from league.server.api.deps import CurrentUser, Id, SessionDep, check_jobs_in_flight, check_upload_quota
 from league.server.db import crud
-from league.server.db.models import INSTRUCTOR, READY, STUDENT, Submission, User
+from league.server.db.models import INSTRUCTOR, READY, STUDENT, Evaluation, Submission, User
 from league.server.rounds import active_submission_ids
 from league.server.schemas import (
-    EvaluationDetail, EvaluationOut, SubmissionCreated, SubmissionDetail, SubmissionOut, SubmissionUpdate,
+    DbId, EpisodeOut, EpisodePage, EvaluationOut, EvaluationSummary, SubmissionCreated, SubmissionDetail,
+    SubmissionLinks, SubmissionOut, SubmissionUpdate,
 )
 from league.server.storage import EmptyFile, FileTooLarge, model_kind_of
 
@@ -93,17 +97,49 @@ def read_submissions(user: CurrentUser, session: SessionDep, all: bool = False) 
     return [submission_out(s, evaluations.get(s.id), s.id in active) for s in submissions]
 
 
-@router.get("/{submission_id}", response_model=SubmissionDetail)
-def read_submission(submission_id: Id, user: CurrentUser, session: SessionDep) -> SubmissionDetail:
-    """One submission in full: status, error, sandbox log and its latest evaluation with every episode."""
+PRIVATE = "private, no-cache"  # the browser keeps it, and asks (If-None-Match) before reusing it
+NOT_MODIFIED = {304: {"description": "unchanged since the ETag sent in If-None-Match"}}
+
+
+@router.get("/{submission_id}", response_model=SubmissionDetail, responses=NOT_MODIFIED)
+def read_submission(submission_id: Id, request: Request, user: CurrentUser, session: SessionDep) -> Response:
+    """One submission's status: validation, sandbox log, its latest evaluation's figures, and a link to
+    that evaluation's episodes. Poll it with the ETag it sent (If-None-Match): 304 while nothing changed."""
+    submission = readable_submission(session, user, submission_id)
+    evaluation = crud.latest_evaluation(session, submission_id=submission.id)
+    detail = SubmissionDetail(**submission_fields(submission), log=submission.log,
+                              evaluation=EvaluationSummary.model_validate(evaluation) if evaluation else None,
+                              links=SubmissionLinks(episodes=episodes_link(submission.id, evaluation)),
+                              active=submission.status == READY  # only a ready one can be: no query while polling
+                              and submission.id in active_submission_ids(session, owners=[submission.owner]))
+    return etag_response(request, detail.model_dump_json(by_alias=True).encode(), PRIVATE)
+
+
+@router.get("/{submission_id}/episodes", response_model=EpisodePage, responses=NOT_MODIFIED)
+def read_episodes(submission_id: Id, request: Request, user: CurrentUser, session: SessionDep,
+                  evaluation_id: Annotated[DbId | None, Query(description="default: the latest")] = None,
+                  offset: Annotated[int, Query(ge=0, le=10_000)] = 0,
+                  limit: Annotated[int, Query(ge=1, le=1000)] = 100) -> Response:
+    """The episodes of the submission's latest evaluation (or of `evaluation_id`), in order, paged."""
+    submission = readable_submission(session, user, submission_id)
+    evaluation = (crud.latest_evaluation(session, submission_id=submission.id) if evaluation_id is None
+                  else session.get(Evaluation, evaluation_id))
+    if evaluation is None or evaluation.submission_id != submission.id:
+        raise HTTPException(status.HTTP_404_NOT_FOUND, "no such evaluation of this submission")
+    rows, total = crud.episode_page(session, evaluation_id=evaluation.id, offset=offset, limit=limit)
+    page = EpisodePage(evaluation_id=evaluation.id, total=total, items=[EpisodeOut.model_validate(r) for r in rows])
+    return etag_response(request, page.model_dump_json(by_alias=True).encode(), PRIVATE)
+
+
+def readable_submission(session: SessionDep, user: User, submission_id: int) -> Submission:
     submission = session.get(Submission, submission_id)
     if submission is None or not may_read(user, submission):
         raise HTTPException(status.HTTP_404_NOT_FOUND, "no such submission")
-    evaluation = crud.latest_evaluation(session, submission_id=submission.id)
-    detail = EvaluationDetail.model_validate(evaluation) if evaluation else None
-    return SubmissionDetail(**submission_fields(submission), log=submission.log, evaluation=detail,
-                            active=submission.status == READY  # only a ready one can be: no query while polling
-                            and submission.id in active_submission_ids(session, owners=[submission.owner]))
+    return submission
+
+
+def episodes_link(submission_id: int, evaluation: Evaluation | None) -> str | None:
+    return f"/api/submissions/{submission_id}/episodes?evaluation_id={evaluation.id}" if evaluation else None
 
 
 @router.patch("/{submission_id}", response_model=SubmissionOut)

@@ -9,7 +9,7 @@ from league.agents import load_agent
 from league.evaluation import metrics_run
 from league.server.db.models import REJECTED
 
-from ...conftest import create_student, submission, upload, wait_for, wait_settled
+from ...conftest import create_student, episodes, submission, upload, wait_for, wait_settled
 
 
 def test_instructor_changes_settings_and_reruns_one_submission(league_server, models):
@@ -32,7 +32,8 @@ def test_instructor_changes_settings_and_reruns_one_submission(league_server, mo
 
     assert evaluation["settings"] == new
     local = metrics_run(load_agent(models["onnx"]), episodes=2, seed=5, obstacles=False, chicanes=False).to_dict()
-    assert [(e["seed"], e["steps"], e["outcome"]) for e in evaluation["episodes"]] == \
+    served = episodes(student, submission_id, evaluation["id"])
+    assert [(e["seed"], e["steps"], e["outcome"]) for e in served] == \
         [(e["seed"], e["steps"], e["outcome"]) for e in local["episodes"]]
     assert evaluation["mean_return"] == pytest.approx(local["mean_return"], abs=1e-9)
 

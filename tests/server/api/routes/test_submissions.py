@@ -16,8 +16,8 @@ import pytest
 
 from league.server.db.models import REJECTED
 
-from ...conftest import BACKENDS, create_student, submission, upload, wait_settled
-from ..conftest import in_process_league
+from ...conftest import BACKENDS, create_student, episodes, submission, upload, wait_settled
+from ..conftest import evaluation_outcome, in_process_league
 
 EPISODES, SEED = 3, 11  # conftest.TEST_SETTINGS
 
@@ -45,7 +45,11 @@ def test_upload_becomes_ready_with_the_figures_of_league_evaluate(league_server,
                           "--episodes", str(EPISODES), "--json", "--no-progress"],
                          capture_output=True, text=True, timeout=120, check=True)
     local = json.loads(cli.stdout)
-    assert [{k: v for k, v in e.items() if k != "index"} for e in evaluation["episodes"]] == local["episodes"]
+    assert "episodes" not in evaluation  # the status answer is small; they have a link
+    assert result["links"]["episodes"] == \
+        f"/api/submissions/{result['id']}/episodes?evaluation_id={evaluation['id']}"
+    served = episodes(student, result["id"], evaluation["id"], limit=2)  # paged: two pages of 3 episodes
+    assert [{k: v for k, v in e.items() if k != "index"} for e in served] == local["episodes"]
     assert evaluation["completed"] == local["completed"] and evaluation["episodes_total"] == EPISODES
     assert (evaluation["mean_return"], evaluation["mean_speed"]) == (local["mean_return"], local["mean_speed"])
     assert "network namespace" in evaluation["log"] or "network user-namespace" in evaluation["log"]
@@ -259,3 +263,60 @@ def test_parallel_uploads_never_pass_the_quota(league_server, models):
         statuses = sorted(pool.map(post, range(parallel)))
     assert statuses == [201] * 4 + [429] * (parallel - 4)
     assert len(student.get("/api/submissions").json()) == 4
+
+
+def test_the_status_answer_is_small_its_episodes_paged_and_pollers_get_304(app_league):
+    """A 100-episode evaluation: the status answer carries its figures and a link, not its episodes,
+    and does not grow with them; the link pages through all of them; an unchanged answer is 304."""
+    from league.server.db import crud
+    from league.server.db.models import Submission
+
+    owner, student = app_league.student("poller")
+    ready = app_league.submission(owner, evaluated=False)
+    with student:
+        before = student.get(f"/api/submissions/{ready.id}")
+        assert before.status_code == 200 and before.json()["links"] == {"episodes": None}
+        with app_league.sessions.begin() as session:
+            _, job = crud.create_evaluation(session, submission=session.get(Submission, ready.id),
+                                            course=crud.first_course(session),
+                                            settings=app_league.settings.default_evaluation(), max_attempts=1)
+            job_id = job.id
+        app_league.finish_job(job_id, evaluation_outcome(60, episodes=100))
+        response = student.get(f"/api/submissions/{ready.id}")
+        assert response.status_code == 200 and response.headers["cache-control"] == "private, no-cache"
+        status = response.json()
+        evaluation = status["evaluation"]
+        assert (evaluation["status"], evaluation["completed"], evaluation["episodes_total"]) == ("done", 60, 100)
+        assert evaluation["log"] == "evaluated in a test" and "episodes" not in evaluation
+        assert len(response.content) < len(before.content) + 600  # the figures, not 100 episodes
+
+        etag = response.headers["etag"]
+        unchanged = student.get(f"/api/submissions/{ready.id}", headers={"If-None-Match": f'W/{etag}, "other"'})
+        assert (unchanged.status_code, unchanged.content, unchanged.headers["etag"]) == (304, b"", etag)
+        assert student.patch(f"/api/submissions/{ready.id}", json={"public": True}).status_code == 200
+        changed = student.get(f"/api/submissions/{ready.id}", headers={"If-None-Match": etag})
+        assert changed.status_code == 200 and changed.json()["public"] is True
+
+        link = status["links"]["episodes"]
+        pages = [student.get(link, params={"offset": offset, "limit": 30}).json() for offset in (0, 30, 60, 90)]
+        assert [page["total"] for page in pages] == [100] * 4
+        assert [len(page["items"]) for page in pages] == [30, 30, 30, 10]
+        rows = [row for page in pages for row in page["items"]]
+        assert [row["index"] for row in rows] == list(range(100))
+        assert [row["outcome"] for row in rows] == ["finished"] * 60 + ["off_road"] * 40
+        assert set(rows[0]) == {"index", "seed", "steps", "return", "mean_speed", "outcome", "reason"}
+        latest = student.get(f"/api/submissions/{ready.id}/episodes").json()  # default: the latest evaluation
+        assert latest["evaluation_id"] == evaluation["id"] and latest["items"] == rows[:100]
+        assert student.get(link, params={"limit": 1001}).status_code == 422
+
+        other_owner, other = app_league.student("other")
+        theirs = app_league.submission(other_owner)
+        with other:
+            assert other.get(link).status_code == 404  # not theirs
+        foreign = student.get(f"/api/submissions/{ready.id}/episodes",
+                              params={"evaluation_id": evaluation["id"] + 10_000})
+        assert foreign.status_code == 404 and foreign.json() == {"detail": "no such evaluation of this submission"}
+        with app_league.sessions() as session:
+            their_evaluation = crud.latest_evaluation(session, submission_id=theirs.id).id
+        mixed = student.get(f"/api/submissions/{ready.id}/episodes", params={"evaluation_id": their_evaluation})
+        assert mixed.status_code == 404

@@ -145,7 +145,7 @@ async function refreshDetail() {
     s.obs_dim ? `observation size ${s.obs_dim}` : null, `uploaded ${dateTime(s.created_at)}`].filter(Boolean).join(" · ");
   say($("detail-error"), s.error ? `${s.status === "rejected" ? "Rejected" : "Failed"}: ${s.error}` : "", "error");
   showLog("validation-log", s.log);
-  renderEvaluation(s);
+  await renderEvaluation(s);
 }
 
 function showLog(id, text) {
@@ -153,7 +153,7 @@ function showLog(id, text) {
   $(`${id}-box`).hidden = !text;
 }
 
-function renderEvaluation(s) {
+async function renderEvaluation(s) {
   const evaluation = s.evaluation;
   $("evaluation").hidden = s.status !== "ready";
   showLog("evaluation-log", evaluation?.log);
@@ -172,14 +172,30 @@ function renderEvaluation(s) {
     `mean steps ${number(evaluation.mean_steps, 0)} (seed ${settings.seed}${options ? `, ${options}` : ""}).`;
   const key = `${evaluation.id}:${evaluation.status}`;
   if (key === shownEvaluation) return; // already drawn: no flicker on every poll
+  const episodes = await allEpisodes(s.links.episodes, evaluation.episodes_total);
+  if (s.id !== selectedId) return; // another submission was picked meanwhile
   shownEvaluation = key;
   $("chart-box").hidden = false;
-  showEpisodeChart($("episode-chart"), $("chart-legend"), evaluation.episodes);
-  $("episodes").tBodies[0].replaceChildren(...evaluation.episodes.map((e) => element("tr", {},
+  showEpisodeChart($("episode-chart"), $("chart-legend"), episodes);
+  $("episodes").tBodies[0].replaceChildren(...episodes.map((e) => element("tr", {},
     element("td", { className: "num", text: e.index + 1 }), element("td", { className: "num", text: e.seed }),
     element("td", { className: "num", text: e.steps }), element("td", { className: "num", text: number(e.return) }),
     element("td", { className: "num", text: number(e.mean_speed, 3) }),
     element("td", { text: e.reason && e.outcome === "dnf" ? `${outcomeText(e.outcome)}: ${e.reason}` : outcomeText(e.outcome) }))));
+}
+
+/** The episodes behind a status answer's link (it carries none), fetched once per evaluation. */
+async function allEpisodes(link, total) {
+  const url = new URL(link, location.origin);
+  const episodes = [];
+  while (episodes.length < total) {
+    url.searchParams.set("offset", episodes.length);
+    url.searchParams.set("limit", 1000);
+    const page = await api(url.pathname + url.search);
+    if (!page.items.length) break;
+    episodes.push(...page.items);
+  }
+  return episodes;
 }
 
 // --------------------------------------------------------------------------- upload

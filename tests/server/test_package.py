@@ -1,0 +1,82 @@
+"""The league as a user installs it: a wheel in a fresh venv, `league serve` started in a folder that
+is not the checkout, and the baselines bundled with the package on its leaderboard."""
+from __future__ import annotations
+
+import json
+import os
+import subprocess
+import sys
+import sysconfig
+from pathlib import Path
+
+import httpx
+import pytest
+
+from .conftest import TEST_SETTINGS, LeagueServer, wait_for
+
+REPO = Path(__file__).resolve().parents[2]
+BUNDLED = sorted(p.stem for p in (REPO / "league" / "baselines" / "agents").glob("*.onnx"))
+
+
+def outside_env() -> dict[str, str]:
+    """This environment without the checkout on the path and without LEAGUE_ settings."""
+    return {key: value for key, value in os.environ.items() if not key.startswith("LEAGUE_") and key != "PYTHONPATH"}
+
+
+def run(*command, **kwargs) -> subprocess.CompletedProcess:
+    kwargs.setdefault("env", outside_env())
+    done = subprocess.run(command, capture_output=True, text=True, timeout=600, **kwargs)
+    assert done.returncode == 0, f"{command}: {done.stdout}\n{done.stderr}"
+    return done
+
+
+@pytest.fixture(scope="module")
+def installed(tmp_path_factory) -> Path:
+    """A venv with the wheel of this checkout installed (no dependencies: those of this interpreter,
+    which may itself be a venv, are made visible through a .pth file, so nothing is downloaded)."""
+    tmp = tmp_path_factory.mktemp("package")
+    run(sys.executable, "-m", "pip", "wheel", "--no-deps", "--no-build-isolation", "-q", "-w", str(tmp / "dist"),
+        str(REPO), cwd=tmp)
+    wheel = next((tmp / "dist").glob("microracer_league-*.whl"))
+    venv = tmp / "venv"
+    run(sys.executable, "-m", "venv", "--system-site-packages", str(venv))
+    python = venv / "bin" / "python"
+    run(str(python), "-m", "pip", "install", "--no-deps", "--no-index", "-q", str(wheel))
+    site = Path(run(str(python), "-c", "import sysconfig; print(sysconfig.get_paths()['purelib'])").stdout.strip())
+    # after the install (pip would take this checkout's editable install for it); a plain path: the
+    # .pth files there (that editable install's) are not read
+    (site / "_parent_environment.pth").write_text(sysconfig.get_paths()["purelib"] + "\n")
+    return venv
+
+
+def test_an_installed_server_started_elsewhere_registers_the_bundled_baselines(installed, tmp_path):
+    elsewhere = tmp_path / "elsewhere"
+    elsewhere.mkdir()
+    env = outside_env()
+    env.update(TEST_SETTINGS, LEAGUE_EVAL_EPISODES="1", LEAGUE_DATA_DIR=str(elsewhere / "data"),
+               LEAGUE_CPU_SLOTS_DIR=str(tmp_path / "cpu-slots"),
+               LEAGUE_WEB_DIR=str(REPO / "web"),  # the pages are not package data (yet)
+               # the dependencies come through a .pth path, which sandboxes may not read (by design,
+               # sandbox/child.py read_roots): here they run without Landlock
+               LEAGUE_SANDBOX_REQUIRE_ISOLATION="false")
+    where = run(str(installed / "bin" / "python"), "-c", "import league.server.config as c; "
+                "print(c.__file__); print(c.Settings().resolved_baselines_dir)", env=env, cwd=elsewhere).stdout
+    module, baselines_dir = where.split()
+    assert Path(module).is_relative_to(installed) and Path(baselines_dir).is_relative_to(installed)
+
+    server = LeagueServer(env, tmp_path)
+    server.api = subprocess.Popen([str(installed / "bin" / "league"), "serve", "--port", str(server.port)], env=env,
+                                  cwd=elsewhere, stdout=open(tmp_path / "api.log", "wb"), stderr=subprocess.STDOUT)
+    try:
+        server.wait_healthy()
+
+        def baselines_on_the_board() -> list[str]:
+            rows = httpx.get(f"{server.url}/api/leaderboard", params={"size": 100}, timeout=10).json()["items"]
+            return sorted(row["name"] for row in rows if row["owner"] == "baselines")
+
+        assert wait_for(baselines_on_the_board, lambda names: names == BUNDLED, timeout=240, interval=1) == BUNDLED
+    finally:
+        server.stop(server.api)
+    assert len(BUNDLED) == 6 and all(json.loads((REPO / "league/baselines/agents" / f"{name}.json").read_text())
+                                     for name in BUNDLED)  # each agent has its card
+    assert not (elsewhere / "data" / "baselines").exists()
