@@ -1,6 +1,7 @@
 """Faults: a worker killed with SIGKILL mid-evaluation, and a league restarted -- on both backends."""
 from __future__ import annotations
 
+import signal
 import time
 
 import pytest
@@ -10,7 +11,7 @@ from league.evaluation import metrics_run
 
 from .conftest import TEST_SETTINGS, create_student, episodes, make_server, submission, upload, wait_for, wait_settled
 
-LONG_EPISODES = "40"  # an evaluation of a few seconds: long enough to be killed in the middle
+LONG_EPISODES = "100"  # an evaluation of a second or more (lockstep): long enough to be stopped in the middle
 LEASE_S = float(TEST_SETTINGS["LEAGUE_LEASE_TIMEOUT_S"])
 
 pytestmark = pytest.mark.slow  # league servers in subprocesses, killed and restarted
@@ -34,7 +35,8 @@ def test_worker_killed_mid_evaluation_the_evaluation_completes_once(backend, tmp
         student = create_student(server, "kim")
         submission_id = upload(student, models["onnx"]).json()["id"]
         wait_for(lambda: evaluation_status(student, submission_id), lambda s: s == "running", timeout=60)
-        time.sleep(0.5)  # into the episodes
+        doomed.send_signal(signal.SIGSTOP)  # frozen where it is: it can neither finish nor heart-beat
+        assert evaluation_status(student, submission_id) == "running"
         doomed.kill()  # SIGKILL: no goodbye, the lease is left behind
         doomed.wait()
         time.sleep(LEASE_S + 1)
