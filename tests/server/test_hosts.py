@@ -21,7 +21,6 @@ import signal
 import subprocess
 import sys
 import tempfile
-import time
 import uuid
 from collections.abc import Iterator
 from dataclasses import dataclass
@@ -34,7 +33,7 @@ from league.evaluation import metrics_run, race
 
 from .conftest import TEST_SETTINGS, LeagueServer, make_server, wait_for
 from .test_rounds import (  # noqa: F401 - drivers is a fixture
-    LONG_HEATS, ROUND_SETTINGS, check_round_counted_once, drivers, enter_students, race_jobs, read_round,
+    LONG_HEATS, ONE_AT_A_TIME, ROUND_SETTINGS, check_round_counted_once, drivers, enter_students, race_jobs, read_round,
     standings, start_round, wait_idle, wait_round_over, worker_pid,
 )
 
@@ -42,7 +41,6 @@ SERVICE_USER = "postgres"  # PostgreSQL refuses to run as root; Redis runs as th
 PG_PORT, REDIS_PORT = 5432, 6379
 HOSTS = 2
 RACING = "cars: sandboxes started"  # a worker's log line as a race begins
-ONE_AT_A_TIME = {"LEAGUE_WORKER_THREADS": "1"}  # a host races one heat at a time: who raced what is known
 
 pytestmark = [pytest.mark.slow, pytest.mark.hosts]
 
@@ -215,7 +213,8 @@ def start_host_worker(server: LeagueServer, net: Network, k: int, root: Path) ->
     for name in ("data", "tmp", "cpu-slots"):
         (home / name).mkdir(parents=True)
     return server.start_worker(net.run_in(k), LEAGUE_DATA_DIR=str(home / "data"), TMPDIR=str(home / "tmp"),
-                               LEAGUE_CPU_SLOTS_DIR=str(home / "cpu-slots"), **ONE_AT_A_TIME)
+                               LEAGUE_CPU_SLOTS_DIR=str(home / "cpu-slots"),
+                               **ONE_AT_A_TIME)  # one heat at a time: who raced what is known
 
 
 def worker_log(server: LeagueServer, k: int) -> str:
