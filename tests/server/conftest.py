@@ -118,19 +118,20 @@ class LeagueServer:
         return subprocess.run([sys.executable, "-m", "league.server", *args], env=self.env, cwd=REPO,
                               capture_output=True, text=True, timeout=120, **kwargs)
 
-    def _spawn(self, *args: str, log_name: str, **env: str) -> subprocess.Popen:
+    def _spawn(self, *args: str, log_name: str, prefix: tuple[str, ...] = (), **env: str) -> subprocess.Popen:
         log = open(self.data_dir / log_name, "ab")
-        return subprocess.Popen([sys.executable, "-m", "league.server", *args], env={**self.env, **env}, cwd=REPO,
-                                stdout=log, stderr=subprocess.STDOUT)
+        return subprocess.Popen([*prefix, sys.executable, "-m", "league.server", *args], env={**self.env, **env},
+                                cwd=REPO, stdout=log, stderr=subprocess.STDOUT)
 
     def start_api(self, embedded_worker: bool = True) -> None:
         args = ["serve", "--port", str(self.port)] + ([] if embedded_worker else ["--no-worker"])
         self.api = self._spawn(*args, log_name="api.log")
         self.wait_healthy()
 
-    def start_worker(self, **env: str) -> subprocess.Popen:
-        """A `league worker`; give LEAGUE_DATA_DIR to make it one "on another machine" (its own disk)."""
-        worker = self._spawn("worker", log_name=f"worker-{len(self.workers)}.log", **env)
+    def start_worker(self, prefix: tuple[str, ...] = (), **env: str) -> subprocess.Popen:
+        """A `league worker`; give LEAGUE_DATA_DIR to make it one "on another machine" (its own disk),
+        and a `prefix` to start it otherwise (`ip netns exec NAME`: in a network namespace)."""
+        worker = self._spawn("worker", log_name=f"worker-{len(self.workers)}.log", prefix=prefix, **env)
         self.workers.append(worker)
         return worker
 

@@ -112,12 +112,12 @@ def race_in_sandboxes(starters: Sequence[Callable[[], Agent]], names: list[str],
         for start in starters:  # from this thread: a sandbox dies with the thread that started it (PDEATHSIG)
             agents.append(start())
         ready = time.perf_counter()
+        log.info("%d cars: sandboxes started in %.2f s, racing", len(agents), ready - began)
         try:
             result = race(agents, seed=seed, names=names, **env_options)
         except (TypeError, ValueError, TrackGenerationError) as error:  # what the simulator refuses
             raise InvalidRaceSettings(f"invalid race settings: {error}") from error
-        log.info("%d cars: sandboxes started in %.2f s, raced in %.2f s", len(agents), ready - began,
-                 time.perf_counter() - ready)
+        log.info("%d cars raced in %.2f s", len(agents), time.perf_counter() - ready)
         return result
     finally:
         for agent in agents:
