@@ -15,12 +15,16 @@ from sqlalchemy.orm import Session, sessionmaker
 
 MIGRATIONS_DIR = Path(__file__).resolve().parent.parent / "migrations"
 PG_MIGRATION_LOCK = 7_305_512  # pg_advisory_lock key: API and workers may start at the same time
+# A worker on another host whose link dies must notice within a minute, not the kernel's ~15 minutes:
+# unacknowledged data times out after 30 s, an idle connection is probed every 10 s after 30 s.
+PG_LINK_TIMEOUTS = {"connect_timeout": 10, "tcp_user_timeout": 30_000, "keepalives": 1, "keepalives_idle": 30,
+                    "keepalives_interval": 10, "keepalives_count": 3}
 
 
 def make_engine(url: str) -> Engine:
     if make_url(url).get_backend_name() == "sqlite":
         return _sqlite_engine(url)
-    return create_engine(url, pool_pre_ping=True, pool_size=10, max_overflow=20)
+    return create_engine(url, pool_pre_ping=True, pool_size=10, max_overflow=20, connect_args=PG_LINK_TIMEOUTS)
 
 
 def _sqlite_engine(url: str) -> Engine:
