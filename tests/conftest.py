@@ -8,7 +8,7 @@ from __future__ import annotations
 import pytest
 
 # Fixtures that start `league serve` / `league worker` processes: their tests are the slow tier.
-SERVER_FIXTURES = {"league_server", "web_server", "season"}
+SERVER_FIXTURES = {"league_server", "web_server", "season", "server", "installed"}
 
 
 def pytest_collection_modifyitems(items):

@@ -119,6 +119,7 @@ def cmdline(pid: int) -> list[str]:
     return Path(f"/proc/{pid}/cmdline").read_bytes().decode().rstrip("\0").split("\0")
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("signal_", ["SIGTERM", "SIGKILL"])
 def test_serve_runs_its_worker_as_a_child_process_and_nothing_outlives_it(tmp_path, models, signal_):
     """The API's process runs no job (its event loop never waits for a job's GIL): its worker is a
