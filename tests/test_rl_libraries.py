@@ -69,6 +69,12 @@ def test_example_sb3_ppo_multi_car_through_supersuit(monkeypatch, capsys):
     assert "sb3-ppo-shared" in capsys.readouterr().out
 
 
+def test_example_cleanrl_ppo_on_the_vector_env(monkeypatch, tmp_path, capsys):
+    run_example("cleanrl_ppo.py", "--timesteps", "1024", "--envs", "4", "--rollout", "64", "--episodes", "2",
+                "--save", str(tmp_path / "actor.onnx"), monkeypatch=monkeypatch)
+    assert "cleanrl-ppo: 2 episodes" in capsys.readouterr().out and (tmp_path / "actor.onnx").exists()
+
+
 def test_example_torchrl_rollouts(monkeypatch, capsys):
     run_example("torchrl_rollouts.py", "--steps", "200", monkeypatch=monkeypatch)
     out = capsys.readouterr().out
