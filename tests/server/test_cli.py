@@ -98,9 +98,9 @@ def process_table() -> dict[int, tuple[int, str]]:
     return table
 
 
-def descendants(pid: int) -> dict[int, str]:
-    """pid -> start time of every process below `pid`."""
-    table, found, frontier = process_table(), {}, [pid]
+def descendants(pid: int, table: dict[int, tuple[int, str]] | None = None) -> dict[int, str]:
+    """pid -> start time of every process below `pid` (in `table`, a snapshot: default a new one)."""
+    table, found, frontier = table or process_table(), {}, [pid]
     while frontier:
         parent = frontier.pop()
         for child, (ppid, started) in table.items():
@@ -116,7 +116,11 @@ def still_running(processes: dict[int, str]) -> list[int]:
 
 
 def cmdline(pid: int) -> list[str]:
-    return Path(f"/proc/{pid}/cmdline").read_bytes().decode().rstrip("\0").split("\0")
+    """Its command line ([] once it has ended: a short-lived probe may end while we look)."""
+    try:
+        return Path(f"/proc/{pid}/cmdline").read_bytes().decode().rstrip("\0").split("\0")
+    except OSError:
+        return []
 
 
 @pytest.mark.slow
@@ -132,8 +136,9 @@ def test_serve_runs_its_worker_as_a_child_process_and_nothing_outlives_it(tmp_pa
             submission_id = upload(student, models["onnx"]).json()["id"]
             wait_for(lambda: (submission(student, submission_id)["evaluation"] or {}).get("status"),
                      lambda status: status == "running", timeout=60)
-            below = descendants(server.api.pid)
-            children = [pid for pid in below if process_table()[pid][0] == server.api.pid]
+            table = process_table()  # one snapshot: a short-lived child may end meanwhile
+            below = descendants(server.api.pid, table)
+            children = [pid for pid in below if table[pid][0] == server.api.pid]
             workers = [pid for pid in children if cmdline(pid)[-2:] == ["league.server", "worker"]]
             assert len(workers) == 1, [cmdline(pid) for pid in children]  # (the other: the isolation probe's)
             assert len(descendants(workers[0])) >= 1  # the worker's sandbox processes, evaluating
