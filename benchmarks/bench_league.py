@@ -36,7 +36,7 @@ import threading
 import time
 from pathlib import Path
 
-from _league import League, backend, measure_latency, one_core, thesis_actor
+from _league import Deadline, League, backend, enrol, measure_latency, one_core, thesis_actor
 
 HEAT_TARGET_S = 5.0
 SPEEDUP_TARGET = 1.7
@@ -108,23 +108,11 @@ def bench_heat(models: list[Path], repeats: int) -> float:
 # --------------------------------------------------------------------------- (b) a round, 1 vs 2 workers
 
 
-class Deadline:
-    def __init__(self, seconds: float, what: str):
-        self.end, self.what = time.monotonic() + seconds, what
-
-    def check(self, detail: object = "") -> None:
-        if time.monotonic() > self.end:
-            raise TimeoutError(f"{self.what}: not done in time; last: {detail}")
-
-
 def setup_students(league: League, models: list[Path], timeout: float) -> None:
     """One student per model, each uploads theirs; return once every submission is ready and
     evaluated and no job is left (the baselines' evaluations included)."""
     with league.client() as instructor:
-        roster = "name\n" + "".join(f"student{k:02d}\n" for k in range(len(models)))
-        response = instructor.post("/api/users/roster", files={"file": ("roster.csv", roster.encode())})
-        response.raise_for_status()
-        tokens = [row["token"] for row in response.json()]
+        tokens = enrol(instructor, [f"student{k:02d}" for k in range(len(models))])
         for token, model in zip(tokens, models):
             with league.client(token) as student, open(model, "rb") as handle:
                 student.post("/api/submissions", files={"file": (model.name, handle)},
