@@ -180,8 +180,12 @@ def torchscript_fixed_batch(module, path: Path, obs_dim: int = 5) -> Path:
     it): a batch of 2 is an error, as in many students' exports."""
     from tests.toolkit_models import BatchOfOne
 
+    import warnings
+
     torch = _torch()
-    torch.jit.trace(BatchOfOne(module.eval(), obs_dim), torch.zeros(1, obs_dim)).save(str(path))
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", DeprecationWarning)
+        torch.jit.trace(BatchOfOne(module.eval(), obs_dim), torch.zeros(1, obs_dim)).save(str(path))
     return path
 
 
