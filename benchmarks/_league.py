@@ -1,4 +1,4 @@
-"""Helpers shared by the benchmarks (bench_server.py, bench_league.py, bench_toolkit.py).
+"""Helpers shared by the benchmarks (bench_server.py, bench_league.py, bench_rush.py, bench_toolkit.py).
 
 Everything runs on this machine: servers started as `python -m league.server serve|worker`
 subprocesses on 127.0.0.1, in a temporary data directory, with bounded request loops.
@@ -120,8 +120,8 @@ class League:
         self.token = self._run("users", "add", "bench", "--role", "instructor").strip()
         self.workers: list[subprocess.Popen] = []  # running (started and not stopped yet)
         self.workers_started = 0
-        serve = ["serve", "--port", str(self.port)] + ([] if embedded else ["--no-worker"])
-        self.api = self._spawn(*serve, log="api.log")
+        self.serve = ["serve", "--port", str(self.port)] + ([] if embedded else ["--no-worker"])
+        self.api = self._spawn(*self.serve, log="api.log")
         try:
             for _ in range(workers):
                 self.start_worker()
@@ -157,6 +157,12 @@ class League:
                     return
             time.sleep(0.1)
         raise RuntimeError(f"the server did not start in {timeout:g} s:\n{self.log('api.log')}")
+
+    def restart_api(self) -> None:
+        """Stop `league serve` (SIGTERM, as a deployment restarts it) and start it again on the same port."""
+        self.stop_process(self.api)
+        self.api = self._spawn(*self.serve, log="api.log")
+        self._wait_healthy()
 
     def start_worker(self, wait: bool = False, timeout: float = 60, cpus: str | None = None,
                      settings: dict[str, str] | None = None) -> subprocess.Popen:
@@ -203,6 +209,24 @@ class League:
         token = self.token if token is None else token
         return httpx.Client(base_url=self.url, headers={"Authorization": f"Bearer {token}"} if token else {},
                             timeout=timeout)
+
+
+def enrol(client, names: list[str]) -> list[str]:
+    """Import a roster of students through the API (the instructor's `client`); their tokens, in order."""
+    roster = "name\n" + "".join(f"{name}\n" for name in names)
+    response = client.post("/api/users/roster", files={"file": ("roster.csv", roster.encode())})
+    response.raise_for_status()
+    tokens = {row["name"]: row["token"] for row in response.json()["created"]}
+    return [tokens[name] for name in names]
+
+
+class Deadline:
+    def __init__(self, seconds: float, what: str):
+        self.end, self.what = time.monotonic() + seconds, what
+
+    def check(self, detail: object = "") -> None:
+        if time.monotonic() > self.end:
+            raise TimeoutError(f"{self.what}: not done in time; last: {detail}")
 
 
 def measure_latency(url: str, token: str | None, path: str, rate: float, seconds: float,

@@ -161,6 +161,34 @@ def torchscript_mlp(path: Path, in_dim: int = 5, seed: int = 0) -> Path:
     return path
 
 
+def onnx_fixed_batch(module, path: Path, obs_dim: int = 5) -> Path:
+    """A torch policy exported to ONNX without a dynamic batch axis: input (1, obs_dim), one
+    observation at a time, as many students' exports are."""
+    import warnings
+
+    torch = _torch()
+    module.eval()
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        torch.onnx.export(module, (torch.zeros(1, obs_dim),), str(path), input_names=["obs"], output_names=["actions"],
+                          opset_version=17, dynamo=False)
+    return path
+
+
+def torchscript_fixed_batch(module, path: Path, obs_dim: int = 5) -> Path:
+    """A torch policy traced for one observation at a time (tests.toolkit_models.BatchOfOne wraps
+    it): a batch of 2 is an error, as in many students' exports."""
+    from tests.toolkit_models import BatchOfOne
+
+    import warnings
+
+    torch = _torch()
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", DeprecationWarning)
+        torch.jit.trace(BatchOfOne(module.eval(), obs_dim), torch.zeros(1, obs_dim)).save(str(path))
+    return path
+
+
 def torchscript_loop(path: Path, iterations: int = 10_000_000) -> Path:
     """Loops `iterations` times per call: past any deadline with the default count."""
     torch = _torch()

@@ -1,0 +1,195 @@
+"""Benchmark of job coordination on PostgreSQL: many worker processes claiming no-op jobs.
+
+    python benchmarks/bench_claims.py [--processes 16] [--owners 10000] [--depths 1000 10000] [--claims 3000]
+
+For each queue depth: a new database (the server's schema) holds that many queued jobs of
+--owners students (jobs spread over them in turn); --processes processes, started together, each
+claim the fairest queued job with league.server.jobs.leases.claim_next and complete it at once
+(a no-op handler: the cost measured is the coordination only), until --claims jobs are done.
+Printed: jobs/s (claim + complete), each claim's p50/p99 (empty-handed ones included), how many
+claims came back empty while jobs were queued (all candidates taken by others: a worker would
+drop that queue message), and the CPU time the PostgreSQL
+processes used per job (read from /proc: the server runs on this machine, sharing its CPUs with
+the claimers). Checked (exit status 1): no job claimed twice (by the claimers' records and by
+the database: every job done once, with one attempt), nothing left running.
+"""
+from __future__ import annotations
+
+import argparse
+import multiprocessing
+import os
+import sys
+import tempfile
+import time
+import uuid
+from pathlib import Path
+
+from _league import backend
+
+NOOP = "noop"
+
+
+class NoOp:
+    """A job handler (league.server.jobs.runner.JobHandler) that does nothing."""
+
+    parallel_sandboxes = False
+
+    def begin(self, session, job) -> None:
+        pass
+
+    def finish(self, session, job, outcome) -> list[int]:
+        return []
+
+    def give_up(self, session, job, reason: str) -> None:
+        pass
+
+
+def fill(database_url: str, owners: int, jobs: int) -> None:
+    """The schema, `owners` students, and `jobs` queued no-op jobs owned by them in turn."""
+    from sqlalchemy import insert
+
+    from league.server.db.models import Job, User
+    from league.server.db.session import make_engine, make_sessionmaker, migrate
+
+    engine = make_engine(database_url)
+    try:
+        migrate(engine)
+        with make_sessionmaker(engine).begin() as session:
+            session.execute(insert(User), [{"name": f"student{k:05d}", "role": "student"} for k in range(owners)])
+            first = session.query(User.id).order_by(User.id).first()[0]
+            session.execute(insert(Job), [{"kind": NOOP, "owner_id": first + k % owners} for k in range(jobs)])
+    finally:
+        engine.dispose()
+
+
+def claimer(database_url: str, start, release, done, claims: int, results) -> None:
+    """One worker process: claim and complete until `claims` jobs are done in all; reports
+    (claimed ids, each claim's seconds, claims that found no job though jobs were queued)."""
+    from league.server.db.session import make_engine, make_sessionmaker
+    from league.server.jobs import leases
+
+    engine = make_engine(database_url)
+    sessions, handlers = make_sessionmaker(engine), {NOOP: NoOp()}
+    with sessions() as session:  # connected before the start: the connection is not timed
+        session.connection()
+    claimed, seconds, misses, in_a_row = [], [], 0, 0
+    start.wait()
+    while True:
+        with done.get_lock():
+            if done.value >= claims:
+                break
+            done.value += 1
+        attempt_id = f"{os.getpid()}/{uuid.uuid4().hex[:8]}"
+        begin = time.perf_counter()
+        job = leases.claim_next(sessions, handlers, attempt_id=attempt_id)
+        seconds.append(time.perf_counter() - begin)
+        if job is None:  # every candidate was taken by others meanwhile (or the queue is empty)
+            with done.get_lock():
+                done.value -= 1
+            misses, in_a_row = misses + 1, in_a_row + 1
+            if in_a_row > 100:
+                break
+            continue
+        in_a_row = 0
+        leases.complete(sessions, handlers, job_id=job.id, attempt_id=attempt_id, outcome=None)
+        claimed.append(job.id)
+    results.put((claimed, seconds, misses))
+    release.wait()  # the parent reads the PostgreSQL processes' CPU time while this connection lives
+    engine.dispose()
+
+
+def postgres_cpu_s() -> float:
+    """CPU seconds (user + system) of the processes named postgres on this machine."""
+    tick, total = os.sysconf("SC_CLK_TCK"), 0
+    for pid in filter(str.isdigit, os.listdir("/proc")):
+        try:
+            stat = Path(f"/proc/{pid}/stat").read_text()
+        except OSError:
+            continue
+        name, fields = stat[stat.index("(") + 1:stat.rindex(")")], stat[stat.rindex(")") + 2:].split()
+        if name == "postgres":
+            total += int(fields[11]) + int(fields[12])
+    return total / tick
+
+
+def measure(database_url: str, processes: int, claims: int) -> tuple[float, list[int], list[float], int, float]:
+    context = multiprocessing.get_context("spawn")
+    start, release, done, results = context.Event(), context.Event(), context.Value("i", 0), context.Queue()
+    workers = [context.Process(target=claimer, args=(database_url, start, release, done, claims, results))
+               for _ in range(processes)]
+    for worker in workers:
+        worker.start()
+    try:
+        time.sleep(3 + 0.5 * processes)  # every process imported and connected
+        cpu_before, begin = postgres_cpu_s(), time.perf_counter()
+        start.set()
+        reports = [results.get(timeout=600) for _ in workers]
+        wall, cpu = time.perf_counter() - begin, postgres_cpu_s() - cpu_before
+    finally:
+        release.set()
+        for worker in workers:
+            worker.join(timeout=60)
+            if worker.is_alive():
+                worker.kill()
+    claimed = [job_id for ids, _, _ in reports for job_id in ids]
+    seconds = [s for _, times, _ in reports for s in times]
+    return wall, claimed, seconds, sum(misses for _, _, misses in reports), cpu
+
+
+def audit(database_url: str, claimed: list[int]) -> list[str]:
+    from sqlalchemy import select
+
+    from league.server.db.models import Job
+    from league.server.db.session import make_engine, make_sessionmaker
+
+    engine = make_engine(database_url)
+    try:
+        with make_sessionmaker(engine)() as session:
+            rows = session.execute(select(Job.id, Job.status, Job.attempts)).all()
+    finally:
+        engine.dispose()
+    failures = []
+    if len(claimed) != len(set(claimed)):
+        failures.append(f"{len(claimed) - len(set(claimed))} jobs claimed twice by the processes' records")
+    done = {row.id for row in rows if row.status == "done"}
+    if done != set(claimed):
+        failures.append(f"done in the database: {len(done)} jobs; claimed: {len(set(claimed))}")
+    failures += [f"job {row.id}: {row.status}, {row.attempts} attempts" for row in rows
+                 if (row.status, row.attempts) not in (("done", 1), ("queued", 0))]
+    return failures[:20]
+
+
+def main(argv: list[str] | None = None) -> int:
+    import numpy as np
+
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--processes", type=int, default=16)
+    parser.add_argument("--owners", type=int, default=10000, help="students owning the queued jobs")
+    parser.add_argument("--depths", type=int, nargs="+", default=[1000, 10000], help="queued jobs at the start")
+    parser.add_argument("--claims", type=int, default=3000, help="jobs claimed per depth (at most the depth)")
+    args = parser.parse_args(argv)
+    print(f"load average {' '.join(f'{x:.2f}' for x in os.getloadavg())}, {os.cpu_count()} CPUs; {args.processes} "
+          f"processes claiming no-op jobs of {args.owners} students (leases.claim_next + complete) on PostgreSQL",
+          flush=True)
+    failures = []
+    for depth in args.depths:
+        with tempfile.TemporaryDirectory(prefix="league-claims-") as tmp, backend("postgres", Path(tmp)) as urls:
+            url = urls["LEAGUE_DATABASE_URL"]
+            fill(url, args.owners, depth)
+            claims = min(args.claims, depth)
+            wall, claimed, seconds, misses, cpu = measure(url, args.processes, claims)
+            found = audit(url, claimed)
+        p50, p99 = np.percentile(np.array(seconds) * 1000, [50, 99])
+        print(f"  queue of {depth} jobs: {len(claimed)} claimed and completed in {wall:.2f} s: "
+              f"{len(claimed) / wall:.0f} jobs/s; {misses} claims found no job while jobs were queued; a claim p50 {p50:.1f} ms, p99 {p99:.1f} ms; PostgreSQL CPU "
+              f"{1000 * cpu / max(1, len(claimed)):.2f} ms per job ({cpu:.1f} s in all); double claims: "
+              f"{len(claimed) - len(set(claimed))}{'' if not found else '; FAILED: ' + '; '.join(found)}",
+              flush=True)
+        failures += found
+    print(f"checks: {'all passed' if not failures else f'{len(failures)} FAILED'} (no job claimed twice, "
+          f"every claimed job done once)", flush=True)
+    return 1 if failures else 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,577 @@
+"""Benchmark of a deadline rush: a whole course uploads its agents at once, then races a round.
+
+    python benchmarks/bench_rush.py [--backend sqlite|postgres] [--students 200] [--uploads 600]
+                                    [--window-s 300] [--episodes 100] [--faults]
+
+A course of --students students (a roster imported through the API) uploads --uploads agents at
+even intervals over --window-s seconds, student after student: ONNX and TorchScript, compact (5)
+and lidar (20) observations, dynamic and fixed batch (--distinct different files), and 10 %
+broken ones (wrong input size, wrong output size, NaN actions, a pickle, an empty file), never a
+student's first upload. Two `league worker`s run beside `league serve --no-worker`; meanwhile
+--status-clients students poll their latest submission's status every 2 s (plain GETs, as
+`league submit --wait` does) and --board-clients clients the leaderboard every 5 s. Once the
+queue is empty the clients poll on for --idle-s (the idle figures), then the instructor runs a
+championship round of every student's active agent in heats of 10.
+
+Printed: the time from the last upload to an empty queue (target <= 60 s); p50/p99 of the status
+and leaderboard answers during the rush (target p99 <= 50 ms), idle and during the round; the
+round's wall time. Checked, exit status 1 if one fails: every upload accounted for (good ones
+ready and evaluated, broken ones refused with a reason), one submission per accepted upload; no
+job left queued or running, failed, or done twice (from the database); every evaluation equal,
+figure for figure, to `metrics_run` of the same file with the course's seed and episodes, run
+here; the round done with every student in exactly one heat.
+
+--faults: halfway through the window one worker is killed (SIGKILL) and the API restarted
+(SIGTERM, started again), then the worker is started again. Requests refused while the API is
+down are counted apart; uploads are retried as a student would (by name: never twice).
+Everything runs on this machine: servers on 127.0.0.1 in a temporary directory, bounded waits.
+"""
+from __future__ import annotations
+
+import argparse
+import heapq
+import math
+import os
+import random
+import signal
+import sys
+import tempfile
+import threading
+import time
+from collections import Counter, defaultdict
+from concurrent.futures import ProcessPoolExecutor
+from dataclasses import dataclass
+from pathlib import Path
+
+import multiprocessing
+
+from _league import Deadline, League, backend, enrol
+
+QUEUE_TARGET_S = 60.0
+P99_TARGET_MS = 50.0
+HEAT_SIZE = 10
+BROKEN_SHARE = 0.10
+STATUS_PERIOD_S, BOARD_PERIOD_S = 2.0, 5.0
+FIGURES = ("completed", "episodes_total", "mean_return", "mean_steps", "mean_speed")
+
+
+# --------------------------------------------------------------------------- the files and who uploads what
+
+
+def good_files(folder: Path, count: int) -> list[Path]:
+    """`count` different working agents: every combination of format, observation and batch in turn."""
+    from league.agents import export_onnx, export_torchscript
+    from tests.server import model_factory as mf
+    from tests.toolkit_models import thesis_driver
+
+    files = []
+    for k in range(count):
+        torchscript, obs_dim, fixed = k % 2 == 1, (5, 20)[k // 2 % 2], k // 4 % 2 == 1
+        driver = thesis_driver(obs_dim=obs_dim, seed=k, target_speed=0.18 + 0.01 * (k % 10))
+        name = f"agent{k:03d}-{'ts' if torchscript else 'onnx'}-{obs_dim}-{'fixed' if fixed else 'dynamic'}"
+        if torchscript and fixed:
+            files.append(mf.torchscript_fixed_batch(driver, folder / f"{name}.pt", obs_dim))
+        elif torchscript:
+            files.append(export_torchscript(driver, folder / f"{name}.pt"))
+        elif fixed:
+            files.append(mf.onnx_fixed_batch(driver, folder / f"{name}.onnx", obs_dim))
+        else:
+            files.append(export_onnx(driver, folder / f"{name}.onnx", obs_dim))
+    return files
+
+
+def broken_files(folder: Path) -> list[Path]:
+    from tests.server import model_factory as mf
+
+    empty = folder / "empty.onnx"
+    empty.write_bytes(b"")
+    return [mf.onnx_mlp(folder / "wrong-input.onnx", in_dim=7), mf.onnx_mlp(folder / "wrong-output.onnx", out_dim=3),
+            mf.onnx_mlp(folder / "nan.onnx", nan=True), mf.pickle_renamed_pt(folder / "pickle.pt"), empty]
+
+
+@dataclass
+class Upload:
+    index: int
+    student: int
+    file: Path
+    broken: bool
+    code: int | None = None  # the HTTP status of the POST (201 accepted)
+    submission_id: int | None = None
+    detail: str = ""
+    answered_at: float = 0.0
+
+    @property
+    def name(self) -> str:
+        return f"upload-{self.index:04d}"
+
+
+def plan(students: int, uploads: int, good: list[Path], broken: list[Path], seed: int) -> list[Upload]:
+    """Upload i is student i mod `students`'s; the broken ones are drawn among the uploads that are
+    not a student's first, so that every student has an agent for the round."""
+    rng = random.Random(seed)
+    spoiled = set(rng.sample(range(students, uploads), min(uploads - students, round(BROKEN_SHARE * uploads))))
+    plan_, next_broken = [], 0
+    for i in range(uploads):
+        if i in spoiled:
+            plan_.append(Upload(i, i % students, broken[next_broken % len(broken)], True))
+            next_broken += 1
+        else:
+            plan_.append(Upload(i, i % students, good[i % len(good)], False))
+    return plan_
+
+
+# --------------------------------------------------------------------------- clients
+
+
+def bearer(token: str | None) -> dict[str, str]:
+    return {"Authorization": f"Bearer {token}"} if token else {}
+
+
+class Pollers:
+    """Clients each polling a GET every `period` seconds (from a random phase), a few clients per
+    thread; each answer's latency is kept under the phase (rush, idle, round) it was sent in."""
+
+    def __init__(self, url: str, seed: int):
+        self.url, self.rng = url, random.Random(seed)
+        self.phase = "warm-up"
+        self.latencies: dict[tuple[str, str], list[float]] = defaultdict(list)
+        self.errors: list[tuple[float, str, str]] = []  # (sent at, what, status or exception)
+        self.lock, self.stop = threading.Lock(), threading.Event()
+        self.threads: list[threading.Thread] = []
+
+    def add(self, what: str, clients: list, period: float, per_thread: int = 5) -> None:
+        """`clients`: functions returning (path, token) to GET now, or None (nothing to poll yet)."""
+        for first in range(0, len(clients), per_thread):
+            phases = [self.rng.uniform(0, period) for _ in clients[first:first + per_thread]]
+            thread = threading.Thread(target=self._poll, args=(what, clients[first:first + per_thread], period, phases),
+                                      daemon=True)
+            self.threads.append(thread)
+            thread.start()
+
+    def _poll(self, what: str, clients: list, period: float, phases: list[float]) -> None:
+        import httpx
+
+        start = time.perf_counter()
+        due = [(start + phase, k) for k, phase in enumerate(phases)]
+        heapq.heapify(due)
+        with httpx.Client(base_url=self.url, timeout=30) as http:
+            while True:
+                at, k = heapq.heappop(due)
+                heapq.heappush(due, (at + period, k))
+                if self.stop.wait(max(0.0, at - time.perf_counter())):
+                    return
+                target = clients[k]()
+                if target is None:
+                    continue
+                phase, sent = self.phase, time.perf_counter()
+                try:
+                    status = http.get(target[0], headers=bearer(target[1])).status_code
+                except httpx.HTTPError as error:
+                    status = repr(error)
+                elapsed = time.perf_counter() - sent
+                with self.lock:
+                    if status == 200:
+                        self.latencies[what, phase].append(elapsed)
+                    else:
+                        self.errors.append((sent, what, str(status)))
+
+    def close(self) -> None:
+        self.stop.set()
+        for thread in self.threads:
+            thread.join()
+
+
+class Uploader:
+    """Sends the planned uploads open loop (upload i due at i * window / count) from a few threads,
+    as the students' clients would: retried while the API cannot be reached, never sent twice."""
+
+    def __init__(self, league: League, tokens: list[str], uploads: list[Upload], window_s: float):
+        self.league, self.tokens, self.uploads, self.window_s = league, tokens, uploads, window_s
+        self.latest: dict[int, int] = {}  # student -> their newest accepted submission
+        self.lock = threading.Lock()
+
+    def run(self, senders: int = 8) -> None:
+        start = time.perf_counter()
+        threads = [threading.Thread(target=self._send_share, args=(k, senders, start)) for k in range(senders)]
+        for thread in threads:
+            thread.start()
+        for thread in threads:
+            thread.join()
+
+    def _send_share(self, offset: int, senders: int, start: float) -> None:
+        import httpx
+
+        interval = self.window_s / max(1, len(self.uploads) - 1)
+        with httpx.Client(base_url=self.league.url, timeout=60) as http:
+            for upload in self.uploads[offset::senders]:
+                delay = start + upload.index * interval - time.perf_counter()
+                if delay > 0:
+                    time.sleep(delay)
+                self._send(http, upload)
+
+    def _send(self, http, upload: Upload) -> None:
+        import httpx
+
+        headers = bearer(self.tokens[upload.student])
+        deadline = Deadline(180, f"{upload.name}: the API is unreachable")
+        while True:
+            try:
+                with open(upload.file, "rb") as handle:
+                    response = http.post("/api/submissions", files={"file": (upload.file.name, handle)},
+                                         data={"name": upload.name}, headers=headers)
+                break
+            except (httpx.ConnectError, httpx.ConnectTimeout) as error:  # not sent: try again
+                deadline.check(error)
+            except httpx.HTTPError as error:  # sent, no answer: accepted or not, the student's list says
+                found = self._find(http, upload, headers, deadline)
+                if found is not None:
+                    self._accepted(upload, 201, found)
+                    return
+                deadline.check(error)
+            time.sleep(0.2)
+        if response.status_code == 201:
+            self._accepted(upload, 201, response.json()["id"])
+        else:
+            upload.code, upload.detail, upload.answered_at = response.status_code, response.text, time.perf_counter()
+
+    def _find(self, http, upload: Upload, headers: dict, deadline: Deadline) -> int | None:
+        import httpx
+
+        while True:
+            try:
+                listing = http.get("/api/submissions", headers=headers)
+                if listing.status_code == 200:
+                    return next((s["id"] for s in listing.json() if s["name"] == upload.name), None)
+            except httpx.HTTPError as error:
+                deadline.check(error)
+            time.sleep(0.2)
+
+    def _accepted(self, upload: Upload, code: int, submission_id: int) -> None:
+        upload.code, upload.submission_id, upload.answered_at = code, submission_id, time.perf_counter()
+        with self.lock:
+            self.latest[upload.student] = submission_id
+
+
+# --------------------------------------------------------------------------- the rush
+
+
+def queue_is_empty(client) -> bool:
+    return not any(client.get("/api/jobs", params={"status": status, "limit": 1}).json()
+                   for status in ("queued", "running"))
+
+
+def wait_queue_empty(league: League, timeout: float) -> float:
+    """Poll the instructor's job list until nothing is queued or running (across API restarts);
+    returns when it was first seen empty."""
+    import httpx
+
+    deadline = Deadline(timeout, "the queue to empty")
+    with league.client() as client:
+        while True:
+            try:
+                if queue_is_empty(client):
+                    return time.perf_counter()
+            except httpx.HTTPError as error:
+                deadline.check(error)
+            deadline.check("jobs still queued or running")
+            time.sleep(0.25)
+
+
+def inject_faults(league: League, at: float, events: dict[str, float]) -> None:
+    """Kill one worker (SIGKILL) and restart the API at `at` (perf_counter), then start a new worker."""
+    time.sleep(max(0.0, at - time.perf_counter()))
+    victim = league.workers.pop(0)
+    victim.kill()
+    victim.wait()
+    events["worker killed"] = events["API down"] = time.perf_counter()
+    league.restart_api()
+    events["API up"] = time.perf_counter()
+    league.start_worker(wait=True)
+    events["worker started"] = time.perf_counter()
+
+
+def run_round(league: League, seed: int, students: int) -> tuple[float, dict]:
+    from bench_league import new_championship, timed_round
+
+    with league.client() as instructor:
+        championship_id = new_championship(instructor, "deadline cup", seed)
+        seconds, summary = timed_round(instructor, championship_id, timeout=120 + 20 * students)
+        summary["races"] = [instructor.get(f"/api/races/{race_id}").json() for race_id in summary["race_ids"]]
+    return seconds, summary
+
+
+# --------------------------------------------------------------------------- checks
+
+
+def local_figures(path: str, settings: dict) -> dict:
+    """metrics_run of the file here, outside any sandbox (a process of a pool)."""
+    from league.agents import load_agent
+    from league.evaluation import metrics_run
+
+    return metrics_run(load_agent(path), episodes=settings["episodes"], seed=settings["seed"],
+                       **settings["env_options"]).to_dict()
+
+
+def served_episodes(client, submission_id: int, evaluation_id: int) -> list[dict]:
+    items: list[dict] = []
+    while True:
+        page = client.get(f"/api/submissions/{submission_id}/episodes",
+                          params={"evaluation_id": evaluation_id, "offset": len(items), "limit": 1000}).json()
+        items += page["items"]
+        if len(items) >= page["total"] or not page["items"]:
+            return items
+
+
+def check_uploads(uploads: list[Upload], final: dict[int, dict]) -> list[str]:
+    """Good uploads ready and evaluated; broken ones refused with a reason (at upload or by validation)."""
+    failures = []
+    for upload in uploads:
+        served = final.get(upload.submission_id) if upload.submission_id else None
+        if upload.broken:
+            refused_at_upload = upload.code is not None and 400 <= upload.code < 500 and upload.detail
+            rejected = served is not None and served["status"] == "rejected" and served["error"]
+            if not (refused_at_upload or rejected):
+                failures.append(f"broken {upload.name} ({upload.file.name}) not refused with a reason: "
+                                f"{upload.code} {upload.detail[:200]} {served and (served['status'], served['error'])}")
+        elif upload.code != 201 or served is None:
+            failures.append(f"{upload.name} ({upload.file.name}) not accepted: {upload.code} {upload.detail[:200]}")
+        elif served["status"] != "ready" or (served["evaluation"] or {}).get("status") != "done":
+            failures.append(f"{upload.name} ({upload.file.name}) is {served['status']}, evaluation "
+                            f"{(served['evaluation'] or {}).get('status')}: {served['error']}")
+    return failures
+
+
+def check_submissions(uploads: list[Upload], listing: list[dict]) -> list[str]:
+    """One submission per accepted upload, none for a refused one."""
+    names = Counter(s["name"] for s in listing if s["owner"] != "baselines")
+    accepted = {u.name for u in uploads if u.code == 201}
+    failures = [f"{name}: {count} submissions" for name, count in names.items() if count != 1 or name not in accepted]
+    failures += [f"{name}: accepted but missing" for name in accepted - set(names)]
+    return failures
+
+
+def check_jobs(database_url: str, final: dict[int, dict], race_ids: list[int]) -> tuple[list[str], Counter]:
+    """From the database: nothing queued or running, nothing failed; per submission one validation
+    done, and one evaluation (job and row) done if it is ready; per heat one race job done."""
+    from sqlalchemy import select
+
+    from league.server.db.models import Evaluation, Job
+    from league.server.db.session import make_engine, make_sessionmaker
+
+    engine = make_engine(database_url)
+    try:
+        with make_sessionmaker(engine)() as session:
+            jobs = session.execute(select(Job.id, Job.kind, Job.status, Job.submission_id, Job.race_id,
+                                          Job.attempts, Job.error)).all()
+            evaluations = Counter(session.scalars(select(Evaluation.submission_id)))
+    finally:
+        engine.dispose()
+    failures = [f"job {j.id} ({j.kind}) is {j.status}: {j.error}" for j in jobs if j.status != "done"]
+    per_subject = defaultdict(list)
+    for job in jobs:
+        per_subject[job.kind, job.submission_id or job.race_id].append(job.status)
+    for submission_id, served in final.items():
+        expected = {"validate": ["done"], "evaluate": ["done"] if served["status"] == "ready" else []}
+        for kind, statuses in expected.items():
+            if per_subject.get((kind, submission_id), []) != statuses:
+                failures.append(f"submission {submission_id}: {kind} jobs {per_subject.get((kind, submission_id))}")
+        if evaluations[submission_id] != len(expected["evaluate"]):
+            failures.append(f"submission {submission_id}: {evaluations[submission_id]} evaluations")
+    failures += [f"race {race_id}: race jobs {per_subject.get(('race', race_id))}" for race_id in race_ids
+                 if per_subject.get(("race", race_id)) != ["done"]]
+    return failures, Counter(job.attempts for job in jobs)
+
+
+def check_results(league: League, uploads: list[Upload], final: dict[int, dict], settings: dict) -> list[str]:
+    """Every evaluation equals metrics_run of its file here: totals and every episode, exactly."""
+    import hashlib
+
+    ready = [u for u in uploads if u.submission_id and final[u.submission_id]["status"] == "ready"]
+    files = sorted({u.file for u in ready})
+    with ProcessPoolExecutor(max_workers=2, mp_context=multiprocessing.get_context("spawn")) as pool:
+        local = dict(zip(files, pool.map(local_figures, map(str, files), [settings] * len(files))))
+    failures = []
+    with league.client() as client:
+        for upload in ready:
+            served, expected = final[upload.submission_id], local[upload.file]
+            evaluation = served["evaluation"]
+            if served["sha256"] != hashlib.sha256(upload.file.read_bytes()).hexdigest():
+                failures.append(f"{upload.name}: stored file differs from the uploaded one")
+            if evaluation["settings"] != settings:
+                failures.append(f"{upload.name}: evaluated with {evaluation['settings']}, the course says {settings}")
+            totals = {key: evaluation[key] for key in FIGURES}
+            if totals != {key: expected[key] for key in FIGURES}:
+                failures.append(f"{upload.name} ({upload.file.name}): {totals} != local "
+                                f"{ {key: expected[key] for key in FIGURES} }")
+            episodes = served_episodes(client, upload.submission_id, evaluation["id"])
+            if [e.pop("index") for e in episodes] != list(range(len(episodes))) or episodes != expected["episodes"]:
+                failures.append(f"{upload.name} ({upload.file.name}): episodes differ from the local run")
+    return failures
+
+
+def check_round(summary: dict, students: int, active: set[int]) -> list[str]:
+    entrants = [s for heat in summary["heats"] for s in heat]
+    failures = []
+    if summary["status"] != "done":
+        failures.append(f"the round is {summary['status']}")
+    if len(entrants) != students or set(entrants) != active:
+        failures.append(f"the round's {len(entrants)} entrants ({len(set(entrants))} different) are not the "
+                        f"{students} students' active agents")
+    for race in summary["races"]:
+        if race["status"] != "done" or len(race["classification"] or []) != len(race["entrants"]):
+            failures.append(f"race {race['id']} is {race['status']}: {race['error']}")
+    return failures
+
+
+# --------------------------------------------------------------------------- report
+
+
+def percentiles(seconds: list[float]) -> str:
+    import numpy as np
+
+    if not seconds:
+        return "no answers"
+    p50, p99 = np.percentile(np.array(seconds) * 1000, [50, 99])
+    return f"p50 {p50:.1f} ms, p99 {p99:.1f} ms ({len(seconds)} answers)"
+
+
+def report_latencies(pollers: Pollers) -> None:
+    import numpy as np
+
+    for what in ("status", "leaderboard"):
+        rush = pollers.latencies[what, "rush"]
+        p99 = float(np.percentile(np.array(rush) * 1000, 99)) if rush else math.nan
+        verdict = "ok" if p99 <= P99_TARGET_MS else "OVER TARGET"
+        print(f"  GET {what}: during the rush {percentiles(rush)} (target p99 <= {P99_TARGET_MS:g} ms: {verdict}); "
+              f"idle {percentiles(pollers.latencies[what, 'idle'])}; during the round "
+              f"{percentiles(pollers.latencies[what, 'round'])}", flush=True)
+
+
+def unexpected_errors(pollers: Pollers, events: dict[str, float]) -> list[str]:
+    """Poll errors other than while the API restarted (1 s of grace)."""
+    down, up = events.get("API down", math.inf), events.get("API up", -math.inf)
+    return [f"GET {what} at {sent:.1f}: {status}" for sent, what, status in pollers.errors
+            if not down - 1 <= sent <= up + 1]
+
+
+# --------------------------------------------------------------------------- main
+
+
+def parse(argv: list[str] | None) -> argparse.Namespace:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0],
+                                     epilog="\n".join(__doc__.splitlines()[4:]),
+                                     formatter_class=argparse.RawDescriptionHelpFormatter)
+    parser.add_argument("--backend", choices=["sqlite", "postgres"], default="sqlite",
+                        help="sqlite: SQLite database and queue; postgres: the local PostgreSQL (LEAGUE_BENCH_PG) "
+                             "and Redis (LEAGUE_BENCH_REDIS)")
+    parser.add_argument("--students", type=int, default=200)
+    parser.add_argument("--uploads", type=int, default=600)
+    parser.add_argument("--window-s", type=float, default=300.0, help="the uploads are spread over this time")
+    parser.add_argument("--episodes", type=int, default=100, help="episodes of the course's evaluations")
+    parser.add_argument("--seed", type=int, default=0, help="the course's evaluation seed (and the plan's draws)")
+    parser.add_argument("--distinct", type=int, default=48, help="different working agent files (8 kinds)")
+    parser.add_argument("--status-clients", type=int, default=50, help="students polling their status every 2 s")
+    parser.add_argument("--board-clients", type=int, default=100, help="clients polling the leaderboard every 5 s")
+    parser.add_argument("--idle-s", type=float, default=10.0, help="polling after the queue emptied (idle figures)")
+    parser.add_argument("--faults", action="store_true",
+                        help="halfway through: kill -9 a worker, restart the API, then start a worker again")
+    args = parser.parse_args(argv)
+    if args.uploads < args.students:
+        parser.error("every student uploads at least once: --uploads must be >= --students")
+    return args
+
+
+def main(argv: list[str] | None = None) -> int:
+    args = parse(argv)
+    per_student = math.ceil(args.uploads / args.students)
+    print(f"load average {' '.join(f'{x:.2f}' for x in os.getloadavg())}, {os.cpu_count()} CPUs; {args.backend}: "
+          f"{args.students} students, {args.uploads} uploads over {args.window_s:g} s, {args.episodes}-episode "
+          f"evaluations, 2 workers{', faults' if args.faults else ''}", flush=True)
+    with tempfile.TemporaryDirectory(prefix="league-rush-") as tmp, backend(args.backend, Path(tmp)) as urls:
+        folder = Path(tmp)
+        (folder / "files").mkdir()
+        uploads = plan(args.students, args.uploads, good_files(folder / "files", min(args.distinct, args.uploads)),
+                       broken_files(folder / "files"), args.seed)
+        settings = {**urls, "LEAGUE_EVAL_EPISODES": str(args.episodes), "LEAGUE_EVAL_SEED": str(args.seed),
+                    "LEAGUE_QUOTA_PER_DAY": str(per_student), "LEAGUE_MAX_JOBS_IN_FLIGHT": str(per_student),
+                    "LEAGUE_CPU_SLOTS_DIR": str(folder / "cpu-slots"),
+                    # a killed worker's job goes elsewhere within seconds, not the default minute
+                    "LEAGUE_HEARTBEAT_INTERVAL_S": "1", "LEAGUE_LEASE_TIMEOUT_S": "8", "LEAGUE_REAPER_INTERVAL_S": "2"}
+        with League(folder, embedded=False, workers=2, settings=settings) as league:
+            return rush(league, args, uploads, urls["LEAGUE_DATABASE_URL"])
+
+
+def rush(league: League, args: argparse.Namespace, uploads: list[Upload], database_url: str) -> int:
+    with league.client() as instructor:
+        tokens = enrol(instructor, [f"student{k:03d}" for k in range(args.students)])
+        course = instructor.get("/api/settings/evaluation").json()
+    drain_timeout = 300 + args.uploads * args.episodes * 0.05
+    wait_queue_empty(league, drain_timeout)  # the baselines' evaluations: before the rush
+    uploader = Uploader(league, tokens, uploads, args.window_s)
+    pollers = Pollers(league.url, args.seed)
+    pollers.add("status", [status_client(uploader, tokens, (c * args.students) // args.status_clients)
+                           for c in range(args.status_clients)], STATUS_PERIOD_S)
+    pollers.add("leaderboard", [lambda: ("/api/leaderboard", None)] * args.board_clients, BOARD_PERIOD_S)
+    events: dict[str, float] = {}
+    try:
+        pollers.phase = "rush"
+        begin = time.perf_counter()
+        faults = threading.Thread(target=inject_faults, args=(league, begin + args.window_s / 2, events))
+        if args.faults:
+            faults.start()
+        uploader.run()
+        last_upload = max(u.answered_at for u in uploads)
+        if args.faults:
+            faults.join()
+        emptied = wait_queue_empty(league, drain_timeout)
+        pollers.phase = "idle"
+        time.sleep(args.idle_s)
+        pollers.phase = "round"
+        round_s, summary = run_round(league, args.seed, args.students)
+    finally:
+        pollers.close()
+    with league.client() as instructor:
+        listing = instructor.get("/api/submissions", params={"all": True}).json()
+    final = {s["id"]: s for s in listing if s["owner"] != "baselines"}
+    accepted = sum(u.code == 201 for u in uploads)
+    print(f"  {len(uploads)} uploads in {last_upload - begin:.1f} s: {accepted} accepted, "
+          f"{sum(u.broken for u in uploads)} broken ({sum(u.broken and u.code != 201 for u in uploads)} refused at "
+          f"upload); {sum(s['status'] == 'ready' for s in final.values())} ready, "
+          f"{sum(s['status'] == 'rejected' for s in final.values())} rejected", flush=True)
+    if events:
+        print("  faults: " + ", ".join(f"{what} at {at - begin:.1f} s" for what, at in events.items())
+              + f"; {len(pollers.errors)} polls refused or cut meanwhile", flush=True)
+    drained = emptied - last_upload
+    print(f"  last upload -> queue empty: {drained:.1f} s (target <= {QUEUE_TARGET_S:g} s: "
+          f"{'ok' if drained <= QUEUE_TARGET_S else 'OVER TARGET'})", flush=True)
+    report_latencies(pollers)
+    print(f"  championship round of {len(summary['race_ids'])} heats ({sum(map(len, summary['heats']))} cars): "
+          f"{round_s:.1f} s from POST to done", flush=True)
+
+    failures = unexpected_errors(pollers, events)
+    failures += check_uploads(uploads, final)
+    failures += check_submissions(uploads, listing)
+    job_failures, attempts = check_jobs(database_url, final, summary["race_ids"])
+    failures += job_failures
+    print(f"  jobs by attempts: {dict(sorted(attempts.items()))}", flush=True)
+    active = {s["id"] for s in final.values() if s["active"]}
+    failures += check_round(summary, args.students, active)
+    failures += check_results(league, uploads, final, course)
+    for failure in failures[:50]:
+        print(f"  FAILED: {failure}", flush=True)
+    print(f"checks: {'all passed' if not failures else f'{len(failures)} FAILED'} (uploads accounted for, one "
+          f"submission each, no job lost, stuck, failed or done twice, results equal to local metrics_run, "
+          f"the round complete)", flush=True)
+    return 1 if failures else 0
+
+
+def status_client(uploader: Uploader, tokens: list[str], student: int):
+    def target() -> tuple[str, str] | None:
+        submission_id = uploader.latest.get(student)
+        return None if submission_id is None else (f"/api/submissions/{submission_id}", tokens[student])
+    return target
+
+
+if __name__ == "__main__":
+    signal.signal(signal.SIGTERM, lambda *_: sys.exit(143))  # cleanup (servers, temporary files) on SIGTERM too
+    sys.exit(main())
