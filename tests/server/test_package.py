@@ -35,7 +35,7 @@ def installed(tmp_path_factory) -> Path:
     """A venv with the wheel of this checkout installed (no dependencies: those of this interpreter,
     which may itself be a venv, are made visible through a .pth file, so nothing is downloaded)."""
     tmp = tmp_path_factory.mktemp("package")
-    run(sys.executable, "-m", "pip", "wheel", "--no-deps", "--no-build-isolation", "-q", "-w", str(tmp / "dist"),
+    run(sys.executable, "-m", "pip", "wheel", "--no-deps", "-q", "-w", str(tmp / "dist"),
         str(REPO), cwd=tmp)
     wheel = next((tmp / "dist").glob("microracer_league-*.whl"))
     venv = tmp / "venv"

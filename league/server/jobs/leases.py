@@ -34,10 +34,13 @@ def claim_next(sessions: sessionmaker[Session], handlers: Mapping[str, Any], *, 
     """Claim the fairest queued job: owners take turns (a job's rank counts its owner's jobs running
     or queued before it), so one student's backlog delays another's first job by one job at most;
     at equal rank validations go first, then evaluations, then races, then the oldest."""
-    for job_id in fairest_queued(sessions):
-        job = claim(sessions, handlers, job_id=job_id, attempt_id=attempt_id)
-        if job is not None:
-            return job
+    while candidates := fairest_queued(sessions):
+        for job_id in candidates:
+            job = claim(sessions, handlers, job_id=job_id, attempt_id=attempt_id)
+            if job is not None:
+                return job
+        # every candidate went to another worker meanwhile (many claim at once): look again, or a
+        # queued job would wait for the reaper's re-send while this worker's message is dropped
     return None
 
 
@@ -57,6 +60,9 @@ def claim(sessions: sessionmaker[Session], handlers: Mapping[str, Any], *, job_i
     """Take a queued job for this attempt; None if it is not queued (done, failed, running elsewhere)."""
     now = utcnow()
     with sessions.begin() as session:
+        if session.get_bind().dialect.name == "postgresql" and session.scalar(
+                select(Job.id).where(Job.id == job_id, Job.status == QUEUED).with_for_update(skip_locked=True)) is None:
+            return None  # taken, or being taken by another worker: do not queue behind its row lock
         taken = session.execute(
             update(Job).where(Job.id == job_id, Job.status == QUEUED)
             .values(status=RUNNING, worker_id=attempt_id, attempts=Job.attempts + 1, started_at=now, heartbeat_at=now)
