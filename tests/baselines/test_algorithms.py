@@ -18,6 +18,8 @@ from league.baselines.common.export import export_policy, probe_observations  # 
 from league.baselines.common.networks import ObservationNormalizer  # noqa: E402
 from league.baselines.common.run import Run  # noqa: E402
 
+pytestmark = pytest.mark.slow  # trainings and `league` subprocesses: the full suite's tier
+
 # a few hundred steps, learning from step 100, no long evaluations
 TINY = {"steps": 300, "learning_starts": 100, "eval_every": 0, "final_eval_episodes": 0, "checkpoint_every": 0,
         "log_every": 20}

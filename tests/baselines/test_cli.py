@@ -12,6 +12,8 @@ pytest.importorskip("torch")
 from league.baselines import ALGORITHMS, load_algorithm  # noqa: E402
 from league.baselines.cli import algorithm_parser  # noqa: E402
 
+pytestmark = pytest.mark.slow  # trainings and `league` subprocesses: the full suite's tier
+
 
 def cli(*args, timeout=120):
     env = {k: v for k, v in os.environ.items() if k not in ("DISPLAY", "MPLBACKEND", "LEAGUE_DEBUG")}
