@@ -15,6 +15,7 @@ import uuid
 from pathlib import Path
 
 import pytest
+from playwright.sync_api import expect
 
 from league import render
 
@@ -120,8 +121,8 @@ def test_revoked_token_sends_the_user_back_to_login_with_a_message(web, web_serv
     web.page.reload()
 
     web.page.wait_for_url(re.compile(r"/login\?next=%2Fsubmissions$"))
-    assert web.page.inner_text("#login-message") == \
-        "You were logged out: this account was revoked. Log in again with your token."
+    expect(web.page.locator("#login-message")).to_have_text(  # shown once the page's script has run
+        "You were logged out: this account was revoked. Log in again with your token.")
     assert web.page.evaluate("localStorage.getItem('league.token')") is None
     web.screenshot("login-after-revoked-token")
 
@@ -142,7 +143,7 @@ def test_login_goes_back_only_to_a_page_of_this_site(web, web_server, next_page,
 def test_a_page_for_logged_in_users_asks_to_log_in_first(web):
     web.goto("/submissions")
     web.page.wait_for_url(re.compile(r"/login\?next=%2Fsubmissions$"))
-    assert web.page.inner_text("#login-message") == "Log in with your token to see this page."
+    expect(web.page.locator("#login-message")).to_have_text("Log in with your token to see this page.")
 
 
 # --------------------------------------------------------------------------- submissions
