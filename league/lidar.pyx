@@ -608,24 +608,23 @@ cdef class CarBatch:
         interpolated inside the step. Returns the number of cars still running.
         """
         cdef int c, running = 0
-        cdef const unsigned char[::1] acts = self._moving(moving)
+        cdef bint everyone = moving is None  # the common case: no mask to build or read
+        cdef const unsigned char[::1] acts = None if everyone else self._moving(moving)
         if actions.shape[0] != self.n or actions.shape[1] != 2:
             raise ValueError(f"actions must have shape ({self.n}, 2), got ({actions.shape[0]}, {actions.shape[1]})")
         for c in range(self.n):
-            if self.oc[c] == RUNNING and acts[c] and (isnan(actions[c, 0]) or isnan(actions[c, 1])):
+            if self.oc[c] == RUNNING and (everyone or acts[c]) and (isnan(actions[c, 0]) or isnan(actions[c, 1])):
                 raise ValueError(f"the action of car {c} contains NaN; actions must be finite numbers in [-1, 1]")
         self.steps += 1
         with nogil:
             for c in range(self.n):
                 self.rw[c] = 0.0
-                if self.oc[c] == RUNNING and acts[c]:
+                if self.oc[c] == RUNNING and (everyone or acts[c]):
                     self.move(c, actions[c, 0], actions[c, 1])
                 running += self.oc[c] == RUNNING
         return running
 
     def _moving(self, moving) -> cnp.ndarray:
-        if moving is None:
-            return np.ones(self.n, dtype=np.uint8)
         moving = np.asarray(moving, dtype=bool)
         if moving.shape != (self.n,):
             raise ValueError(f"moving must have shape ({self.n},), got {moving.shape}")
@@ -635,7 +634,10 @@ cdef class CarBatch:
         """`step` for cars in independent episodes: returns (terminated, truncated), bool arrays
         of the cars that stopped in this step, and of those still running that have now taken
         `max_steps` steps of their own episode (cars outside `moving` are neither)."""
-        running_before = (self.outcome == RUNNING) & self._moving(moving).view(bool)
+        running_before = self.outcome == RUNNING
+        if moving is not None:
+            moving = self._moving(moving).view(bool)
+            running_before &= moving
         self.step(actions, moving)
         terminated, truncated = np.zeros(self.n, dtype=bool), np.zeros(self.n, dtype=bool)
         cdef const unsigned char[::1] before = running_before.view(np.uint8)
