@@ -149,25 +149,25 @@ def server_limits(api: Api | None):
     return replace(SandboxLimits.from_settings(settings), require_isolation=False), max_bytes or settings.max_upload_bytes
 
 
-def check_file(path: Path, api: Api | None = None):
-    """The server's validation of `path` (league.server.sandbox.validation.validate_model), run here."""
+def check_files(paths: list[Path], api: Api | None = None):
+    """(path, report, limits) for each of `paths`, in order: the server's validation
+    (league.server.sandbox.validation.validate_model) run here, with the limits fetched once."""
     try:
         from league.server.sandbox.validation import ValidationReport, validate_model
         from league.server.storage import model_kind_of
     except ImportError as error:
         raise ClientError(f"league check runs the server's own checks: pip install 'microracer-league[server]' "
                           f"({error})", EXIT_USAGE) from error
-    if not path.is_file():
-        raise ClientError(f"no such file: {path}", EXIT_USAGE)
     limits, max_bytes = server_limits(api)
-    kind, size = model_kind_of(path.name), path.stat().st_size
-    refusal = ("the file is empty" if size == 0 else
-               f"unsupported file type {path.suffix or '(none)'!r}: upload an .onnx or a TorchScript .pt file"
-               if kind is None else
-               f"file too large: the limit is {max_bytes / 2**20:g} MB" if size > max_bytes else None)
-    if refusal:
-        return ValidationReport(False, None, refusal, ""), limits
-    return validate_model(path, kind, limits), limits
+    for path in paths:
+        if not path.is_file():
+            raise ClientError(f"no such file: {path}", EXIT_USAGE)
+        kind, size = model_kind_of(path.name), path.stat().st_size
+        refusal = ("the file is empty" if size == 0 else
+                   f"unsupported file type {path.suffix or '(none)'!r}: upload an .onnx or a TorchScript .pt file"
+                   if kind is None else
+                   f"file too large: the limit is {max_bytes / 2**20:g} MB" if size > max_bytes else None)
+        yield path, (ValidationReport(False, None, refusal, "") if refusal else validate_model(path, kind, limits)), limits
 
 
 def check_report(path: Path, report, limits) -> str:
@@ -181,16 +181,19 @@ def check_report(path: Path, report, limits) -> str:
 
 
 def run_check(args: argparse.Namespace) -> int:
+    """One line per file, in order; exit 0 only if the server would accept every one."""
     api = _optional_api(args)
+    accepted = True
     try:
-        report, limits = check_file(Path(args.file), api)
+        for path, report, limits in check_files([Path(file) for file in args.files], api):
+            print(check_report(path, report, limits), flush=True)
+            if args.log and report.log:
+                print(report.log, file=sys.stderr, flush=True)
+            accepted = accepted and report.ok
     finally:
         if api is not None:
             api.http.close()
-    print(check_report(Path(args.file), report, limits))
-    if args.log and report.log:
-        print(report.log, file=sys.stderr)
-    return EXIT_OK if report.ok else EXIT_REJECTED
+    return EXIT_OK if accepted else EXIT_REJECTED
 
 
 def _optional_api(args: argparse.Namespace) -> Api | None:
@@ -224,7 +227,7 @@ def run_submit(args: argparse.Namespace) -> int:
     path = Path(args.file)
     with Api(connection(args)) as api:
         if not args.no_check:
-            report, limits = check_file(path, api)
+            [(_, report, limits)] = check_files([path], api)
             print(check_report(path, report, limits), file=sys.stderr)
             if not report.ok:
                 return EXIT_REJECTED
@@ -405,11 +408,12 @@ def add_commands(subparsers) -> None:
 
     command("login", "check a token with a league server and save both for the next commands", run_login)
 
-    check = command("check", "run the server's checks on a model file here, before uploading it", run_check,
+    check = command("check", "run the server's checks on model files here, before uploading them", run_check,
                     "The server's own validation, on this machine: static checks (operators, external data, "
                     "TorchScript rules), loading and a dry run in a sandbox, and the CPU time per observation "
-                    "against the server's limit (the configured server's limits, else the defaults).")
-    check.add_argument("file", metavar="FILE", help="an ONNX (.onnx) or TorchScript (.pt) file")
+                    "against the server's limit (the configured server's limits, else the defaults). One line "
+                    "per file; the exit status is 0 only if the server would accept every file.")
+    check.add_argument("files", nargs="+", metavar="FILE", help="ONNX (.onnx) or TorchScript (.pt) files")
     check.add_argument("--log", action="store_true", help="also print what the sandbox printed")
 
     submit = command("submit", "upload a model to the league server", run_submit,

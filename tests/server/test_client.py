@@ -12,7 +12,6 @@ import stat
 import subprocess
 import sys
 import uuid
-from concurrent.futures import ThreadPoolExecutor
 
 import pytest
 
@@ -64,33 +63,38 @@ def student_token(server, name: str) -> str:
 
 def test_check_rejects_exactly_what_the_server_rejects(server, models, tmp_path):
     """Every model file of the server tests, good and hostile: uploaded (one student each), and
-    checked here with `league check` against the server's limits; the same verdict and reason."""
+    checked here with one `league check` of them all against the server's limits; the same verdict
+    and reason, file for file, in order."""
     uploaded = {}
     for kind, path in models.items():
         response = upload(create_student(server, unique(kind)), path)
         assert response.status_code == 201, response.text
         uploaded[kind] = response.json()["id"]
-    with ThreadPoolExecutor(2) as pool:
-        checked = dict(zip(models, pool.map(
-            lambda path: league("check", str(path), "--server", server.url, config=tmp_path), models.values())))
+    checked = league("check", *map(str, models.values()), "--server", server.url, config=tmp_path)
     with server.client(server.instructor_token) as instructor:
         served = {kind: wait_settled(instructor, uploaded[kind], timeout=120) for kind in models}
 
-    for kind, result in checked.items():
+    assert checked.returncode == EXIT_REJECTED, checked.stderr  # some are rejected: not every file would pass
+    starts = [checked.stdout.index(f"{path.name}: the server would ") for path in models.values()]
+    assert starts == sorted(starts) and starts[0] == 0, checked.stdout  # one report per file, in order
+    reports = dict(zip(models, (checked.stdout[a:b] for a, b in zip(starts, [*starts[1:], None]))))
+    for kind, report in reports.items():
         verdict = served[kind]
-        assert result.returncode == (EXIT_OK if verdict["status"] == "ready" else EXIT_REJECTED), \
-            (kind, verdict["error"], result.stdout, result.stderr)
         name = models[kind].name
         if verdict["status"] == "ready":
             assert re.fullmatch(rf"{re.escape(name)}: the server would accept it: observation size 5, "
-                                r"[\d.]+ ms of CPU per observation \(limit 20 ms\)\n", result.stdout), result.stdout
+                                r"[\d.]+ ms of CPU per observation \(limit 20 ms\)\n", report), report
         elif kind in TIMED:
-            assert re.search(TIMED[kind], verdict["error"]) and re.search(TIMED[kind], result.stdout), \
-                (verdict["error"], result.stdout)
+            assert re.search(TIMED[kind], verdict["error"]) and re.search(TIMED[kind], report), \
+                (verdict["error"], report)
         else:
-            assert result.stdout.startswith(f"{name}: the server would reject it: {verdict['error']}"), \
-                (verdict["error"], result.stdout)
+            assert report.startswith(f"{name}: the server would reject it: {verdict['error']}"), \
+                (verdict["error"], report)
     assert sum(v["status"] == "ready" for v in served.values()) == 3  # the good ones: onnx, torchscript, heuristic
+    good = [models[kind] for kind in models if served[kind]["status"] == "ready"]
+    all_good = league("check", *map(str, good), "--server", server.url, config=tmp_path)
+    assert all_good.returncode == EXIT_OK, all_good.stdout + all_good.stderr
+    assert all_good.stdout.count("the server would accept it") == 3
 
 
 def test_a_student_logs_in_submits_waits_and_races_from_the_terminal(server, models, tmp_path):
