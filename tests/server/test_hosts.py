@@ -16,6 +16,7 @@ import contextlib
 import os
 import pwd
 import random
+import re
 import shutil
 import signal
 import subprocess
@@ -318,9 +319,12 @@ def test_workers_on_other_hosts_share_the_league_and_survive_a_cut_link(tmp_path
         [(r["position"], r["car"], r["outcome"]) for r in local.classification]
     assert [r["time"] for r in heat["classification"]] == pytest.approx([r["time"] for r in local.classification])
 
-    # the cut host raced its heat to the end, but its heartbeat hung on the cut link until the link was
-    # back, and by then the lease was the other host's: its result was refused, and changed nothing
-    assert "job %d: lease lost before completion; its results are discarded" % cut_job["id"] in log_of_cut_host
+    # the cut host's heartbeat hung on the cut link, and by then the lease was the other host's. What it
+    # saw next depends on the machine's speed: at its next heartbeat, the lease lost (it stopped its heat);
+    # or, its heat raced to the end first, its result refused at completion; or its connections still
+    # failing (heartbeat failed, its completion an error) until it stopped. Whichever: it changed nothing
+    # (below), and it did race its heat and find its lease in doubt
+    assert re.search(rf"job {cut_job['id']}: (lease lost|heartbeat failed)", log_of_cut_host), log_of_cut_host[-3000:]
     assert after["round"] == finished and after["standings"] == table
     assert [j for j in after["jobs"] if j["status"] not in ("done",)] == []
     assert sorted(j["id"] for j in after["jobs"]) == sorted(j["id"] for j in entry_jobs + jobs)
