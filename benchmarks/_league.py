@@ -141,9 +141,11 @@ class League:
                               capture_output=True, text=True, timeout=120).stdout
 
     def _spawn(self, *args: str, log: str, settings: dict[str, str] | None = None) -> subprocess.Popen:
+        """Each process in a session of its own, as services run (systemd starts each so): Linux then
+        schedules it as a group of its own, and the benchmark's clients do not share the API's."""
         with open(self.folder / log, "ab") as output:
             return subprocess.Popen([sys.executable, "-m", "league.server", *args], env={**self.env, **(settings or {})},
-                                    cwd=self.root, stdout=output, stderr=subprocess.STDOUT)
+                                    cwd=self.root, stdout=output, stderr=subprocess.STDOUT, start_new_session=True)
 
     def _wait_healthy(self, timeout: float = 60) -> None:
         import httpx

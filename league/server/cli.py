@@ -113,6 +113,7 @@ def stop_child_worker(worker: subprocess.Popen, timeout_s: float = 30) -> None:
 
 
 def run_worker(args: argparse.Namespace) -> int:
+    from league.server.jobs.runner import lower_session_priority
     from league.server.jobs.worker import Worker, pin_to_cpus, worker_context
 
     _logging()
@@ -124,6 +125,7 @@ def run_worker(args: argparse.Namespace) -> int:
         except ValueError as error:
             print(f"league worker: --cpus {cpus!r}: {error}", file=sys.stderr)
             return 2
+    lower_session_priority(settings.job_nice)
     context = worker_context(settings)
     log.info("worker: database %s, queue %s", context.sessions.kw["bind"].url.render_as_string(),
              type(context.queue.huey).__name__)

@@ -1,6 +1,7 @@
 """`league users ...` and the server commands in the toolkit's `league` CLI."""
 from __future__ import annotations
 
+import contextlib
 import os
 import subprocess
 import sys
@@ -141,7 +142,13 @@ def test_serve_runs_its_worker_as_a_child_process_and_nothing_outlives_it(tmp_pa
             children = [pid for pid in below if table[pid][0] == server.api.pid]
             workers = [pid for pid in children if cmdline(pid)[-2:] == ["league.server", "worker"]]
             assert len(workers) == 1, [cmdline(pid) for pid in children]  # (the other: the isolation probe's)
-            assert len(descendants(workers[0])) >= 1  # the worker's sandbox processes, evaluating
+            below_worker = descendants(workers[0], table)  # fork servers, and the sandboxes they forked
+            sandboxes = [pid for pid in below_worker if table[pid][0] != workers[0]]
+            assert len(sandboxes) >= 1  # the worker's sandbox processes, evaluating
+            # Jobs yield the CPU to the API: the worker's and its sandboxes' scheduling groups at nice 10.
+            assert autogroup_nice(workers[0]) == 10
+            assert {autogroup_nice(pid) for pid in sandboxes if session_leader(pid)} - {None} == {10}
+            assert autogroup_nice(server.api.pid) < 10
             assert threading_free_of_jobs(server.api.pid)
             server.stop(server.api, kill=signal_ == "SIGKILL")
             left = wait_for(lambda: still_running(below), lambda pids: pids == [], timeout=30, interval=0.2)
@@ -150,6 +157,23 @@ def test_serve_runs_its_worker_as_a_child_process_and_nothing_outlives_it(tmp_pa
     assert left == []
     if signal_ == "SIGTERM":
         assert server.api.returncode == 0
+
+
+def session_leader(pid: int) -> bool:
+    with contextlib.suppress(OSError):
+        return os.getsid(pid) == pid
+    return False
+
+
+def autogroup_nice(pid: int) -> int | None:
+    """The nice value of the scheduling group (autogroup) of a process's session; None once it has ended.
+    A process of the boot session (as under CI, where no login made a session) is in the root group,
+    which the kernel weighs at nice 0: its file is empty."""
+    try:
+        fields = Path(f"/proc/{pid}/autogroup").read_text().split()  # "/autogroup-42 nice 10", or nothing
+    except OSError:
+        return None
+    return int(fields[-1]) if fields else 0
 
 
 def threading_free_of_jobs(pid: int) -> bool:

@@ -24,6 +24,7 @@ from league.server.db.models import Job, Submission
 from league.server.jobs import leases
 from league.server.jobs.placement import Placement
 from league.server.jobs.queue import JobQueue
+from league.server.sandbox.child import set_autogroup_nice
 from league.server.storage import BlobStore
 
 log = logging.getLogger("league.server.jobs")
@@ -116,6 +117,15 @@ def lower_thread_priority(nice: int) -> None:
         os.setpriority(os.PRIO_PROCESS, threading.get_native_id(), nice)
     except OSError:  # not allowed to lower it back (not root, nice already higher): keep what we have
         pass
+
+
+def lower_session_priority(nice: int) -> None:
+    """Linux schedules each session as one group (its autogroup), which a thread's nice value does not
+    lower: a worker that leads its own session (serve's child, a systemd service) puts its whole group
+    at `nice`, or the API's session would share the CPU with it as an equal. A worker typed in a shell
+    shares the shell's session, which is not ours to lower."""
+    if os.getsid(0) == os.getpid():
+        set_autogroup_nice(nice)
 
 
 def place_thread(context: WorkerContext, handler: JobHandler) -> None:

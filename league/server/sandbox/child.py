@@ -279,6 +279,9 @@ def load_model(model_path: Path, memory_mb: int):
 
 
 def _import_torch():
+    """torch, on one thread (set once per process: a sandbox forked from the server has it so)."""
+    if "torch" in sys.modules:
+        return sys.modules["torch"]
     import warnings
 
     import torch
@@ -314,6 +317,7 @@ def fork_server(control_fd: int) -> int:
 
     libc = ctypes.CDLL(None, use_errno=True)
     libc.prctl(PR_SET_PDEATHSIG, signal.SIGKILL)  # the worker's thread ended: so does this server
+    keep_our_nice_in_our_autogroup()  # (started in a session of its own)
     single_thread_environment()  # before numpy: a fork must find one thread
     preload_runtimes()
     control = socket.socket(fileno=control_fd)
@@ -326,13 +330,16 @@ def fork_server(control_fd: int) -> int:
             pid, status = os.waitpid(request["wait"], os.WNOHANG)
             reply = {"status": os.waitstatus_to_exitcode(status) if pid else None}
         else:
+            if request["args"][0].endswith(".pt") and TORCH_AVAILABLE:
+                _import_torch()  # once, at the first TorchScript model: ~1-2.5 s of CPU no sandbox repeats
             reply = {"pid": fork_sandbox(request, fds, control)}
         control.send(json.dumps(reply).encode())
 
 
 def preload_runtimes() -> None:
     """What every ONNX sandbox imports, all of which start no thread (onnxruntime only with its
-    telemetry off; torch is imported by each TorchScript sandbox after the fork)."""
+    telemetry off). Torch starts none either, but costs more than an ONNX sandbox's whole run: the
+    server imports it only once a TorchScript model comes (fork_server)."""
     import contextlib
 
     import pyseccomp  # noqa: F401  (what every sandbox confines itself with)
@@ -345,6 +352,20 @@ def preload_runtimes() -> None:
         agents.import_onnxruntime().disable_telemetry_events()
 
 
+def set_autogroup_nice(nice: int) -> None:
+    """Linux schedules each session as one group (its autogroup), at nice 0 whatever its threads' nice
+    values: a process leading a session of its own gives its group `nice`, or the API's session would
+    share the CPU with it as an equal."""
+    with contextlib.suppress(OSError):  # a kernel without autogroups: the threads' nice is the priority
+        with open("/proc/self/autogroup", "w") as autogroup:
+            autogroup.write(str(nice))
+
+
+def keep_our_nice_in_our_autogroup() -> None:
+    """A new session: its group gets the nice value we inherited from the job's thread."""
+    set_autogroup_nice(os.getpriority(os.PRIO_PROCESS, 0))
+
+
 def fork_sandbox(request: dict, fds: list[int], control) -> int:
     pid = os.fork()
     if pid:
@@ -355,6 +376,7 @@ def fork_sandbox(request: dict, fds: list[int], control) -> int:
     try:
         control.close()
         os.setsid()
+        keep_our_nice_in_our_autogroup()
         for target, fd in enumerate(fds):
             os.dup2(fd, target)
         os.closerange(3, max(3, *(int(fd) for fd in os.listdir("/proc/self/fd"))) + 1)  # nothing else of ours
