@@ -14,6 +14,10 @@
     batched matmuls sum in another order, so actions may differ in the last bits.
 (c) a 10-car race of ONNX agents: target <= 2 s;
 (d) saving that race's GIF: target <= 30 s.
+(e) the same 100 episodes of exports fixed to batch size 1 (many students' files; a quarter of the
+    deadline rush's), as evaluated before (row by row: a model call per running episode per step)
+    and now (ONNX: the graph given a free batch dimension when it answers a batch as it answers
+    each row; TorchScript: the rows in one no_grad and checked once).
 
 Times are CPU time of this process (time.process_time): on a shared machine, the other
 processes' time slices on this core are not counted.
@@ -116,6 +120,40 @@ def main() -> None:
         gif, _ = timed("(d) saving the race's GIF", lambda: animate_replay(race_result.replay, save=out / "race.gif"),
                        TARGETS["gif"])
         print(f"    {gif.stat().st_size / 1024:.0f} KiB" + (f", kept in {out}" if args.out else ""))
+        fixed_batch_exports(out, seeds, timed)
+
+
+def fixed_batch_exports(out: Path, seeds: list[int], timed) -> None:
+    """(e): the row-by-row path (the loader's agent forced back to it) beside the loader's own."""
+    import numpy as np
+
+    from league.agents import Agent, OnnxAgent, TorchAgent, _onnx_session, import_onnxruntime, load_agent
+    from league.evaluation import metrics_run
+    from tests.server.model_factory import onnx_fixed_batch, torchscript_fixed_batch
+    from tests.toolkit_models import thesis_driver
+
+    n = len(seeds)
+    onnx_file = onnx_fixed_batch(thesis_driver(target_speed=0.25), out / "fixed.onnx")
+    as_exported = OnnxAgent(_onnx_session(import_onnxruntime(), onnx_file), 5, "row by row", fixed_batch=True, rank=2,
+                            input_dtype=np.float32)
+    _, before = timed(f"(e) ONNX fixed to batch 1, {n} episodes: row by row (before)",
+                      lambda: metrics_run(as_exported, episodes=n, seed=0))
+    agent = load_agent(onnx_file)
+    _, after = timed(f"    the loader's agent ({'row by row' if agent.fixed_batch else 'free batch'})",
+                     lambda: metrics_run(agent, episodes=n, seed=0))
+    print(f"    {before / after:.1f}x")
+    ts_file = torchscript_fixed_batch(thesis_driver(target_speed=0.25), out / "fixed.pt")
+    agent = load_agent(ts_file)
+
+    class EachRowOnItsOwn(TorchAgent):
+        _act_rows = Agent._act_rows  # the generic path: a no_grad and a check per row
+
+    each_row = EachRowOnItsOwn(agent._module, 5, "each row on its own")
+    each_row.fixed_batch = True
+    _, before = timed("    TorchScript fixed to batch 1: each row checked on its own (before)",
+                      lambda: metrics_run(each_row, episodes=n, seed=0))
+    _, after = timed("    the rows in one no_grad, checked once", lambda: metrics_run(agent, episodes=n, seed=0))
+    print(f"    {before / after:.1f}x")
 
 
 if __name__ == "__main__":

@@ -20,6 +20,7 @@ from league.agents import (
     export_onnx,
     export_torchscript,
     heuristic_agent,
+    import_onnxruntime,
     load_agent,
 )
 
@@ -112,14 +113,54 @@ def test_single_observation_is_a_batch_of_one(onnx_actor):
     assert load_agent(onnx_actor)(OBS5[0]).shape == (1, 2)
 
 
-def test_onnx_exported_with_a_fixed_batch_of_one_runs_row_by_row(thesis_module, tmp_path):
-    path = tmp_path / "fixed.onnx"
+def export_fixed_to_one(module, path):
+    """torch.onnx.export without a dynamic axis: input (1, 5), as many students export."""
     with warnings.catch_warnings():
-        warnings.simplefilter("ignore", DeprecationWarning)  # the legacy exporter needs no onnxscript
-        torch.onnx.export(thesis_module, (torch.zeros(1, 5),), str(path), dynamo=False)
+        warnings.simplefilter("ignore")  # the legacy exporter needs no onnxscript; tracer warnings
+        torch.onnx.export(module, (torch.zeros(1, 5),), str(path), dynamo=False)
+    return path
+
+
+def test_onnx_exported_with_a_fixed_batch_of_one_answers_a_batch_in_one_call(thesis_module, tmp_path):
+    """Its graph does not depend on the batch: it is given a free batch dimension (one call per
+    batch, not per row) and answers as the file's own graph answers each row."""
+    path = export_fixed_to_one(thesis_module, tmp_path / "fixed.onnx")
     agent = load_agent(path)
+    assert not agent.fixed_batch
+    np.testing.assert_allclose(agent(OBS5_LARGE), torch_actions(thesis_module, OBS5_LARGE), atol=1e-6)
+    session = import_onnxruntime().InferenceSession(str(path), providers=["CPUExecutionProvider"])
+    as_exported = np.concatenate([session.run(None, {session.get_inputs()[0].name: OBS5_LARGE[k:k + 1]})[0]
+                                  for k in range(len(OBS5_LARGE))])
+    np.testing.assert_allclose(agent(OBS5_LARGE), np.clip(as_exported, -1, 1), rtol=0, atol=1e-6)
+
+
+class ReshapesToOne(torch.nn.Module):
+    def __init__(self, inner):
+        super().__init__()
+        self.inner = inner
+
+    def forward(self, obs):
+        return self.inner(obs.reshape(1, 5))
+
+
+class MixesRows(torch.nn.Module):
+    """The identity on a batch of one; on a larger batch, every row is shifted by the others."""
+
+    def __init__(self, inner):
+        super().__init__()
+        self.inner = inner
+
+    def forward(self, obs):
+        return self.inner(obs + obs.sum(0, keepdim=True) - obs[0:1])
+
+
+@pytest.mark.parametrize("wrapper", [ReshapesToOne, MixesRows])
+def test_onnx_fixed_to_one_whose_graph_depends_on_the_batch_stays_row_by_row(wrapper, thesis_module, tmp_path):
+    """A graph that fails on a batch, or answers it otherwise than row by row, is not given a free batch."""
+    agent = load_agent(export_fixed_to_one(wrapper(thesis_module), tmp_path / "fixed.onnx"))
     assert agent.fixed_batch
-    np.testing.assert_allclose(agent(OBS5), torch_actions(thesis_module, OBS5), atol=1e-6)
+    np.testing.assert_array_equal(agent(OBS5_LARGE), row_by_row(agent, OBS5_LARGE))
+    np.testing.assert_allclose(agent(OBS5_LARGE), torch_actions(thesis_module, OBS5_LARGE), atol=1e-6)
 
 
 def row_by_row(agent, obs):
