@@ -13,7 +13,7 @@ from sqlalchemy.orm import Session
 
 from league import championship as rules
 from league.server.db import crud
-from league.server.db.models import BASELINE, DONE, STUDENT, Championship, ChampionshipRound, Submission
+from league.server.db.models import BASELINE, DONE, STUDENT, Championship, ChampionshipRound
 
 
 def finished_heats(rounds: list[ChampionshipRound]) -> list[list[dict]]:
@@ -72,41 +72,35 @@ def course_ratings(session: Session, *, course_id: int | None) -> dict[int, rule
 def leaderboard_rows(session: Session, *, course_id: int | None) -> list[dict]:
     """Each student's best evaluated submission (completion rate, then mean return), and every
     bundled baseline as a reference row; best first, with the course-wide rating."""
-    owners = crud.leaderboard_owners(session, course_id=course_id)
-    ready = crud.ready_submissions(session, owner_ids=[u.id for u in owners])
     # the newest finished evaluation: a re-run in progress does not take an agent off the board
-    evaluations = crud.latest_evaluations(session, submission_ids=[s.id for s in ready], status=DONE)
-    best: dict[tuple[str, int], tuple[Submission, Any]] = {}
-    for submission in ready:
-        evaluation = evaluations.get(submission.id)
-        if evaluation is None:
-            continue
-        key = leaderboard_key(submission)
-        if key not in best or _score(evaluation) > _score(best[key][1]):
-            best[key] = (submission, evaluation)
+    best: dict[tuple[str, int], Any] = {}
+    for entry in crud.leaderboard_entries(session, course_id=course_id):
+        key = leaderboard_key(entry)
+        if key not in best or _score(entry) > _score(best[key]):
+            best[key] = entry
     ratings = course_ratings(session, course_id=course_id)
-    ordered = sorted(best.values(), key=lambda pair: (_score(pair[1]), -pair[0].id), reverse=True)
-    return [_leaderboard_row(rank, submission, evaluation, ratings.get(submission.id))
-            for rank, (submission, evaluation) in enumerate(ordered, start=1)]
+    ordered = sorted(best.values(), key=lambda entry: (_score(entry), -entry.id), reverse=True)
+    return [_leaderboard_row(rank, entry, ratings.get(entry.id)) for rank, entry in enumerate(ordered, start=1)]
 
 
-def leaderboard_key(submission: Submission) -> tuple[str, int]:
+def leaderboard_key(entry) -> tuple[str, int]:
     """A row's identity: each baseline agent has a row, each student one (their best agent).
     Tagged, so that a student's user id never collides with a baseline's submission id."""
-    if submission.owner.role == BASELINE:
-        return ("baseline", submission.id)
-    return ("student", submission.owner_id)
+    if entry.owner_role == BASELINE:
+        return ("baseline", entry.id)
+    return ("student", entry.owner_id)
 
 
-def _score(evaluation) -> tuple[float, float]:
-    return (evaluation.completed / max(evaluation.episodes_total, 1), evaluation.mean_return)
+def _score(entry) -> tuple[float, float]:
+    return (entry.completed / max(entry.episodes_total, 1), entry.mean_return)
 
 
-def _leaderboard_row(rank: int, submission: Submission, evaluation, rating: rules.Rating | None) -> dict:
-    return {"rank": rank, "owner": submission.owner.name, "submission_id": submission.id, "name": submission.name,
-            "public": submission.public, "completed": evaluation.completed, "episodes": evaluation.episodes_total,
-            "mean_return": evaluation.mean_return, "mean_steps": evaluation.mean_steps,
-            "mean_speed": evaluation.mean_speed, "rating": rating.conservative if rating else None,
+def _leaderboard_row(rank: int, entry, rating: rules.Rating | None) -> dict:
+    """`entry`: a row of crud.leaderboard_entries (a submission, its owner, its figures)."""
+    return {"rank": rank, "owner": entry.owner, "submission_id": entry.id, "name": entry.name,
+            "public": entry.public, "completed": entry.completed, "episodes": entry.episodes_total,
+            "mean_return": entry.mean_return, "mean_steps": entry.mean_steps,
+            "mean_speed": entry.mean_speed, "rating": rating.conservative if rating else None,
             "mu": rating.mu if rating else None, "sigma": rating.sigma if rating else None}
 
 

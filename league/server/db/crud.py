@@ -13,7 +13,7 @@ from sqlalchemy.dialects.sqlite import insert as sqlite_insert
 from sqlalchemy.orm import Session
 
 from league.server.db.models import (
-    BASELINE, EVALUATE, FAILED, QUEUED, READY, REJECTED, RUNNING, STUDENT, VALIDATE, Blob, Championship, ChampionshipRound,
+    BASELINE, DONE, EVALUATE, FAILED, QUEUED, READY, REJECTED, RUNNING, STUDENT, VALIDATE, Blob, Championship, ChampionshipRound,
     Course, EpisodeResult, Evaluation, Job, Race, RaceReplay, Submission, User, utcnow,
 )
 from league.server.security import hash_token, new_token
@@ -284,10 +284,20 @@ def active_students(session: Session, *, course_id: int | None) -> list[User]:
                                                    User.revoked_at.is_(None)).order_by(User.id)))
 
 
-def leaderboard_owners(session: Session, *, course_id: int | None) -> list[User]:
-    """The course's active students and the baselines' account (its agents are on every board)."""
-    return list(session.scalars(select(User).where(
-        ((User.course_id == course_id) & (User.role == STUDENT) & User.revoked_at.is_(None)) | (User.role == BASELINE))))
+def leaderboard_entries(session: Session, *, course_id: int | None) -> list[Any]:
+    """Every ready submission of the course's active students and of the baselines' account, newest
+    first, with its owner and its newest finished evaluation's figures: plain rows (one query, no
+    objects: the board is recomputed after every evaluation of a deadline rush)."""
+    owners = select(User.id).where(
+        ((User.course_id == course_id) & (User.role == STUDENT) & User.revoked_at.is_(None)) | (User.role == BASELINE))
+    newest_done = select(func.max(Evaluation.id)).where(Evaluation.status == DONE).group_by(Evaluation.submission_id)
+    query = (select(Submission.id, Submission.name, Submission.public, Submission.owner_id,
+                    User.name.label("owner"), User.role.label("owner_role"), Evaluation.completed,
+                    Evaluation.episodes_total, Evaluation.mean_return, Evaluation.mean_steps, Evaluation.mean_speed)
+             .join(User, Submission.owner_id == User.id).join(Evaluation, Evaluation.submission_id == Submission.id)
+             .where(Submission.owner_id.in_(owners), Submission.status == READY, Evaluation.id.in_(newest_done))
+             .order_by(Submission.id.desc()))
+    return list(session.execute(query))
 
 
 def public_state_stamp(session: Session) -> tuple:
