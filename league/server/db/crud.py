@@ -288,14 +288,17 @@ def leaderboard_entries(session: Session, *, course_id: int | None) -> list[Any]
     """Every ready submission of the course's active students and of the baselines' account, newest
     first, with its owner and its newest finished evaluation's figures: plain rows (one query, no
     objects: the board is recomputed after every evaluation of a deadline rush)."""
-    owners = select(User.id).where(
-        ((User.course_id == course_id) & (User.role == STUDENT) & User.revoked_at.is_(None)) | (User.role == BASELINE))
-    newest_done = select(func.max(Evaluation.id)).where(Evaluation.status == DONE).group_by(Evaluation.submission_id)
+    # joined to a derived table of the newest ids (not `id IN (subquery)`, which SQLite's planner
+    # ran 50x slower: 111 ms against 2 ms for 600 evaluations)
+    newest = (select(Evaluation.submission_id, func.max(Evaluation.id).label("id"))
+              .where(Evaluation.status == DONE).group_by(Evaluation.submission_id).subquery())
     query = (select(Submission.id, Submission.name, Submission.public, Submission.owner_id,
                     User.name.label("owner"), User.role.label("owner_role"), Evaluation.completed,
                     Evaluation.episodes_total, Evaluation.mean_return, Evaluation.mean_steps, Evaluation.mean_speed)
-             .join(User, Submission.owner_id == User.id).join(Evaluation, Evaluation.submission_id == Submission.id)
-             .where(Submission.owner_id.in_(owners), Submission.status == READY, Evaluation.id.in_(newest_done))
+             .join(User, Submission.owner_id == User.id)
+             .join(newest, newest.c.submission_id == Submission.id).join(Evaluation, Evaluation.id == newest.c.id)
+             .where(((User.course_id == course_id) & (User.role == STUDENT) & User.revoked_at.is_(None))
+                    | (User.role == BASELINE), Submission.status == READY)
              .order_by(Submission.id.desc()))
     return list(session.execute(query))
 
