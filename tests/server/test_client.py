@@ -61,6 +61,7 @@ def student_token(server, name: str) -> str:
     return response.json()["token"]
 
 
+@pytest.mark.long
 def test_check_rejects_exactly_what_the_server_rejects(server, models, tmp_path):
     """Every model file of the server tests, good and hostile: uploaded (one student each), and
     checked here with one `league check` of them all against the server's limits; the same verdict

@@ -62,6 +62,7 @@ def test_worker_killed_mid_evaluation_the_evaluation_completes_once(backend, tmp
     assert evaluation["mean_return"] == pytest.approx(local["mean_return"], abs=1e-9)
 
 
+@pytest.mark.long
 def test_restart_loses_nothing_and_leaves_nothing_stuck(backend, tmp_path, models):
     _, urls = backend
     server = make_server(tmp_path, urls, LEAGUE_EVAL_EPISODES=LONG_EPISODES)

@@ -49,6 +49,7 @@ def installed(tmp_path_factory) -> Path:
     return venv
 
 
+@pytest.mark.long
 def test_an_installed_server_started_elsewhere_registers_the_bundled_baselines(installed, tmp_path):
     elsewhere = tmp_path / "elsewhere"
     elsewhere.mkdir()

@@ -173,6 +173,7 @@ def check_round_counted_once(server: LeagueServer, championship_id: int, finishe
 # --------------------------------------------------------------------------- tests
 
 
+@pytest.mark.long
 def test_worker_killed_mid_round_every_heat_counted_once(backend, tmp_path, drivers):
     _, urls = backend
     server = make_server(tmp_path, urls, **ROUND_SETTINGS)

@@ -6,12 +6,15 @@ from __future__ import annotations
 
 import sys
 
+import pytest
+
 from .conftest import REPO
 
 sys.path.insert(0, str(REPO / "benchmarks"))
 import bench_rush  # noqa: E402
 
 
+@pytest.mark.long
 def test_a_small_rush_passes_the_benchmarks_checks(capsys):
     """On SQLite: the PostgreSQL + Redis path of the same jobs runs in test_hosts.py and the benchmark."""
     code = bench_rush.main(["--backend", "sqlite", "--students", "12", "--uploads", "30", "--window-s", "5",

@@ -110,6 +110,7 @@ def _pinned_evaluation(model: Path, cpu_per_observation: float, cpu: int, burner
     return json.loads(output)
 
 
+@pytest.mark.long
 def test_a_busy_machine_changes_no_result_and_the_budget_is_on_the_cpu_clock(files):
     """The same evaluation on a quiet CPU and on one shared with three CPU burners, with a budget of
     3x the largest CPU time per observation seen when quiet: the same episodes, none a DNF. (The

@@ -66,6 +66,7 @@ def shared_tmp():
     shutil.rmtree(path, ignore_errors=True)
 
 
+@pytest.mark.long
 def test_the_sandbox_tests_pass_as_an_ordinary_user(shared_tmp):
     require_root_tools()
     uid = ordinary_user()
