@@ -2,7 +2,7 @@
 that starts the files of `long` tests first.
 
     python -m pytest -n 2 -m "not slow"   the quick loop: everything in this process or in sandboxes
-    python -m pytest -n 2 --dist loadfile the whole suite (what CI runs)
+    python -m pytest -n 2 --dist loadfile --no-loadscope-reorder   the whole suite (what CI runs)
 """
 from __future__ import annotations
 
@@ -16,7 +16,8 @@ def pytest_collection_modifyitems(items):
     for item in items:
         if SERVER_FIXTURES & set(getattr(item, "fixturenames", ())):
             item.add_marker(pytest.mark.slow)
-    # The files of `long` tests first: under `pytest -n 2 --dist loadfile` (the README's command) a
+    # The files of `long` tests first: under `pytest -n 2 --dist loadfile --no-loadscope-reorder`
+    # (the README's command; without the last option xdist sends the files with most tests first) a
     # file started last ends the run, and these take a minute or more each.
     long_files = {item.path for item in items if item.get_closest_marker("long")}
     items.sort(key=lambda item: item.path not in long_files)  # stable: the rest keep their order
