@@ -79,8 +79,11 @@ def test_restart_loses_nothing_and_leaves_nothing_stuck(backend, tmp_path, model
         after = {i: submission(student, i) for i in done}
         finished = wait_settled(student, interrupted, timeout=120)
         finished_episodes = episodes(student, interrupted, finished["evaluation"]["id"])
-        with server.client(server.instructor_token) as instructor:
-            unfinished = [j for j in instructor.get("/api/jobs").json() if j["status"] in ("queued", "running")]
+        with server.client(server.instructor_token) as instructor:  # every job ends (the baseline's too,
+            # whose evaluation may have been queued or running at the kill, and is raced again after it)
+            unfinished = wait_for(lambda: [j for j in instructor.get("/api/jobs").json()
+                                           if j["status"] in ("queued", "running")],
+                                  lambda jobs: jobs == [], timeout=120, interval=0.25)
         server.stop(server.api)  # a clean stop (SIGTERM) and a second restart
         server.start_api()
         again = {i: submission(student, i) for i in [*done, interrupted]}
