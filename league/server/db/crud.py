@@ -13,8 +13,8 @@ from sqlalchemy.dialects.sqlite import insert as sqlite_insert
 from sqlalchemy.orm import Session
 
 from league.server.db.models import (
-    BASELINE, DONE, EVALUATE, FAILED, QUEUED, READY, REJECTED, RUNNING, STUDENT, VALIDATE, Blob, Championship, ChampionshipRound,
-    Course, EpisodeResult, Evaluation, Job, Race, RaceReplay, Submission, User, utcnow,
+    BASELINE, DONE, EVALUATE, FAILED, QUEUED, RACE, READY, REJECTED, RUNNING, STUDENT, VALIDATE, Blob, Championship,
+    ChampionshipRound, Course, EpisodeResult, Evaluation, Job, Race, RaceReplay, Submission, User, utcnow,
 )
 from league.server.security import hash_token, new_token
 
@@ -304,12 +304,15 @@ def leaderboard_entries(session: Session, *, course_id: int | None) -> list[Any]
 
 
 def public_state_stamp(session: Session) -> tuple:
-    """What the public answers (leaderboard, standings) are computed from changes with this, read
-    from indexes: the newest finished job (an evaluation's or a heat's results are written as its
-    job ends), the newest change of a submission (ready, public), revocations (the board's students)."""
+    """What the public answers (leaderboard, standings) are computed from changes with this, each
+    part read from one index: the newest finished evaluation and heat (their results are written as
+    their job ends) and revocations (the board's students). Uploads and validations change no public
+    answer (a submission shows once an evaluation of it is done), nor does this stamp; a public flag
+    or a roster change shows within the cache's maximum age."""
+    def newest_finished(kind: str):
+        return select(func.max(Job.finished_at)).where(Job.kind == kind).scalar_subquery()
     return tuple(session.execute(select(
-        select(func.max(Job.finished_at)).scalar_subquery(),
-        select(func.max(Submission.updated_at)).scalar_subquery(),
+        newest_finished(EVALUATE), newest_finished(RACE),
         select(func.max(User.revoked_at)).scalar_subquery(),
         select(func.count(User.revoked_at)).scalar_subquery())).one())
 

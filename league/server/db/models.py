@@ -122,7 +122,7 @@ class Submission(Base):
     obs_dim: Mapped[int | None] = mapped_column(Integer, default=None)
     public: Mapped[bool] = mapped_column(default=False)
     created_at: Mapped[datetime] = mapped_column(default=utcnow)
-    updated_at: Mapped[datetime] = mapped_column(default=utcnow, onupdate=utcnow, index=True)  # the state stamp
+    updated_at: Mapped[datetime] = mapped_column(default=utcnow, onupdate=utcnow)
 
     owner: Mapped[User] = relationship(lazy="joined")
 
@@ -179,7 +179,8 @@ class Job(Base):
 
     __tablename__ = "jobs"
     __table_args__ = (Index("ix_jobs_status_heartbeat", "status", "heartbeat_at"),
-                      Index("ix_jobs_status_owner", "status", "owner_id"))
+                      Index("ix_jobs_status_owner", "status", "owner_id"),
+                      Index("ix_jobs_kind_finished", "kind", "finished_at"))  # the state stamp
 
     id: Mapped[int] = mapped_column(primary_key=True)
     kind: Mapped[str] = mapped_column(String(20))
@@ -196,7 +197,7 @@ class Job(Base):
     enqueued_at: Mapped[datetime] = mapped_column(default=utcnow)
     started_at: Mapped[datetime | None] = mapped_column(default=None)
     heartbeat_at: Mapped[datetime | None] = mapped_column(default=None)
-    finished_at: Mapped[datetime | None] = mapped_column(default=None, index=True)  # the state stamp
+    finished_at: Mapped[datetime | None] = mapped_column(default=None)
 
 
 class Championship(Base):

@@ -9,6 +9,7 @@ import time
 import uuid
 
 import pytest
+from sqlalchemy import select
 
 from league.server.db.models import INSTRUCTOR, Submission
 
@@ -214,3 +215,38 @@ def test_colliding_ids_and_a_long_cache_period_every_change_shows_on_the_next_re
     ratings = {row["submission_id"]: (row["rating"], row["mu"], row["sigma"]) for row in standings}
     assert sorted(ratings) == sorted(ids)
     assert {row["submission_id"]: (row["rating"], row["mu"], row["sigma"]) for row in rows} == ratings
+
+
+@pytest.mark.parametrize("kind", ["sqlite", "postgres"])
+def test_uploads_and_validations_keep_the_state_stamp_an_evaluation_changes_it(kind, tmp_path):
+    """In a deadline rush four in five finished jobs and submission changes are uploads and
+    validations, which show nothing on the board: they must not make the next request recompute it."""
+    from league.server.db import crud
+    from league.server.db.models import STUDENT, Evaluation, Job
+    from league.server.sandbox.validation import ValidationReport
+
+    from ..conftest import evaluation_outcome, in_process_league
+
+    with in_process_league(kind, tmp_path, bootstrap=False, public_cache_s=60, public_cache_max_age_s=60) as league:
+        def stamp() -> tuple:
+            with league.sessions() as session:
+                return crud.public_state_stamp(session)
+
+        with league.client() as public:
+            empty = public.get("/api/leaderboard").headers["etag"]
+            before = stamp()
+            with league.sessions.begin() as session:
+                student, _ = crud.create_user(session, name="s", role=STUDENT, course=crud.first_course(session))
+                submission, validation = crud.create_submission(session, owner=student, name="agent", filename="a.onnx",
+                                                                kind="onnx", sha256="1" * 64, size=1, max_attempts=1)
+                submission_id, validation_id = submission.id, validation.id
+            assert stamp() == before  # uploaded
+            league.finish_job(validation_id, ValidationReport(True, 5, None, "validated in a test"))
+            assert stamp() == before  # ready, its evaluation queued
+            assert public.get("/api/leaderboard").headers["etag"] == empty
+            with league.sessions() as session:
+                evaluation_job = session.scalar(select(Job.id).join(Evaluation, Job.evaluation_id == Evaluation.id)
+                                                .where(Evaluation.submission_id == submission_id))
+            league.finish_job(evaluation_job, evaluation_outcome(2))
+            assert stamp() != before
+            assert [row["submission_id"] for row in public.get("/api/leaderboard").json()["items"]] == [submission_id]
