@@ -16,7 +16,10 @@
     Target: a speed-up >= 1.7x from one worker to two on a 2-core machine; the speed-up per CPU
     (one worker on one CPU -> two workers, each on a CPU of its own) is printed beside it, since
     one worker alone races on every CPU: target >= 1.8x. --per-cpu times only these two setups
-    (and skips (c)): `--backend postgres --per-cpu --round-repeats 5` is the per-CPU figure;
+    (and skips (c)): `--backend postgres --per-cpu --round-repeats 5 --students 200` (a class's round,
+    20 heats) is the per-CPU figure,
+    printed beside (b0): what two CPUs give the same heats without the league (one heat alone on
+    one CPU, then two at once on a CPU each), the most any league can get from them;
 (c) GET /api/leaderboard at 200 requests/s on loopback (open loop) while rounds are raced by
     two workers: target p99 <= 50 ms.
 
@@ -105,6 +108,52 @@ def bench_heat(models: list[Path], repeats: int) -> float:
     print(f"    classification: {outcomes(results[0].classification)}"
           f", {steps} steps; identical to the in-process race: {same}", flush=True)
     return median
+
+
+# --------------------------------------------------------------------------- (b0) what two CPUs give at most
+
+
+def race_heats_pinned(cpu: int, models: list[Path], runs: int, barrier, times) -> None:
+    """In a process of its own on `cpu`: race the heat once (imports, first sandboxes), then `runs`
+    times, each starting with the other processes at the barrier; each race's seconds go to `times`."""
+    from league.server.jobs.race import race_in_sandboxes
+    from league.server.sandbox.agent import SandboxedAgent, SandboxLimits
+
+    os.sched_setaffinity(0, {cpu})  # the sandboxes started here inherit it
+    names, limits = [f"student{k:02d}" for k in range(len(models))], SandboxLimits()
+    starts = [functools.partial(SandboxedAgent, model, "onnx", limits, name=name) for model, name in zip(models, names)]
+    for run in range(runs + 1):
+        barrier.wait()
+        begin = time.perf_counter()
+        race_in_sandboxes(starts, names, seed=TRACK_SEED, env_options={})
+        if run:
+            times.put(time.perf_counter() - begin)
+
+
+def bench_ceiling(models: list[Path], runs: int) -> float:
+    """The per-CPU speed-up this machine allows racing, without the league: the same heat raced by one
+    process on one CPU, then by two processes at once, each on a CPU of its own (nothing else
+    running). Two CPUs give twice the heats only if a heat takes as long beside another as alone."""
+    import multiprocessing
+
+    context = multiprocessing.get_context("spawn")
+    first, second = sorted(os.sched_getaffinity(0))[:2]
+    medians = {}
+    for cpus in ([first], [first, second]):
+        barrier, times = context.Barrier(len(cpus)), context.Queue()
+        processes = [context.Process(target=race_heats_pinned, args=(cpu, models, runs, barrier, times))
+                     for cpu in cpus]
+        for process in processes:
+            process.start()
+        seconds = [times.get(timeout=600) for _ in range(runs * len(cpus))]
+        for process in processes:
+            process.join(timeout=60)
+        medians[len(cpus)] = statistics.median(seconds)
+    ceiling = 2 * medians[1] / medians[2]
+    print(f"(b0) what two CPUs give racing on this machine, without the league: a {len(models)}-car heat in sandboxes "
+          f"takes {medians[1]:.2f} s alone on CPU {first}, {medians[2]:.2f} s beside the same heat on CPU {second} "
+          f"(medians of {runs}): two CPUs race {ceiling:.2f}x the heats of one", flush=True)
+    return ceiling
 
 
 # --------------------------------------------------------------------------- (b) a round, 1 vs 2 workers
@@ -220,7 +269,8 @@ def start_workers(league: League, setup: Setup) -> None:
 
 
 def compare_workers(league: League, client, students: int, seed: int, repeats: int,
-                    timeout: float, per_cpu: bool = False) -> tuple[dict[str, float], int]:
+                    timeout: float, per_cpu: bool = False,
+                    ceiling: float | None = None) -> tuple[dict[str, float], int]:
     """Time the same round (a new championship, same seed) with each worker setup, `repeats` times,
     alternating. Returns the median time per setup and the last championship."""
     print(f"(b) a round of {students} students in heats of <= {HEAT_SIZE}, from POST .../rounds to the round done, "
@@ -248,6 +298,9 @@ def compare_workers(league: League, client, students: int, seed: int, repeats: i
     verdict = "ok" if one_pinned / two_pinned >= PER_CPU_TARGET else "UNDER TARGET"
     print(f"    per CPU ({' -> '.join(pinned_setups())}): speed-up {one_pinned / two_pinned:.2f}x "
           f"(target >= {PER_CPU_TARGET:g}x: {verdict})", flush=True)
+    if ceiling:
+        print(f"    that is {one_pinned / two_pinned / ceiling:.0%} of the {ceiling:.2f}x that two CPUs give the same "
+              f"heats without the league (b0)", flush=True)
     if not per_cpu:
         one, two, two_unplaced = medians["1 worker"], medians["2 workers"], medians["2 workers, CPU placement off"]
         verdict = "ok" if one / two >= SPEEDUP_TARGET else "UNDER TARGET"
@@ -258,7 +311,8 @@ def compare_workers(league: League, client, students: int, seed: int, repeats: i
 
 
 def bench_league(models: list[Path], *, backend_kind: str, eval_episodes: int, rate: float, seconds: float,
-                 seed: int, round_repeats: int, per_cpu: bool = False) -> tuple[dict[str, float], float | None]:
+                 seed: int, round_repeats: int, per_cpu: bool = False,
+                 ceiling: float | None = None) -> tuple[dict[str, float], float | None]:
     import numpy as np
 
     round_timeout = 60 + 30 * len(models)  # generous: a heat takes seconds
@@ -277,7 +331,7 @@ def bench_league(models: list[Path], *, backend_kind: str, eval_episodes: int, r
 
             # (b) the same round (same seed: same heats, same track) with one worker, then with two
             medians, two_id = compare_workers(league, client, len(models), seed, round_repeats, round_timeout,
-                                              per_cpu)
+                                              per_cpu, ceiling)
             league.stop_workers()
             if per_cpu:
                 return medians, None
@@ -363,10 +417,11 @@ def main() -> None:
         models = student_models(Path(folder), students)
         if not args.skip_heat:
             bench_heat(models[:HEAT_SIZE], repeats)
+        ceiling = bench_ceiling(models[:HEAT_SIZE], repeats) if args.per_cpu and not args.skip_round else None
         if not args.skip_round:
             bench_league(models, backend_kind=args.backend, eval_episodes=args.eval_episodes, rate=args.rate,
                          seconds=seconds, seed=args.seed, round_repeats=max(1, args.round_repeats),
-                         per_cpu=args.per_cpu)
+                         per_cpu=args.per_cpu, ceiling=ceiling)
     print(f"load average {' '.join(f'{x:.2f}' for x in os.getloadavg())}", flush=True)
 
 

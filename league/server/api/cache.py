@@ -3,12 +3,13 @@ database, yet never older than a bound; and ETags, so pollers get 304 Not Modifi
 
 Each kept answer carries the database's state stamp it was computed under
 (crud.public_state_stamp, a read of a few indexes on every request): once an evaluation or a
-heat is done the stamp changes, and the next request computes the new answer. Under an
+heat is done the stamp changes, and the next request computes the new answer (uploads and
+validations, most of a deadline rush's changes, show nothing here and leave it). Under an
 unchanged stamp an answer is fresh for `ttl_s`; until `max_age_s` it is still served while one
 background thread computes its successor (stale-while-revalidate); older, it is computed again
 before it is served. So a change the stamp reads is visible on the next request, any other within
-max_age_s (e.g. a job whose finish time is older than one already read: stamped by a worker whose
-clock is behind, or committed just after a job that finished later).
+max_age_s (a public flag; a job whose finish time is older than one already read: stamped by a
+worker whose clock is behind, or committed just after a job that finished later).
 """
 from __future__ import annotations
 
