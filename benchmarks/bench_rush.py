@@ -21,8 +21,9 @@ job left queued or running, failed, or done twice (from the database); every eva
 figure for figure, to `metrics_run` of the same file with the course's seed and episodes, run
 here; the round done with every student in exactly one heat.
 
---faults: halfway through the window one worker is killed (SIGKILL) and the API restarted
-(SIGTERM, started again), then the worker is started again. Requests refused while the API is
+--faults: halfway through the window, as soon as a worker runs a job (30 s at most), that worker
+is killed (SIGKILL) and the API restarted (SIGTERM, started again), then a worker is started
+again; the killed job must run again elsewhere and count once. Requests refused while the API is
 down are counted apart; uploads are retried as a student would (by name: never twice).
 Everything runs on this machine: servers on 127.0.0.1 in a temporary directory, bounded waits.
 """
@@ -34,6 +35,7 @@ import math
 import os
 import random
 import signal
+import subprocess
 import sys
 import tempfile
 import threading
@@ -278,16 +280,34 @@ def wait_queue_empty(league: League, timeout: float) -> float:
 
 
 def inject_faults(league: League, at: float, events: dict[str, float]) -> None:
-    """Kill one worker (SIGKILL) and restart the API at `at` (perf_counter), then start a new worker."""
+    """At `at` (perf_counter), kill (SIGKILL) a worker as soon as one runs a job (up to 30 s later,
+    else the first), restart the API, then start a new worker."""
     time.sleep(max(0.0, at - time.perf_counter()))
-    victim = league.workers.pop(0)
+    victim, job_id = busy_worker(league, timeout=30.0)
+    league.workers.remove(victim)
     victim.kill()
     victim.wait()
-    events["worker killed"] = events["API down"] = time.perf_counter()
+    events[f"worker killed (running job {job_id})" if job_id else "worker killed (idle)"] = time.perf_counter()
+    events["API down"] = time.perf_counter()
     league.restart_api()
     events["API up"] = time.perf_counter()
     league.start_worker(wait=True)
     events["worker started"] = time.perf_counter()
+
+
+def busy_worker(league: League, timeout: float) -> tuple[subprocess.Popen, int | None]:
+    """A worker process with a running job (attempt ids are host/pid/nonce), and that job's id; the
+    first worker and None if none runs one within `timeout`."""
+    by_pid = {worker.pid: worker for worker in league.workers}
+    end = time.perf_counter() + timeout
+    with league.client() as instructor:
+        while time.perf_counter() < end:
+            for job in instructor.get("/api/jobs", params={"status": "running"}).json():
+                pid = int((job["worker_id"] or "//").split("/")[1] or 0)
+                if pid in by_pid:
+                    return by_pid[pid], job["id"]
+            time.sleep(0.02)
+    return league.workers[0], None
 
 
 def run_round(league: League, seed: int, students: int) -> tuple[float, dict]:
@@ -474,7 +494,7 @@ def parse(argv: list[str] | None) -> argparse.Namespace:
     parser.add_argument("--board-clients", type=int, default=100, help="clients polling the leaderboard every 5 s")
     parser.add_argument("--idle-s", type=float, default=10.0, help="polling after the queue emptied (idle figures)")
     parser.add_argument("--faults", action="store_true",
-                        help="halfway through: kill -9 a worker, restart the API, then start a worker again")
+                        help="halfway through: kill -9 a worker running a job, restart the API, then start a worker again")
     args = parser.parse_args(argv)
     if args.uploads < args.students:
         parser.error("every student uploads at least once: --uploads must be >= --students")
