@@ -28,6 +28,7 @@ import signal
 import struct
 import sys
 import sysconfig
+import time
 import types
 from pathlib import Path
 
@@ -352,13 +353,23 @@ def preload_runtimes() -> None:
         agents.import_onnxruntime().disable_telemetry_events()
 
 
-def set_autogroup_nice(nice: int) -> None:
+def set_autogroup_nice(nice: int, pid: int | str = "self", wait_s: float = 2.0) -> None:
     """Linux schedules each session as one group (its autogroup), at nice 0 whatever its threads' nice
     values: a process leading a session of its own gives its group `nice`, or the API's session would
-    share the CPU with it as an equal."""
-    with contextlib.suppress(OSError):  # a kernel without autogroups: the threads' nice is the priority
-        with open("/proc/self/autogroup", "w") as autogroup:
-            autogroup.write(str(nice))
+    share the CPU with it as an equal. Without CAP_SYS_ADMIN the kernel takes one such change per
+    0.1 s on the whole machine and refuses the others (EAGAIN): tried again for `wait_s` at most."""
+    end = time.monotonic() + wait_s
+    while True:
+        try:
+            with open(f"/proc/{pid}/autogroup", "w") as autogroup:
+                autogroup.write(str(nice))
+            return
+        except BlockingIOError:
+            if time.monotonic() >= end:
+                return
+            time.sleep(0.02)
+        except OSError:  # a kernel without autogroups: the threads' nice is the priority
+            return
 
 
 def keep_our_nice_in_our_autogroup() -> None:
@@ -375,8 +386,8 @@ def fork_sandbox(request: dict, fds: list[int], control) -> int:
     code, server = 1, os.getppid()
     try:
         control.close()
-        os.setsid()
-        keep_our_nice_in_our_autogroup()
+        # no session of its own: a sandbox shares its fork server's autogroup, set once at the
+        # job's nice (the sandboxes of a heat, starting together, would each wait 0.1 s for theirs)
         for target, fd in enumerate(fds):
             os.dup2(fd, target)
         os.closerange(3, max(3, *(int(fd) for fd in os.listdir("/proc/self/fd"))) + 1)  # nothing else of ours
