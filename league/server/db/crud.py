@@ -222,15 +222,12 @@ def episode_page(session: Session, *, evaluation_id: int, offset: int, limit: in
     return list(rows), total or 0
 
 
-def latest_evaluations(session: Session, *, submission_ids: list[int],
-                       status: str | None = None) -> dict[int, Evaluation]:
-    """Each submission's newest evaluation, or its newest one in `status`."""
+def latest_evaluations(session: Session, *, submission_ids: list[int]) -> dict[int, Evaluation]:
+    """Each submission's newest evaluation."""
     if not submission_ids:
         return {}
-    newest = select(func.max(Evaluation.id)).where(Evaluation.submission_id.in_(submission_ids))
-    if status:
-        newest = newest.where(Evaluation.status == status)
-    newest = newest.group_by(Evaluation.submission_id)
+    newest = (select(func.max(Evaluation.id)).where(Evaluation.submission_id.in_(submission_ids))
+              .group_by(Evaluation.submission_id))
     rows = session.scalars(select(Evaluation).where(Evaluation.id.in_(newest)))
     return {evaluation.submission_id: evaluation for evaluation in rows}
 
