@@ -262,10 +262,31 @@ def _describe(error: Exception) -> str:
     from league.agents import AgentError
 
     message = " ".join(str(error).split()) or type(error).__name__
+    if isinstance(error, ModuleNotFoundError) and (extra := extra_providing(error.name or "")):
+        return (f"{message}: this command needs the package's `{extra}` extra: pip install "
+                f"\"microracer-league[{extra}]\" (in a checkout: pip install -e \".[{extra}]\")")
     if isinstance(error, (AgentError, UsageError, ValueError, TypeError, OSError)) or \
             type(error).__name__ in ("RenderError", "ClientError"):
         return message
     return f"unexpected {type(error).__name__}: {message} (set LEAGUE_DEBUG=1 to see the traceback and report it)"
+
+
+def extra_providing(module: str) -> str | None:
+    """The first of our extras (pyproject's order) that installs `module`'s distribution, from the
+    installed package's metadata; None if none does (or the package is not installed)."""
+    from importlib import metadata
+
+    from packaging.requirements import Requirement  # (matplotlib's dependency)
+    from packaging.utils import canonicalize_name
+
+    wanted = canonicalize_name(module.partition(".")[0])
+    try:
+        extras = metadata.metadata("microracer-league").get_all("Provides-Extra") or []
+        requirements = [Requirement(text) for text in metadata.requires("microracer-league") or []]
+    except metadata.PackageNotFoundError:
+        return None
+    providers = [r for r in requirements if canonicalize_name(r.name) == wanted and r.marker is not None]
+    return next((extra for extra in extras if any(r.marker.evaluate({"extra": extra}) for r in providers)), None)
 
 
 if __name__ == "__main__":

@@ -67,6 +67,17 @@ def test_evaluate_a_bad_file_is_one_clear_line(tmp_path):
     assert_clean_error(league_cli("evaluate", tmp_path / "missing.onnx"), "no such agent file")
 
 
+def test_a_command_whose_extra_is_missing_says_which_extra_to_install():
+    """`league leaderboard` without the client extra (platformdirs hidden here): one line naming the
+    extra and the pip command, not an 'unexpected' error."""
+    hide = ("import sys; sys.modules['platformdirs'] = None; from league.cli import main; "
+            "sys.exit(main(['leaderboard', '--server', 'http://127.0.0.1:9']))")
+    env = {k: v for k, v in os.environ.items() if k not in ("LEAGUE_DEBUG", "LEAGUE_SERVER", "LEAGUE_TOKEN")}
+    result = subprocess.run([sys.executable, "-c", hide], capture_output=True, text=True, env=env, timeout=120)
+    assert_clean_error(result, "platformdirs", "`client` extra", 'pip install "microracer-league[client]"')
+    assert "unexpected" not in result.stderr
+
+
 def test_race_saves_gif_and_replay_then_replay_saves_again(onnx_actor, tmp_path):
     result = league_cli("race", "heuristic", onnx_actor, "--seed", 1, "--save", "race.gif", "--replay", "race.json",
                         cwd=tmp_path)
