@@ -83,7 +83,8 @@ InstructorUser = Annotated[User, Depends(get_instructor)]
 
 
 Id = Annotated[int, Path(ge=1, le=MAX_ID, description="an id (a 64-bit integer)")]
-PageNumber = Annotated[int, Query(ge=1, description="1-based")]
+MAX_PAGE = 100_000  # a bound on the database's offsets (and on the keys of cached pages)
+PageNumber = Annotated[int, Query(ge=1, le=MAX_PAGE, description="1-based")]
 PageSize = Annotated[int, Query(ge=1, le=100)]
 
 
