@@ -32,11 +32,12 @@ async def app(scope, receive, send):
 
 
 @contextlib.contextmanager
-def guarded_server(**limits):
-    """A uvicorn server with the guard of `limits`, as league serve runs it; yields its (host, port)."""
+def guarded_server(asgi_app=app, **limits):
+    """A uvicorn server of `asgi_app` with the guard of `limits`, as league serve runs it; yields its
+    (host, port)."""
     listener = socket.socket()
     listener.bind(("127.0.0.1", 0))
-    config = uvicorn.Config(app, **uvicorn_protocols(ConnectionLimits(**limits)), lifespan="off",
+    config = uvicorn.Config(asgi_app, **uvicorn_protocols(ConnectionLimits(**limits)), lifespan="off",
                             log_level="warning", timeout_keep_alive=30)
     server = uvicorn.Server(config)
     thread = threading.Thread(target=server.run, kwargs={"sockets": [listener]}, daemon=True)
