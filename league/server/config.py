@@ -36,8 +36,9 @@ class Settings(BaseSettings):
 
     # uploads and quotas
     max_upload_mb: float = Field(10.0, description="largest model file accepted")
-    request_body_timeout_s: float = Field(30.0, gt=0, description="a request body that stops arriving this long is "
-                                                                  "refused (408): slow clients cannot hold the API")
+    request_body_timeout_s: float = Field(30.0, gt=0, description="a request body that stops arriving this long, or "
+                                                                  "past it arrives slower than 8 KB/s, is refused "
+                                                                  "(408): slow clients cannot hold the API")
 
     # connections (league serve; league/server/api/connections.py)
     max_connections: int = Field(1000, ge=1, description="connections the API holds at once; one more closes the "
