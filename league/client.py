@@ -10,14 +10,14 @@ calls) on this machine, against the server's limits when one is configured.
 from __future__ import annotations
 
 import argparse
-import csv
-import io
 import json
 import os
 import sys
 import time
 from dataclasses import dataclass, replace
 from pathlib import Path
+
+from league.spreadsheet import csv_text
 
 # Exit codes a script can test (also in `league submit --help`).
 EXIT_OK, EXIT_REJECTED, EXIT_USAGE, EXIT_AUTH, EXIT_REFUSED, EXIT_UNREACHABLE, EXIT_TIMEOUT = 0, 1, 2, 3, 4, 5, 6
@@ -380,9 +380,7 @@ def run_race_server(args: argparse.Namespace) -> int:
 
 def _print_table(header: list[str], rows: list[list], as_csv: bool) -> None:
     if as_csv:
-        out = io.StringIO()
-        csv.writer(out, lineterminator="\n").writerows([header, *rows])
-        sys.stdout.write(out.getvalue())
+        sys.stdout.write(csv_text(header, rows))
         return
     cells = [[str(c) for c in row] for row in [header, *rows]]
     widths = [max(len(row[i]) for row in cells) for i in range(len(header))]

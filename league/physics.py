@@ -16,15 +16,16 @@ from league import lidar
 from league.constants import (  # noqa: F401 (FINISHED, MAX_ACC, MAX_TURN, RUNNING: re-exported for the envs)
     COMPACT_DIM, FINISHED, LIDAR_DIM, MAX_ACC, MAX_TURN, OUTCOMES, RUNNING, TSTEP, TURN_LIMIT_COEFF,
 )
-from league.track import CURVES, MAX_TRACK_WIDTH, N_OBSTACLES, TRACK_WIDTH, Track, generate_track
+from league.track import (
+    CURVES, CURVES_RANGE, MAX_TRACK_WIDTH, N_OBSTACLES, N_OBSTACLES_RANGE, TRACK_WIDTH, Track, generate_track,
+)
 
 START_SPEED_MAX = 0.5  # initial speed ~ U(0, 0.5)
 START_SPEED_FLOOR = 0.07  # with low-speed termination on
 MAX_EPISODE_STEPS = 4000  # 160 s: a lap at the lowest allowed speed (0.05) still fits
 OBSERVATIONS = ("compact", "lidar")
-# What a course can use: beyond these a track takes long to draw or an episode makes a huge replay.
-CURVES_RANGE = (5, 60)
-N_OBSTACLES_RANGE = (0, 20)
+# What a course can use besides the track's own ranges (league.track CURVES_RANGE, N_OBSTACLES_RANGE):
+# beyond these an episode makes a huge replay.
 EPISODE_STEPS_RANGE = (1, 20_000)  # a lap at the lowest speed (0.05) fits even at tstep 0.01
 TSTEP_RANGE = (0.01, 0.2)  # seconds
 # Episode starts kept per process by `episode_start`. A track holds its 1300 x 1300 map

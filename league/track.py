@@ -8,7 +8,7 @@ track rebuilds bit for bit (`Track.from_dict`).
 from __future__ import annotations
 
 from dataclasses import dataclass, field
-from functools import cache, cached_property
+from functools import cached_property, lru_cache
 
 import numpy as np
 
@@ -16,9 +16,11 @@ from league import lidar
 from league.constants import CELLS_PER_UNIT, GRID, ORIGIN
 
 CURVES = 20  # control points of the mid-line
+CURVES_RANGE = (5, 60)  # beyond these a track takes long to draw
 TRACK_WIDTH = 0.04  # world units (1 unit = 1000 m)
 MAX_TRACK_WIDTH = 0.08  # wider borders fold on tight bends
 N_OBSTACLES = 6
+N_OBSTACLES_RANGE = (0, 20)
 BORDER_SAMPLES_PER_CURVE = 6  # mid-line samples per control point, for the borders
 RASTER_ANGLES = 2000  # inner -> outer segments drawn on the map
 OBSTACLE_LENGTH = np.pi / 150  # angular length of an obstacle (rad)
@@ -27,6 +29,9 @@ CHICANE_PUSH = 0.02  # the chicane's inner pair is pushed apart by +-2 %
 MAX_DRAWS = 100  # tracks drawn before giving up (a discarded track is very rare)
 
 FORMAT_VERSION = 1
+CHICANE_ADDED_POINTS = 4  # a chicane replaces one control point by five
+MAX_CONTROL_POINTS = CURVES_RANGE[1] + CHICANE_ADDED_POINTS
+MAP_EXTENT = ORIGIN / CELLS_PER_UNIT  # world units from the centre to the map's edge (1.3)
 
 
 class TrackGenerationError(RuntimeError):
@@ -164,10 +169,28 @@ class Track:
 
     @classmethod
     def from_dict(cls, data: dict) -> Track:
+        """The track of a `to_dict` form, checked before anything is derived from it (it may come from
+        anyone: a replay file, a request to the server): counts, shapes, finite numbers inside the map.
+
+        Raises:
+            ValueError: not a track of this format, with what is wrong.
+        """
+        if not isinstance(data, dict):
+            raise ValueError(f"a track is a JSON object, got {type(data).__name__}")
         if data.get("version") != FORMAT_VERSION:
             raise ValueError(f"unsupported track format version {data.get('version')!r}; expected {FORMAT_VERSION}")
-        obstacles = np.array(data["obstacles"], dtype=np.float64).reshape(-1, 2, 2)
-        return cls(np.array(data["control_theta"]), np.array(data["control_points"]), data["width"], obstacles)
+        n = _count(data, "control_theta", CURVES_RANGE[0], MAX_CONTROL_POINTS)
+        theta = _numbers(data, "control_theta", (n,), 2 * np.pi)
+        points = _numbers(data, "control_points", (n, 2), MAP_EXTENT)
+        obstacles = _numbers(data, "obstacles", (_count(data, "obstacles", *N_OBSTACLES_RANGE), 2, 2), MAP_EXTENT)
+        width = data.get("width")
+        if isinstance(width, bool) or not isinstance(width, (int, float)) or not 0 < width <= MAX_TRACK_WIDTH:
+            raise ValueError(f"width must be a number in (0, {MAX_TRACK_WIDTH}], got {width!r}")
+        if theta[0] != 0 or not np.isclose(theta[-1], 2 * np.pi, rtol=0, atol=1e-9) or np.any(np.diff(theta) <= 0):
+            raise ValueError("control_theta must increase strictly from 0 to 2*pi")
+        if not np.array_equal(points[0], points[-1]):
+            raise ValueError("the last control point must equal the first (the mid-line is closed)")
+        return cls(theta, points, float(width), obstacles)
 
     def __reduce__(self):
         return (Track.from_dict, (self.to_dict(),))  # compact: the maps are re-derived
@@ -179,6 +202,35 @@ class Track:
 
     def __hash__(self) -> int:
         return hash((self.control_points.tobytes(), self.obstacles.tobytes(), self.width))
+
+
+def _count(data: dict, key: str, least: int, most: int) -> int:
+    """The length of the list data[key], checked before its items are read."""
+    value = data.get(key)
+    if not isinstance(value, list):
+        raise ValueError(f"{key} must be a list of {least} to {most} items" + (" (missing)" if value is None else ""))
+    if not least <= len(value) <= most:
+        raise ValueError(f"{key} must be a list of {least} to {most} items, got {len(value)}")
+    return len(value)
+
+
+def _numbers(data: dict, key: str, shape: tuple[int, ...], bound: float) -> np.ndarray:
+    """data[key] as a float array of `shape`, numbers only, each within [-bound, bound]."""
+    value = data.get(key)
+    if not isinstance(value, list) or len(value) != shape[0]:  # before numpy reads it
+        raise ValueError(f"{key} must be a list of {shape[0]} items")
+    if not value:
+        return np.zeros(shape)
+    try:
+        array = np.array(value)
+    except ValueError as error:  # ragged
+        raise ValueError(f"{key} must be numbers of shape {shape}") from error
+    if array.shape != shape or array.dtype.kind not in "iuf":
+        raise ValueError(f"{key} must be numbers of shape {shape}, got shape {array.shape} of {array.dtype}")
+    array = array.astype(np.float64)
+    if not np.all(np.abs(array) <= bound):  # NaN fails too
+        raise ValueError(f"{key} must be finite numbers within [-{bound:g}, {bound:g}]")
+    return array
 
 
 class PeriodicSpline:
@@ -217,12 +269,12 @@ def generate_track(
     n_obstacles: int = N_OBSTACLES,
 ) -> Track:
     """Draw a random track (SPEC 'Track'); redraw when it leaves the grid."""
-    if curves < 5:
-        raise ValueError(f"curves must be at least 5, got {curves}")
+    if not CURVES_RANGE[0] <= curves <= CURVES_RANGE[1]:
+        raise ValueError(f"curves must be in [{CURVES_RANGE[0]}, {CURVES_RANGE[1]}], got {curves}")
     if not 0 < track_width <= MAX_TRACK_WIDTH:
         raise ValueError(f"track_width must be in (0, {MAX_TRACK_WIDTH}], got {track_width}")
-    if n_obstacles < 0:
-        raise ValueError(f"n_obstacles must be >= 0, got {n_obstacles}")
+    if not N_OBSTACLES_RANGE[0] <= n_obstacles <= N_OBSTACLES_RANGE[1]:
+        raise ValueError(f"n_obstacles must be in [{N_OBSTACLES_RANGE[0]}, {N_OBSTACLES_RANGE[1]}], got {n_obstacles}")
     candidates = (Track(*_midline_controls(rng, curves, chicanes), track_width) for _ in range(MAX_DRAWS))
     track = first_fitting(candidates)
     if obstacles and n_obstacles:
@@ -249,14 +301,16 @@ def _midline_controls(rng: np.random.Generator, curves: int, chicanes: bool):
     return theta, points
 
 
-@cache
+# Small caches of what every track of a shape shares, keyed by counts that from_dict and
+# generate_track bound; bounded anyway, as every cache of code the server runs.
+@lru_cache(maxsize=CURVES_RANGE[1])
 def _control_angles(curves: int) -> tuple[np.ndarray, np.ndarray]:
     """The control angles and their unit vectors (cos, sin): the same for every track."""
     theta = 2 * np.pi * np.linspace(0, 1, curves)
     return _read_only(theta), _read_only(_polar(theta, 1.0))
 
 
-@cache
+@lru_cache(maxsize=256)
 def _chicane_angles(curves: int, c: int) -> tuple[np.ndarray, np.ndarray]:
     """The control angles with control point c replaced by the chicane's five, and their unit vectors."""
     theta = _control_angles(curves)[0]
@@ -327,7 +381,7 @@ def _polar_spline(phi: np.ndarray, points: np.ndarray) -> PeriodicSpline:
     return PeriodicSpline(phi, points)
 
 
-@cache
+@lru_cache(maxsize=MAX_CONTROL_POINTS)
 def _border_samples(n_controls: int) -> np.ndarray:
     """Mid-line angles at which the borders are placed (SPEC: 6 per control point)."""
     return _read_only(np.linspace(0, 2 * np.pi, BORDER_SAMPLES_PER_CURVE * (n_controls - 1)))
@@ -355,7 +409,7 @@ def _draw_obstacles(rng: np.random.Generator, track: Track, count: int) -> np.nd
     return np.stack(ends, axis=1)
 
 
-@cache
+@lru_cache(maxsize=N_OBSTACLES_RANGE[1] + 2)
 def _slot_starts(slots: int) -> np.ndarray:
     return _read_only(np.arange(slots) * (2 * np.pi / slots))
 

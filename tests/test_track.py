@@ -126,6 +126,59 @@ def test_bad_options_are_clear_errors():
         generate_track(rng, track_width=-0.1)
     with pytest.raises(ValueError, match="n_obstacles"):
         generate_track(rng, n_obstacles=-1)
+    with pytest.raises(ValueError, match=r"curves must be in \[5, 60\], got 61"):
+        generate_track(rng, curves=61)  # from_dict would refuse its track
+    with pytest.raises(ValueError, match=r"n_obstacles must be in \[0, 20\], got 21"):
+        generate_track(rng, n_obstacles=21)
+
+
+def _closed(points: list) -> list:
+    return [*points[:-1], points[0]]
+
+
+HOSTILE_TRACKS = {  # what a request or a replay file may hold instead of a track, and what it is told
+    "many points": (lambda d: d | {"control_theta": list(np.linspace(0, 2 * np.pi, 20_000)),
+                                   "control_points": [[1.0, 0.0]] * 20_000},
+                    "control_theta must be a list of 5 to 64 items, got 20000"),
+    "few points": (lambda d: d | {"control_theta": [0, 2 * np.pi]}, "control_theta must be a list of 5 to 64 items, got 2"),
+    "no points": (lambda d: {k: v for k, v in d.items() if k != "control_points"}, "control_points must be a list of"),
+    "points unlike angles": (lambda d: d | {"control_points": d["control_points"][:-1]}, "control_points must be a list of"),
+    "text": (lambda d: d | {"control_theta": ["0"] * len(d["control_theta"])}, "control_theta must be numbers of shape"),
+    "nested": (lambda d: d | {"control_points": [[[1.0, 0.0]]] * len(d["control_points"])},
+               "control_points must be numbers of shape"),
+    "ragged": (lambda d: d | {"obstacles": [[[0, 0], [1]]]}, "obstacles must be numbers of shape"),
+    "NaN": (lambda d: d | {"control_points": _closed([[float("nan"), 0.0]] * len(d["control_points"]))},
+            r"control_points must be finite numbers within \[-1.3, 1.3\]"),
+    "off the map": (lambda d: d | {"obstacles": [[[0.0, 0.0], [99.0, 0.0]]]}, "obstacles must be finite numbers"),
+    "angles back and forth": (lambda d: d | {"control_theta": [0, 2, 1, 3, *d["control_theta"][4:]]},
+                              "control_theta must increase strictly from 0 to 2\\*pi"),
+    "open mid-line": (lambda d: d | {"control_points": [[0.5, 0.5], *d["control_points"][1:]]},
+                      "the last control point must equal the first"),
+    "many obstacles": (lambda d: d | {"obstacles": [[[0.0, 0.0], [0.1, 0.0]]] * 21}, "obstacles must be a list of 0 to 20"),
+    "wide": (lambda d: d | {"width": 1e9}, r"width must be a number in \(0, 0.08\], got 1000000000.0"),
+    "width true": (lambda d: d | {"width": True}, "width must be a number"),
+    "not a dict": (lambda d: [d], "a track is a JSON object, got list"),
+}
+
+
+@pytest.mark.parametrize("name", HOSTILE_TRACKS)
+def test_from_dict_refuses_what_is_not_a_track_before_deriving_anything(name):
+    """Checked on structure first: a refused dict leaves nothing in the module's caches (keyed by counts)."""
+    from league import track as module
+
+    change, message = HOSTILE_TRACKS[name]
+    data = json.loads(json.dumps(generate_track(np.random.default_rng(1)).to_dict()))
+    module._border_samples.cache_clear()
+    with pytest.raises(ValueError, match=message):
+        Track.from_dict(change(data))
+    assert module._border_samples.cache_info().currsize == 0
+
+
+def test_the_tracks_caches_are_bounded():
+    from league import track as module
+
+    for cached in (module._control_angles, module._chicane_angles, module._border_samples, module._slot_starts):
+        assert 0 < cached.cache_info().maxsize <= 256, cached
 
 
 def test_statistics_match_the_reference_generator():

@@ -62,17 +62,20 @@ def _logging() -> None:
 def run_serve(args: argparse.Namespace) -> int:
     import uvicorn
 
+    from league.server.api.connections import connection_limits, uvicorn_protocols
     from league.server.app import create_app, open_league, prepare_league
 
     _logging()
     settings = Settings()
+    protocols = uvicorn_protocols(connection_limits(settings))
     league_ = open_league(settings)
     prepare_league(league_)
     worker = None if args.no_worker else start_child_worker(args.threads)
     # uvicorn raises the SIGTERM or SIGINT it stopped on again once it is done: end here, not die there
     signal.signal(signal.SIGTERM, _exit_on_signal)
     try:
-        uvicorn.run(create_app(settings, league_), host=args.host, port=args.port, log_level="info")
+        uvicorn.run(create_app(settings, league_), host=args.host, port=args.port, log_level="info",
+                    **protocols)
     except KeyboardInterrupt:
         pass
     finally:

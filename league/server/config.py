@@ -36,8 +36,20 @@ class Settings(BaseSettings):
 
     # uploads and quotas
     max_upload_mb: float = Field(10.0, description="largest model file accepted")
-    request_body_timeout_s: float = Field(30.0, gt=0, description="a request body that stops arriving this long is "
-                                                                  "refused (408): slow clients cannot hold the API")
+    request_body_timeout_s: float = Field(30.0, gt=0, description="a request body that stops arriving this long, or "
+                                                                  "past it arrives slower than 8 KB/s, is refused "
+                                                                  "(408): slow clients cannot hold the API")
+
+    # connections (league serve; league/server/api/connections.py)
+    max_connections: int = Field(1000, ge=1, description="connections the API holds at once; one more closes the "
+                                                         "one waiting longest for a request, else is refused (503); "
+                                                         "kept within the open-file limit, which serve raises")
+    max_connections_per_client: int = Field(200, ge=0, description="connections from one address (IPv6: one /64) "
+                                                                  "at once; more are refused (503). 0: no bound "
+                                                                  "(behind a reverse proxy, every client is the proxy)")
+    request_head_timeout_s: float = Field(10.0, gt=0, description="a connection that has not sent a whole request "
+                                                                  "line and headers this long after it opened or "
+                                                                  "after its last answer is closed")
     quota_per_day: int = Field(10, description="submissions per student per rolling 24 h (rejected ones are free)")
     max_jobs_in_flight: int = Field(3, ge=1, description="a student's uploads and races waiting or running at once; "
                                                          "more are refused until one is done")

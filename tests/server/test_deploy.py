@@ -1,10 +1,15 @@
 """docker-compose.yml and the Dockerfile: no engine runs here, so their structure is checked, and the
-commands they run are the ones the other tests start by hand (`league serve`, `league worker`)."""
+commands they run are the ones the other tests start by hand (`league serve`, `league worker`).
+The server README's nginx front is checked by nginx itself, where it is installed."""
 from __future__ import annotations
 
 import json
+import re
+import shutil
+import subprocess
 from pathlib import Path
 
+import pytest
 import yaml
 from sqlalchemy.engine import make_url
 
@@ -62,3 +67,20 @@ def test_the_workers_of_one_host_share_a_cpu_slots_volume():
     slots_dir = worker["environment"]["LEAGUE_CPU_SLOTS_DIR"]
     volume = next(mount.split(":")[0] for mount in worker["volumes"] if mount.split(":")[1] == slots_dir)
     assert volume in compose_file["volumes"]  # a named volume: every replica on the host mounts the same one
+
+
+def test_the_readmes_nginx_front_is_a_configuration_nginx_accepts(tmp_path):
+    """The snippet of league/server/README.md, as a file of conf.d, with a certificate made here."""
+    if shutil.which("nginx") is None or shutil.which("openssl") is None:
+        pytest.skip("needs nginx and openssl (Debian: apt-get install nginx-light openssl)")
+    readme = (REPO / "league" / "server" / "README.md").read_text()
+    snippet = re.search(r"```nginx\n(.*?)```", readme, re.S).group(1)
+    subprocess.run(["openssl", "req", "-x509", "-newkey", "rsa:2048", "-nodes", "-subj", "/CN=league", "-days", "1",
+                    "-keyout", str(tmp_path / "league.key"), "-out", str(tmp_path / "league.pem")],
+                   check=True, capture_output=True, timeout=60)
+    (tmp_path / "league.conf").write_text(snippet.replace("/etc/ssl/", f"{tmp_path}/"))
+    (tmp_path / "nginx.conf").write_text(f"pid {tmp_path}/nginx.pid; error_log {tmp_path}/error.log;\n"
+                                         f"events {{}}\nhttp {{ include {tmp_path}/league.conf; }}\n")
+    checked = subprocess.run(["nginx", "-t", "-p", str(tmp_path), "-c", str(tmp_path / "nginx.conf")],
+                             capture_output=True, text=True, timeout=60)
+    assert checked.returncode == 0, checked.stderr

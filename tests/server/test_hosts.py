@@ -15,7 +15,6 @@ from __future__ import annotations
 import contextlib
 import os
 import pwd
-import random
 import re
 import shutil
 import signal
@@ -33,6 +32,7 @@ from league.agents import load_agent
 from league.evaluation import metrics_run, race
 
 from .conftest import TEST_SETTINGS, LeagueServer, make_server, wait_for
+from .network import ip, require_namespaces, unused_prefix
 from .test_rounds import (  # noqa: F401 - drivers is a fixture
     LONG_HEATS, ONE_AT_A_TIME, ROUND_SETTINGS, check_round_counted_once, drivers, enter_students, race_jobs, read_round,
     standings, start_round, wait_idle, wait_round_over, worker_pid,
@@ -47,10 +47,6 @@ pytestmark = [pytest.mark.slow, pytest.mark.hosts]
 
 
 # --------------------------------------------------------------------------- the network
-
-
-def ip(*args: str) -> subprocess.CompletedProcess:
-    return subprocess.run(["ip", *args], check=True, capture_output=True, text=True, timeout=30)
 
 
 @dataclass
@@ -94,22 +90,10 @@ class Network:
                               timeout=30).returncode == 0
 
 
-def unused_prefix() -> str:
-    taken = ip("-4", "-o", "addr").stdout
-    for _ in range(100):
-        prefix = f"10.{random.randrange(200, 250)}.{random.randrange(256)}"
-        if f" {prefix}." not in taken:
-            return prefix
-    pytest.skip("no free 10.x.y.0/24 for the test network")
-
-
 @contextlib.contextmanager
 def network(hosts: int) -> Iterator[Network]:
     """The bridge and the worker hosts' namespaces; all removed at the end, whatever happened."""
-    if os.geteuid() != 0:
-        pytest.skip("network namespaces need root")
-    if shutil.which("ip") is None:
-        pytest.skip("`ip` not found: apt-get install iproute2")
+    require_namespaces()
     tag = uuid.uuid4().hex[:6]
     net = Network(tag, unused_prefix(), [f"league-{tag}-{k}" for k in range(hosts)])
     try:

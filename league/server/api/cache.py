@@ -29,6 +29,8 @@ from league.server.db import crud
 
 log = logging.getLogger("league.server.cache")
 PUBLIC = "public, no-cache"  # clients and proxies may keep answers, but ask (If-None-Match) before reusing one
+MAX_BYTES = 16 * 1024 * 1024  # kept answers' bodies and ENTRY_OVERHEAD each: what any page number may cost
+ENTRY_OVERHEAD = 512  # bytes a kept answer costs besides its body (key, Entry, ETag, the LRU's links)
 
 
 @dataclass(frozen=True)
@@ -40,11 +42,12 @@ class Entry:
 
 
 class ResponseCache:
-    def __init__(self, ttl_s: float, max_age_s: float | None = None, maxsize: int = 4096,
+    def __init__(self, ttl_s: float, max_age_s: float | None = None, max_bytes: int = MAX_BYTES,
                  clock: Callable[[], float] = time.monotonic):
         self.ttl_s, self.clock = ttl_s, clock
         self.max_age_s = max(ttl_s, ttl_s if max_age_s is None else max_age_s)
-        self._entries: LRUCache = LRUCache(maxsize)  # key -> Entry (only the newest stamp's)
+        # key -> Entry (only the newest stamp's), least recently used out first past max_bytes
+        self._entries: LRUCache = LRUCache(max_bytes, getsizeof=entry_size)
         self._lock = threading.Lock()
         self._gates: dict[Hashable, threading.Lock] = {}  # one computation per key at a time
         self._refreshing: set[Hashable] = set()
@@ -65,16 +68,20 @@ class ResponseCache:
         with self._lock:
             gate = self._gates.setdefault(key, threading.Lock())
         with gate:
-            entry, fresh = self.lookup(key, stamp)
-            if fresh:
+            try:
+                entry, fresh = self.lookup(key, stamp)
+                if fresh:
+                    return entry
+                started = self.clock()
+                body = compute()
+                entry = Entry(stamp, started, body, body_etag(body))
+                with self._lock:
+                    if entry_size(entry) <= self._entries.maxsize:
+                        self._entries[key] = entry
                 return entry
-            started = self.clock()
-            body = compute()
-            entry = Entry(stamp, started, body, body_etag(body))
-            with self._lock:
-                self._entries[key] = entry
-                self._gates.pop(key, None)  # callers waiting hold it; keys (e.g. any page number) must not pile up
-            return entry
+            finally:  # callers waiting hold the gate; keys (any page number, any id) must not pile up, failed or not
+                with self._lock:
+                    self._gates.pop(key, None)
 
     def claim_refresh(self, key: Hashable) -> bool:
         """True for the one caller that should refresh a stale key."""
@@ -92,6 +99,10 @@ class ResponseCache:
         finally:
             with self._lock:
                 self._refreshing.discard(key)
+
+
+def entry_size(entry: Entry) -> int:
+    return len(entry.body) + ENTRY_OVERHEAD
 
 
 def read_stamp(sessions) -> tuple:

@@ -2,8 +2,6 @@
 several resources make (a user's course, environment options)."""
 from __future__ import annotations
 
-import csv
-import io
 from collections.abc import AsyncIterator, Iterable
 from typing import Annotated
 
@@ -12,6 +10,7 @@ from fastapi.security import HTTPAuthorizationCredentials, HTTPBearer
 from sqlalchemy.orm import Session
 
 import league
+from league.spreadsheet import csv_text
 from league.server.config import Settings
 from league.server.db import crud
 from league.server.db.models import INSTRUCTOR, Course, User
@@ -83,7 +82,8 @@ InstructorUser = Annotated[User, Depends(get_instructor)]
 
 
 Id = Annotated[int, Path(ge=1, le=MAX_ID, description="an id (a 64-bit integer)")]
-PageNumber = Annotated[int, Query(ge=1, description="1-based")]
+MAX_PAGE = 100_000  # a bound on the database's offsets (and on the keys of cached pages)
+PageNumber = Annotated[int, Query(ge=1, le=MAX_PAGE, description="1-based")]
 PageSize = Annotated[int, Query(ge=1, le=100)]
 
 
@@ -122,17 +122,8 @@ def check_jobs_in_flight(session: Session, user: User, limit: int) -> None:
                             "once): upload again when one of them is done")
 
 
-FORMULA_START = ("=", "+", "-", "@", "\t", "\r")  # a spreadsheet runs a cell that starts so as a formula
-
-
 def csv_response(header: list[str], rows: Iterable[list], filename: str) -> Response:
-    """A CSV download; text cells (user and agent names) that a spreadsheet would run as a formula
-    are quoted with a leading apostrophe (numbers are left as they are)."""
-    out = io.StringIO()
-    writer = csv.writer(out, lineterminator="\n")
-    writer.writerow(header)
-    for row in rows:
-        writer.writerow(["'" + cell if isinstance(cell, str) and cell.startswith(FORMULA_START) else
-                         "" if cell is None else cell for cell in row])
-    return Response(out.getvalue(), media_type="text/csv; charset=utf-8",
+    """A CSV download that no spreadsheet runs as formulas (league.spreadsheet: text cells quoted
+    and neutralised, numbers left as they are)."""
+    return Response(csv_text(header, rows), media_type="text/csv; charset=utf-8",
                     headers={"Content-Disposition": f'attachment; filename="{filename}"'})

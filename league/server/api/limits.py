@@ -4,8 +4,10 @@ authentication or parsing, so an anonymous client cannot make the server read, s
 more than a route allows, nor hold a connection by sending slowly.
 
 A declared Content-Length over the limit is refused at once; a streamed body is counted as it
-arrives and cut at the limit. Either way the client gets a JSON 413 (408 for a stalled body) and
-the application sees the client disconnect.
+arrives and cut at the limit. Either way the client gets a JSON 413 (408 for a stalled body, or
+one that trickles in slower than MIN_BODY_RATE once its first read_timeout_s is over) and the
+application sees the client disconnect. Once the body is in, what the application receives (the
+client leaving, while a response streams) is not timed.
 """
 from __future__ import annotations
 
@@ -17,6 +19,7 @@ from dataclasses import dataclass
 from starlette.types import ASGIApp, Message, Receive, Scope, Send
 
 KB = 1024
+MIN_BODY_RATE = 8 * KB  # bytes/s a body must average past its first read timeout: no trickle holds a connection
 
 
 @dataclass(frozen=True)
@@ -36,8 +39,9 @@ class BodyLimits:
     """ASGI middleware: `limits` maps (method, path) to a Limit; any other request gets `default`."""
 
     def __init__(self, app: ASGIApp, *, default: Limit, limits: Mapping[tuple[str, str], Limit],
-                 read_timeout_s: float):
+                 read_timeout_s: float, min_rate: float = MIN_BODY_RATE):
         self.app, self.default, self.limits, self.read_timeout_s = app, default, dict(limits), read_timeout_s
+        self.min_rate = min_rate
 
     async def __call__(self, scope: Scope, receive: Receive, send: Send) -> None:
         if scope["type"] != "http":
@@ -48,17 +52,19 @@ class BodyLimits:
         if declared is not None and declared > limit.size:
             await _refuse(send, 413, limit.refusal)
             return
-        await _Guarded(self.app, scope, receive, send, limit, self.read_timeout_s).run()
+        await _Guarded(self.app, scope, receive, send, limit, self.read_timeout_s, self.min_rate).run()
 
 
 class _Guarded:
     """One request whose body is counted and timed; after a refusal the app sees a disconnect and
     whatever it tries to send is dropped."""
 
-    def __init__(self, app: ASGIApp, scope: Scope, receive: Receive, send: Send, limit: Limit, timeout_s: float):
+    def __init__(self, app: ASGIApp, scope: Scope, receive: Receive, send: Send, limit: Limit, timeout_s: float,
+                 min_rate: float):
         self.app, self.scope, self._receive, self._send = app, scope, receive, send
-        self.limit, self.timeout_s = limit, timeout_s
-        self.received, self.started, self.refused = 0, False, False
+        self.limit, self.timeout_s, self.min_rate = limit, timeout_s, min_rate
+        self.received, self.started, self.refused, self.body_done = 0, False, False, False
+        self.first_read_at: float | None = None
 
     async def run(self) -> None:
         try:
@@ -70,14 +76,23 @@ class _Guarded:
     async def receive(self) -> Message:
         if self.refused:
             return {"type": "http.disconnect"}
+        if self.body_done:
+            return await self._receive()
+        now = asyncio.get_running_loop().time()
+        self.first_read_at = self.first_read_at or now
+        # past the first timeout, the body so far must have come at min_rate
+        allowed = self.first_read_at + self.timeout_s + self.received / self.min_rate - now
         try:
-            message = await asyncio.wait_for(self._receive(), self.timeout_s)
+            message = await asyncio.wait_for(self._receive(), max(0.0, min(self.timeout_s, allowed)))
         except asyncio.TimeoutError:
+            if allowed < self.timeout_s:
+                return await self.refuse(408, f"the request body arrived slower than {self.min_rate / KB:g} KB/s")
             return await self.refuse(408, f"the request body stopped arriving for {self.timeout_s:g} s")
         if message["type"] == "http.request":
             self.received += len(message.get("body", b""))
             if self.received > self.limit.size:
                 return await self.refuse(413, self.limit.refusal)
+            self.body_done = not message.get("more_body", False)
         return message
 
     async def refuse(self, status: int, detail: str) -> Message:

@@ -1,7 +1,6 @@
 """Database functions (keyword-only arguments). They add and flush; callers commit."""
 from __future__ import annotations
 
-import gzip
 import re
 from dataclasses import dataclass
 from datetime import datetime, timedelta
@@ -14,7 +13,7 @@ from sqlalchemy.orm import Session
 
 from league.server.db.models import (
     BASELINE, DONE, EVALUATE, FAILED, QUEUED, RACE, READY, REJECTED, RUNNING, STUDENT, VALIDATE, Blob, Championship,
-    ChampionshipRound, Course, EpisodeResult, Evaluation, Job, Race, RaceReplay, Submission, User, utcnow,
+    ChampionshipRound, Course, EpisodeResult, Evaluation, Job, Race, Submission, User, utcnow,
 )
 from league.server.security import hash_token, new_token
 
@@ -331,11 +330,6 @@ def races_page(session: Session, *, page: int, size: int, championship_id: int |
     total = session.scalar(select(func.count()).select_from(query.subquery()))
     races = list(session.scalars(query.order_by(Race.id.desc()).offset((page - 1) * size).limit(size)))
     return races, total
-
-
-def replay_json(session: Session, *, race_id: int) -> bytes | None:
-    replay = session.get(RaceReplay, race_id)
-    return None if replay is None else gzip.decompress(replay.data)
 
 
 def course_championships(session: Session, *, course_id: int | None) -> list[Championship]:

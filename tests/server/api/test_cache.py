@@ -6,7 +6,9 @@ from __future__ import annotations
 import threading
 import time
 
-from league.server.api.cache import ResponseCache
+import pytest
+
+from league.server.api.cache import ENTRY_OVERHEAD, ResponseCache
 
 
 class Clock:
@@ -107,3 +109,27 @@ def test_a_period_of_zero_keeps_nothing_fresh():
     cache, compute = ResponseCache(ttl_s=0), Counter()
     assert [cache.compute("k", compute).body for _ in range(3)] == [b"1", b"2", b"3"]
     assert cache.lookup("k") == (None, False)
+
+
+def test_a_failed_computation_keeps_nothing_per_key():
+    """Any id may be asked for (standings of a championship that does not exist: a 404 raised while
+    computing): nothing stays behind for it, or memory would grow with every id."""
+    cache = ResponseCache(ttl_s=60)
+
+    def missing() -> bytes:
+        raise LookupError("championship 123 does not exist")
+
+    for key in range(100):
+        with pytest.raises(LookupError):
+            cache.compute(("standings", key), missing)
+    assert cache._gates == {} and len(cache._entries) == 0
+
+
+def test_kept_answers_are_bounded_in_bytes_least_recently_used_out_first():
+    cache = ResponseCache(ttl_s=60, max_bytes=10 * (1000 + ENTRY_OVERHEAD))
+    for page in range(25):
+        cache.compute(("leaderboard", page), lambda: b"x" * 1000)
+    assert len(cache._entries) == 10 and cache._entries.currsize <= cache._entries.maxsize
+    assert cache.lookup(("leaderboard", 24))[0] is not None and cache.lookup(("leaderboard", 0))[0] is None
+    huge = cache.compute("huge", lambda: b"x" * 20_000)  # larger than the whole cache: served, not kept
+    assert huge.body == b"x" * 20_000 and cache.lookup("huge") == (None, False)

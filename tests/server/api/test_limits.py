@@ -1,14 +1,21 @@
 """Request bodies are bounded before anything reads them: a declared length over a route's limit is
 refused at once, a streamed body is cut at the limit, both with a JSON 413, before authentication;
-multipart bodies are read only once the token is accepted; a stalled body is refused (408)."""
+multipart bodies are read only once the token is accepted; a stalled body is refused (408), and so
+is one that trickles in; an answer streamed after the body is not timed."""
 from __future__ import annotations
 
+import asyncio
 import socket
 import time
 
 import pytest
+from starlette.requests import Request
+from starlette.responses import StreamingResponse
+
+from league.server.api.limits import KB, BodyLimits, Limit
 
 from ..conftest import fresh_backend, make_server
+from .test_connections import connect, guarded_server, read_all, status_line
 
 HUGE = 75 * 1024 * 1024
 
@@ -74,3 +81,51 @@ def test_a_body_that_stops_arriving_is_refused_and_the_api_goes_on(tmp_path):
     assert answer.startswith("HTTP/1.1 408"), answer
     assert answer.endswith('{"detail": "the request body stopped arriving for 1 s"}'), answer
     assert waited < 30  # it was the server that gave up, not our socket
+
+
+async def read_then_stream(scope, receive, send):
+    """Reads the whole body, then streams an answer for 1.5 s (Starlette listens for the client
+    leaving meanwhile, through receive)."""
+    body = await Request(scope, receive).body()
+
+    async def pieces():
+        for _ in range(3):
+            await asyncio.sleep(0.5)
+            yield b"%d " % len(body)
+
+    await StreamingResponse(pieces())(scope, receive, send)
+
+
+def limited(read_timeout_s: float, min_rate: float):
+    return BodyLimits(read_then_stream, default=Limit.of(64 * KB), limits={}, read_timeout_s=read_timeout_s,
+                      min_rate=min_rate)
+
+
+def test_a_body_that_trickles_in_is_refused_once_under_the_minimum_rate():
+    """Never stalled for the read timeout, but 100 bytes a second against at least 1 KB/s past it."""
+    with guarded_server(limited(read_timeout_s=1, min_rate=1024), max_connections=10, max_per_client=0,
+                        head_timeout_s=30) as address:
+        with connect(address) as sock:
+            sock.sendall(b"POST / HTTP/1.1\r\nHost: league\r\nContent-Length: 10000\r\n\r\n")
+            answer = b""
+            for _ in range(100):  # 10 s at most, 100 bytes every 0.1 s
+                sock.sendall(b"x" * 10)
+                time.sleep(0.1)
+                sock.settimeout(0.001)
+                try:
+                    answer = read_all(sock)
+                    break
+                except (TimeoutError, BlockingIOError, socket.timeout):
+                    sock.settimeout(10)
+    assert status_line(answer) == "HTTP/1.1 408 Request Timeout"
+    assert answer.endswith(b'{"detail": "the request body arrived slower than 1 KB/s"}')
+
+
+def test_an_answer_streamed_after_the_body_is_not_cut_by_the_body_timeout():
+    with guarded_server(limited(read_timeout_s=0.5, min_rate=1024), max_connections=10, max_per_client=0,
+                        head_timeout_s=30) as address:
+        with connect(address) as sock:
+            sock.sendall(b"POST / HTTP/1.1\r\nHost: league\r\nConnection: close\r\nContent-Length: 3\r\n\r\nabc")
+            answer = read_all(sock)
+    assert status_line(answer) == "HTTP/1.1 200 OK"
+    assert answer.count(b"\r\n3 \r\n") == 3 and answer.endswith(b"\r\n0\r\n\r\n")  # three chunks, then the end

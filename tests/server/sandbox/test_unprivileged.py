@@ -11,59 +11,21 @@ from __future__ import annotations
 import os
 import shutil
 import subprocess
-import sysconfig
-import tempfile
 from pathlib import Path
 
 import pytest
 
+from ..ordinary import USER, environment_for_others, ordinary_user, require_root_tools, shared_directory
+
 pytestmark = pytest.mark.slow  # a second pytest run, in another environment
 
 REPO = Path(__file__).resolve().parents[3]
-USER = "league-test"
-SYSTEM_PYTHON = Path("/usr/bin/python3")
-
-
-def require_root_tools() -> None:
-    if os.geteuid() != 0:
-        pytest.skip("creating a user for the test needs root (run the suite as root, or this file as that user)")
-    for tool in ("useradd", "runuser"):
-        if shutil.which(tool) is None:
-            pytest.skip(f"needs {tool} (Debian: passwd / util-linux)")
-    if not SYSTEM_PYTHON.exists():
-        pytest.skip("needs the system's Python (Debian: apt-get install python3 python3-venv)")
-
-
-def ordinary_user() -> int:
-    if subprocess.run(["id", "-u", USER], capture_output=True).returncode != 0:
-        subprocess.run(["useradd", "--system", "--no-create-home", "--shell", "/usr/sbin/nologin", USER], check=True)
-    return int(subprocess.run(["id", "-u", USER], capture_output=True, text=True, check=True).stdout)
-
-
-def environment_for_others(root: Path) -> Path:
-    """A venv of the system's Python holding this environment's packages; returns its python.
-    The packages are hard links to this environment's files: read them, never change their mode."""
-    venv = root / "venv"
-    subprocess.run([str(SYSTEM_PYTHON), "-m", "venv", "--without-pip", str(venv)], check=True)
-    site = next(venv.glob("lib/python3*/site-packages"))
-    ours = {Path(sysconfig.get_paths()[key]) for key in ("purelib", "platlib")}
-    for packages in ours:
-        for entry in packages.iterdir():
-            if entry.name.startswith("__editable__") or entry.name.endswith(".pth"):
-                continue  # the league package is copied below, never pointed at through a .pth
-            target = site / entry.name
-            if not target.exists():
-                subprocess.run(["cp", "-al", str(entry), str(target)], check=True)
-    return venv / "bin" / "python"
 
 
 @pytest.fixture
 def shared_tmp():
-    """A directory other users may enter (pytest's own temporary directories are its user's alone)."""
-    path = Path(tempfile.mkdtemp(prefix="league-unprivileged-"))
-    os.chmod(path, 0o755)
-    yield path
-    shutil.rmtree(path, ignore_errors=True)
+    with shared_directory() as path:
+        yield path
 
 
 @pytest.mark.long

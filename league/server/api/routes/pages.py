@@ -20,7 +20,7 @@ from league.render import CAR_COLORS
 from league.server.config import MB
 from league.web_geometry import track_geometry
 
-MAX_TRACK_BYTES = 256 * 1024  # a track dict is a few KB
+MAX_TRACK_BYTES = 32 * 1024  # a track dict is at most ~6 KB (64 control points, 20 obstacles)
 # Pages may talk to and load from their own server only; no inline scripts or styles.
 PAGE_HEADERS = {
     "Content-Security-Policy": "default-src 'self'; img-src 'self' data: blob:; object-src 'none'; "

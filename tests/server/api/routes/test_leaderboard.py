@@ -13,6 +13,7 @@ from sqlalchemy import select
 
 from league.server.db.models import INSTRUCTOR, Submission
 
+from ....test_spreadsheet import formula_cells
 from ... import model_factory as mf
 from ...conftest import (
     add_user_in_new_course, baseline_submission, create_student, fresh_backend, make_server, upload_ready, wait_for,
@@ -105,6 +106,27 @@ def test_instructors_export_the_leaderboard_of_their_course_as_csv(app_league):
     assert rows[1]["agent"] == "'=HYPERLINK(\"http://evil.example\")"
     assert (rows[0]["completed"], rows[0]["episodes"], float(rows[0]["mean_return"])) == ("3", "3", 6.0)
     assert rows[2]["completed"] == rows[2]["mean_return"] == rows[2]["rating"] == ""
+
+
+def test_the_grades_are_data_in_any_spreadsheet(app_league):
+    """Issue 22: an agent named to run in a spreadsheet that splits lines on ';' (Excel in much of
+    Europe). Split on commas, semicolons or tabs, no cell of the grades starts a formula; the
+    figures stay numbers (unquoted)."""
+    course = unique("spreadsheet course")
+    _, token = app_league.user("prof", role=INSTRUCTOR, course_name=course)
+    ann, _ = app_league.user("ann", course_name=course)
+    agent = app_league.submission(ann, completed=2)
+    with app_league.sessions.begin() as session:
+        session.get(Submission, agent.id).name = "fast;=2+5;=cmd|' /C calc'!A0"
+    with app_league.client(token) as instructor:
+        text = instructor.get("/api/leaderboard.csv").text
+    assert formula_cells(text) == set()
+    header, line = text.splitlines(keepends=True)
+    grades = dict(zip(next(csv.reader([header])), next(csv.reader([line], quoting=csv.QUOTE_NONNUMERIC))))
+    assert isinstance(grades.pop("rank"), float)  # among the baselines other tests evaluated
+    assert grades == {"student": ann.name, "agent": "fast;'=2+5;'=cmd|' /C calc'!A0", "submission_id": agent.id,
+                      "completed": 2, "episodes": 3, "mean_return": 4.0, "mean_steps": 500.0, "mean_speed": 0.3,
+                      "rating": ""}
 
 
 @pytest.mark.slow

@@ -3,6 +3,7 @@ against the baseline over real HTTP, the race is reproducible from what is store
 API must refuse is refused with a clear reason (in process)."""
 from __future__ import annotations
 
+import gzip
 import json
 import threading
 import uuid
@@ -12,6 +13,7 @@ from types import SimpleNamespace
 import pytest
 
 from league.evaluation import REPLAY_FORMAT, REPLAY_VERSION, load_replay
+from league.server.api.routes.races import gunzipped
 
 from ...conftest import (
     add_user_in_new_course, assert_same_classification, baseline_submission, create_student, make_server,
@@ -98,6 +100,23 @@ def test_a_student_races_their_agent_against_the_baseline(grid, finished_race):
     finishers = [row for row in rows if row["outcome"] == "finished"]
     assert rows[:len(finishers)] == finishers  # finishers first, by time
     assert [row["time"] for row in finishers] == sorted(row["time"] for row in finishers)
+
+
+@pytest.mark.parametrize("path", ["/api/races?page=9223372036854775808", "/api/leaderboard?page=100001",
+                                  "/api/championships/1/standings?page=100001"])
+def test_page_numbers_past_the_bound_are_refused(app_league, path):
+    """Not a database error (an offset past 64 bits was a 500), nor a cache key of its own."""
+    with app_league.client() as anonymous:
+        response = anonymous.get(path)
+    assert response.status_code == 422
+    assert response.json() == {"detail": "query.page: Input should be less than or equal to 100000"}
+
+
+def test_a_replay_is_sent_uncompressed_a_piece_at_a_time():
+    """A client that takes no gzip gets the stored replay decompressed piece by piece, never whole."""
+    replay = json.dumps({"cars": [{"x": [i / 7 for i in range(100_000)]}]}).encode()
+    pieces = list(gunzipped(gzip.compress(replay), piece_size=64 * 1024))
+    assert b"".join(pieces) == replay and len(pieces) > 10 and max(map(len, pieces)) == 64 * 1024
 
 
 def test_the_replay_is_the_toolkits_replay_json(grid, finished_race, tmp_path):

@@ -49,14 +49,22 @@ function showTokens(users) {
   $("tokens").hidden = false;
   $("token-table").tBodies[0].replaceChildren(...users.map((user) => element("tr", {},
     element("td", { text: user.name }), element("td", {}, element("span", { className: "token", text: user.token })))));
-  const csv = ["name,token", ...users.map((user) => `${csvCell(user.name)},${user.token}`)].join("\n");
+  const csv = ["name,token", ...users.map((user) => `${csvCell(user.name)},${csvCell(user.token)}`)].join("\n");
   const link = $("tokens-download");
   if (link.href.startsWith("blob:")) URL.revokeObjectURL(link.href);
   link.href = URL.createObjectURL(new Blob([csv + "\n"], { type: "text/csv" }));
 }
 
+// A cell no spreadsheet runs as a formula, whatever it splits lines on: the rule of league/spreadsheet.py.
 function csvCell(text) {
-  return /[",\n]/.test(text) ? `"${text.replaceAll('"', '""')}"` : text;
+  let safe = "";
+  let cellMayBegin = true;
+  for (const char of text.replace(/[\p{Cc}\p{Zl}\p{Zp}]/gu, " ")) {
+    if (cellMayBegin && "=+-@".includes(char)) safe += "'";
+    safe += char;
+    cellMayBegin = ",;|".includes(char) || (cellMayBegin && ` "'`.includes(char));
+  }
+  return `"${safe.replaceAll('"', '""')}"`;
 }
 
 async function refreshUsers(me) {
