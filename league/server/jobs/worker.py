@@ -19,7 +19,7 @@ from league.server.jobs.handlers import HANDLERS
 from league.server.jobs.placement import Placement
 from league.server.jobs.queue import JobQueue, build_queue
 from league.server.jobs.runner import WorkerContext, reap, release_active, run_job
-from league.server.sandbox.process import sandbox_isolation
+from league.server.sandbox.process import ForkServer, sandbox_isolation
 from league.server.storage import BlobStore
 
 log = logging.getLogger("league.server.worker")
@@ -98,6 +98,7 @@ def worker_context(settings: Settings, queue: JobQueue | None = None) -> WorkerC
     store = BlobStore(settings.data_dir)
     store.ensure()
     sandbox_isolation(settings.sandbox_uid_base)  # logged at start-up: what this machine's sandboxes get
+    ForkServer.release_this_thread()  # (the probe's: this thread runs no job)
     return WorkerContext(settings, make_sessionmaker(engine), queue or build_queue(settings), store, HANDLERS)
 
 
