@@ -43,6 +43,7 @@ LINUX_CAPABILITY_VERSION_3 = 0x20080522
 MAX_OPEN_FILES = 64
 MAX_FILE_WRITE = 1024 * 1024  # bytes a model may write (it has no reason to write at all)
 MAX_THREADS = 64  # of a sandbox's own user id
+IDLE_BEFORE_PREPARING_S = 1.0  # a fork server prepares its other runtimes once no request came for this long
 # The runtimes installed here (so to sandboxes), by the suffix of the model file the server names them by
 RUNTIMES = {suffix: all(importlib.util.find_spec(module) for module in modules)
             for suffix, modules in ((".onnx", ("onnx", "onnxruntime")), (".pt", ("torch",)))}
@@ -397,7 +398,7 @@ def failure_reason(error: BaseException, memory_mb: int) -> str:
 # --------------------------------------------------------------------------- fork server
 
 
-def fork_server(control_fd: int) -> int:
+def fork_server(control_fd: int, prepare_all: bool = False) -> int:
     """Prepare the runtimes once, then fork one sandbox per request: a start costs a fork and a
     model load instead of a new interpreter and its imports (~0.25 s of CPU per sandbox).
 
@@ -405,9 +406,13 @@ def fork_server(control_fd: int) -> int:
     sandbox's stdin, stdout and stderr as SCM_RIGHTS fds -> {"pid"}; {"wait": pid} -> {"status":
     exit code, -signal, or null while it runs}. A child stays a zombie until it is waited for, so
     its pid cannot be reused while the parent holds it. Ends when the control socket closes.
-    ONNX is prepared at once, TorchScript before the first sandbox that needs it.
+    ONNX is prepared at once; TorchScript before the first sandbox that needs it or, with
+    `prepare_all` (a worker's job threads), once no request came for IDLE_BEFORE_PREPARING_S (a
+    backlog of jobs at a worker's start is served first).
     """
+    import select
     import socket
+    import traceback
 
     libc = ctypes.CDLL(None, use_errno=True)
     libc.prctl(PR_SET_PDEATHSIG, signal.SIGKILL)  # the worker's thread ended: so does this server
@@ -415,7 +420,14 @@ def fork_server(control_fd: int) -> int:
     single_thread_environment()  # before numpy: a fork must find one thread
     preload_runtimes()
     control = socket.socket(fileno=control_fd)
+    unprepared = [suffix for suffix in RUNTIMES if prepare_all and suffix not in PREPARED]
     while True:
+        if unprepared and not select.select([control], [], [], IDLE_BEFORE_PREPARING_S)[0]:
+            try:
+                prepare_runtime(unprepared.pop())
+            except Exception:  # tried again (and this server ends) when a sandbox needs it
+                traceback.print_exc()
+            continue
         message, fds, _, _ = socket.recv_fds(control, 65536, 3)
         if not message:
             return 0
@@ -552,7 +564,7 @@ def serve(agent, proto_in: int, proto_out: int, memory_mb: int) -> None:
 
 def main(argv: list[str]) -> int:
     if argv[1:2] == ["--fork-server"]:
-        return fork_server(int(argv[2]))
+        return fork_server(int(argv[2]), prepare_all="--prepare-all" in argv[3:])
     return run_sandbox(argv[1:], os.getppid())
 
 

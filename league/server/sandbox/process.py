@@ -3,9 +3,10 @@ as, its environment and directory, and the pipe protocol of league/server/sandbo
 
 Each thread that starts sandboxes has a `ForkServer`, a child.py process that has loaded and run a
 tiny model of each runtime once and forks a sandbox per model (one start is a fork and a model
-load, ~0.03 s, instead of a new interpreter, ~0.25 s, and torch's import, ~2.5 s). The server dies
-with its thread and takes its sandboxes with it (the kernel's parent-death signal, which follows
-the starting thread).
+load, ~0.03 s, instead of a new interpreter, ~0.25 s, and torch's import, ~2.5 s). A worker's job
+threads start theirs when they start (ForkServer.prepare_this_thread). The server dies with its
+thread and takes its sandboxes with it (the kernel's parent-death signal, which follows the
+starting thread).
 Sandboxes run on the CPUs their thread may use when they start (see league.server.jobs.placement).
 """
 from __future__ import annotations
@@ -246,8 +247,16 @@ class ForkServer:
     def of_this_thread(cls) -> ForkServer:
         server = getattr(cls._threads, "server", None)
         if server is None or server.proc.poll() is not None:
-            server = cls._threads.server = cls()
+            server = cls._threads.server = cls(prepare_all=getattr(cls._threads, "prepare_all", False))
         return server
+
+    @classmethod
+    def prepare_this_thread(cls) -> None:
+        """Start this thread's server now, and have it (and any that replaces it) prepare every runtime
+        while no sandbox is asked for: a worker's job thread, so that its first TorchScript model
+        waits for no import of torch. Costs each job thread torch's memory from the start."""
+        cls._threads.prepare_all = True
+        cls.of_this_thread()
 
     @classmethod
     def release_this_thread(cls) -> None:
@@ -257,12 +266,13 @@ class ForkServer:
             cls._threads.server = None
             server.close()
 
-    def __init__(self):
+    def __init__(self, prepare_all: bool = False):
         ours, theirs = socket.socketpair(socket.AF_UNIX, socket.SOCK_SEQPACKET)
         home = Path(tempfile.gettempdir())
         with theirs:
             self.proc = subprocess.Popen(
-                [sys.executable, "-s", "-B", "-P", str(CHILD_SCRIPT), "--fork-server", str(theirs.fileno())],
+                [sys.executable, "-s", "-B", "-P", str(CHILD_SCRIPT), "--fork-server", str(theirs.fileno()),
+                 *(["--prepare-all"] if prepare_all else [])],
                 cwd="/", env=_child_environment(home), stdin=subprocess.DEVNULL, stdout=subprocess.DEVNULL,
                 pass_fds=[theirs.fileno()], start_new_session=True)
         self.control = ours
