@@ -12,12 +12,9 @@ Sandboxes run on the CPUs their thread may use when they start (see league.serve
 from __future__ import annotations
 
 import contextlib
-import functools
-import importlib.util
 import json
 import logging
 import os
-import pwd
 import select
 import shutil
 import signal
