@@ -15,8 +15,8 @@ WORKDIR /app
 COPY . /app
 RUN pip install ".[server,torch]" && mkdir -p /data  # the bundled baseline agents are package data
 
-# Runs as root so that each sandbox can enter its own network namespace and then drop to
-# `nobody` (see league/server/sandbox/child.py); the API and workers never load a model.
+# Runs as root so that each sandbox can enter its own network namespace and then drop to a
+# user id of its own (see league/server/sandbox/child.py); the API and workers never load a model.
 VOLUME /data
 EXPOSE 8000
 CMD ["league", "serve", "--host", "0.0.0.0", "--port", "8000"]

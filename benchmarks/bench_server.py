@@ -2,6 +2,7 @@
 
     python benchmarks/bench_server.py [--episodes 100] [--uploads 20] [--rate 200] [--seconds 10]
     python benchmarks/bench_server.py --status-trees OLD_CHECKOUT .   # (d) of `league serve`, per source tree
+    python benchmarks/bench_server.py --torchscript-trees OLD_CHECKOUT . [--settle 20]   # (f), per source tree
 
 (a) 100 episodes of a thesis-size ONNX actor (5 -> 64 -> 64 -> 2), one core, three ways: the
     plain per-episode loop a student writes (no sandbox), lockstep metrics_run without a sandbox,
@@ -17,7 +18,11 @@
     per source tree given (e.g. a checkout of an older commit, then this one);
 (e) the same evaluation as (a) as a job of a `league worker` that may use every CPU (as a
     course runs it): the job's run time with the worker's CPU placement (its thread and the
-    sandbox on one CPU, the default) and without it (LEAGUE_CPU_PLACEMENT=false).
+    sandbox on one CPU, the default) and without it (LEAGUE_CPU_PLACEMENT=false);
+(f) TorchScript uploads to a new `league worker` (one job thread), one after the other, the first
+    `--settle` seconds after it started: upload to ready (validated) and to evaluated, the first
+    beside the later ones, and its fork server's memory. --torchscript-trees runs only (f), once
+    per source tree given (e.g. a checkout of an older commit, then this one).
 
 Everything runs on this machine: a server on 127.0.0.1, a bounded number of requests.
 """
@@ -30,7 +35,7 @@ import threading
 import time
 from pathlib import Path
 
-from _league import League, measure_latency, one_core, plain_loop, thesis_actor
+from _league import ROOT, League, measure_latency, one_core, plain_loop, thesis_actor
 
 EVALUATION_TARGET_S = 15.0
 SANDBOX_COST_TARGET = 1.5  # sandboxed lockstep run against the unsandboxed one
@@ -212,6 +217,49 @@ def bench_evaluation_job(model: Path, episodes: int, placement: bool) -> float:
     return seconds
 
 
+# --------------------------------------------------------------------------- (f) first TorchScript upload
+
+
+def bench_first_torchscript(model: Path, episodes: int, settle_s: float, uploads: int = 3,
+                            root: Path = ROOT) -> list[tuple[float, float]]:
+    """(f): (seconds to ready, seconds to evaluated) of each upload, in order."""
+    times = []
+    with tempfile.TemporaryDirectory(prefix="league-bench-") as tmp:
+        settings = {"LEAGUE_EVAL_EPISODES": str(episodes), "LEAGUE_WORKER_THREADS": "1"}
+        with League(Path(tmp), embedded=False, settings=settings, root=root) as league:
+            worker = league.start_worker(wait=True)
+            time.sleep(settle_s)  # the students' first upload comes a while after the start
+            client = league.client()
+            for _ in range(uploads):
+                start = time.perf_counter()
+                submission_id = upload_file(client, model)
+                while (status := evaluation_status(client, submission_id)) in ("pending", "validating"):
+                    time.sleep(0.02)
+                ready = time.perf_counter() - start
+                wait_evaluated(client, [submission_id])
+                times.append((ready, time.perf_counter() - start))
+            memory = ", ".join(f"{fork_server_rss_mb(pid):.0f} MB" for pid in fork_servers(worker.pid))
+    first, later = times[0], times[1:]
+    print(f"(f) TorchScript uploads to a new `league worker`, the first {settle_s:g} s after its start"
+          f"{f' (source tree {root})' if root != ROOT else ''}: to ready {first[0]:.2f} s, to evaluated "
+          f"{first[1]:.2f} s; later ones: to ready {sum(t[0] for t in later) / len(later):.2f} s, to evaluated "
+          f"{sum(t[1] for t in later) / len(later):.2f} s; its fork server's resident memory: {memory}", flush=True)
+    return times
+
+
+def fork_servers(worker: int) -> list[int]:
+    """The worker's fork servers (children of its job threads: /proc/PID/task/TID/children each)."""
+    children = [pid for task in Path(f"/proc/{worker}/task").iterdir() for pid in (task / "children").read_text().split()]
+    return [int(pid) for pid in children if b"--fork-server" in Path(f"/proc/{pid}/cmdline").read_bytes()]
+
+
+def fork_server_rss_mb(pid: int) -> float:
+    for line in Path(f"/proc/{pid}/status").read_text().splitlines():
+        if line.startswith("VmRSS:"):
+            return int(line.split()[1]) / 1024
+    return float("nan")
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--episodes", type=int, default=100)
@@ -221,9 +269,18 @@ def main() -> None:
     parser.add_argument("--only-jobs", action="store_true", help="only (e)")
     parser.add_argument("--status-trees", type=Path, nargs="+", metavar="TREE",
                         help="only (d) with `league serve`, run from each of these source trees in turn")
+    parser.add_argument("--torchscript-trees", type=Path, nargs="+", metavar="TREE",
+                        help="only (f), run from each of these source trees in turn")
+    parser.add_argument("--settle", type=float, default=20.0, help="seconds from a worker's start to the first "
+                                                                   "upload in (f)")
     args = parser.parse_args()
     with tempfile.TemporaryDirectory(prefix="league-bench-model-") as folder:
         model = thesis_actor(Path(folder))
+        scripted = thesis_torchscript(Path(folder))
+        if args.torchscript_trees:
+            for tree in args.torchscript_trees:
+                bench_first_torchscript(scripted, args.episodes, args.settle, root=tree.resolve())
+            return
         if args.status_trees:
             p99s = [bench_status(model, args.rate, args.seconds, embedded=True, root=tree.resolve())
                     for tree in args.status_trees]
@@ -237,6 +294,16 @@ def main() -> None:
         placed = bench_evaluation_job(model, args.episodes, placement=True)
         unplaced = bench_evaluation_job(model, args.episodes, placement=False)
         print(f"    CPU placement makes the evaluation job {unplaced / placed:.1f}x faster")
+        if not args.only_jobs:
+            bench_first_torchscript(scripted, args.episodes, args.settle)
+
+
+def thesis_torchscript(folder: Path) -> Path:
+    """The thesis-size actor of (a), scripted (torch.jit.script) as a student exports it."""
+    from league.agents import export_torchscript
+    from tests.toolkit_models import thesis_driver
+
+    return export_torchscript(thesis_driver(), folder / "thesis_actor.pt")
 
 
 if __name__ == "__main__":

@@ -24,7 +24,7 @@ from league.server.config import Settings
 from league.server.db.session import make_engine, make_sessionmaker, migrate
 from league.server.jobs.queue import JobQueue, build_queue
 from league.server.jobs.worker import sweep_store
-from league.server.sandbox.process import sandbox_isolation
+from league.server.sandbox.process import ForkServer, sandbox_isolation
 from league.server.storage import BlobStore
 
 MULTIPART_SLACK = 64 * 1024  # bytes of multipart framing and form fields allowed on top of the file
@@ -53,6 +53,7 @@ def prepare_league(league_: League) -> None:
     bootstrap(league_.settings, league_.sessions, league_.queue, league_.store)
     sweep_store(league_.sessions, league_.store)
     sandbox_isolation(league_.settings.sandbox_uid_base)  # logged, and shown by /api/health
+    ForkServer.release_this_thread()  # (the probe's: the API runs no sandbox)
 
 
 @asynccontextmanager

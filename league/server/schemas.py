@@ -168,12 +168,17 @@ class JobOut(BaseModel):
 
 
 class SandboxIsolation(BaseModel):
-    full: bool = Field(description="Landlock and seccomp: uploaded models run only then, unless not required")
+    full: bool = Field(description="Landlock, seccomp and, for a root server, a user id of its own per sandbox: "
+                                   "uploaded models run only then, unless not required")
+    missing: list[str] = Field(description="what full isolation lacks here, each with what to do about it")
     required: bool
     network: str = Field(description="namespace, user-namespace or unavailable (seccomp refuses sockets anyway)")
     user: str = Field(description="own user id, root without capabilities, or the server's user")
     landlock: int = Field(description="the kernel's Landlock ABI version (0: none)")
     seccomp: bool
+    runtime: str = Field(description="readable by the sandbox's user, or preloaded: loaded by its fork server "
+                                     "before the change of user (a Python under a home only root may enter)")
+    runtimes: list[str] = Field(description="those whose tiny model a probe sandbox loaded and ran, confined")
     problem: str | None = Field(description="why a probe sandbox failed, if one did")
 
 

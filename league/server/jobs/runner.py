@@ -25,6 +25,7 @@ from league.server.jobs import leases
 from league.server.jobs.placement import Placement
 from league.server.jobs.queue import JobQueue
 from league.server.sandbox.child import set_autogroup_nice
+from league.server.sandbox.process import ForkServer
 from league.server.storage import BlobStore
 
 log = logging.getLogger("league.server.jobs")
@@ -108,6 +109,13 @@ def run_job(context: WorkerContext, job_id: int) -> None:
         _work(run)
     finally:
         context.active.pop(job.id, None)
+
+
+def prepare_job_thread(settings: Settings) -> None:
+    """When a job thread starts (Huey's startup hook, in that thread): its priority, then its fork
+    server, which prepares every runtime before the first job, at that priority."""
+    lower_thread_priority(settings.job_nice)
+    ForkServer.prepare_this_thread()
 
 
 def lower_thread_priority(nice: int) -> None:

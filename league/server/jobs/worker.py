@@ -18,8 +18,8 @@ from league.server.db.session import make_engine, make_sessionmaker, migrate
 from league.server.jobs.handlers import HANDLERS
 from league.server.jobs.placement import Placement
 from league.server.jobs.queue import JobQueue, build_queue
-from league.server.jobs.runner import WorkerContext, reap, release_active, run_job
-from league.server.sandbox.process import sandbox_isolation
+from league.server.jobs.runner import WorkerContext, prepare_job_thread, reap, release_active, run_job
+from league.server.sandbox.process import ForkServer, sandbox_isolation
 from league.server.storage import BlobStore
 
 log = logging.getLogger("league.server.worker")
@@ -56,6 +56,7 @@ class Worker:
     def __init__(self, context: WorkerContext, *, threads: int):
         context.queue.runner = lambda job_id: run_job(context, job_id)
         settings = context.settings
+        context.queue.huey.on_startup("league-job-thread")(lambda: prepare_job_thread(settings))  # in each
         if settings.cpu_placement and context.placement is None:
             context.placement = Placement(threads, Path(settings.cpu_slots_dir) if settings.cpu_slots_dir else None)
         self.context = context
@@ -98,6 +99,7 @@ def worker_context(settings: Settings, queue: JobQueue | None = None) -> WorkerC
     store = BlobStore(settings.data_dir)
     store.ensure()
     sandbox_isolation(settings.sandbox_uid_base)  # logged at start-up: what this machine's sandboxes get
+    ForkServer.release_this_thread()  # (the probe's: this thread runs no job)
     return WorkerContext(settings, make_sessionmaker(engine), queue or build_queue(settings), store, HANDLERS)
 
 

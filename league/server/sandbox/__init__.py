@@ -12,11 +12,12 @@
 
 Isolation of the child, done by the child itself before it reads the model (child.confine):
 rlimits (CPU, files, address space), a new network namespace, a user id of its own when the worker
-is root (else root without capabilities, or the worker's user), the parent-death signal, no new
-privileges, Landlock (it reads only this Python and our package, writes only its own directory,
-opens no TCP connection, signals no one outside it) and seccomp (no program, process, namespace,
-socket, trace, mount or identity change). Besides: a private temporary directory holding a copy of
-the model, no inherited file descriptors but its pipes, a clean environment. Which of these a
-machine gives is found once by a probe sandbox (process.isolation), logged, and shown by
-/api/health; without Landlock and seccomp no model runs unless the settings allow it.
+is root (else the worker's user), the parent-death signal, no new privileges, Landlock (it reads
+only this Python and our package, writes only its own directory, opens no TCP connection, signals
+no one outside it) and seccomp (no program, process, namespace, socket, trace, mount, identity
+change, session, IPC object, nor any call acting on another process). Besides: a private temporary
+directory holding a copy of the model, no inherited file descriptors but its pipes, a clean
+environment. Which of these a machine gives is found once by a probe sandbox (process.isolation),
+logged with what is missing, and shown by /api/health; unless isolation is full (for a root
+worker: with a user id of its own per sandbox) no model runs unless the settings allow it.
 """

@@ -1,16 +1,16 @@
 """The sandbox process: loads one untrusted model and answers observation batches over a pipe.
 
 Forked by the fork server (`python -s -B -P child.py --fork-server FD`, which
-league.server.sandbox.process starts once per job thread and which has imported the runtimes) as if
-run as `child.py MODEL MEMORY_MB CPU_S USER` in a private temporary directory that holds
-only the model. Before it reads the model it limits itself (CPU time, open files, file size, no
-core dumps), leaves the network (a new, empty network namespace), drops root to USER, and forbids
-regaining privileges; after its runtime is imported it caps its address space. Inference is
-single-threaded.
+league.server.sandbox.process starts once per job thread and which has loaded and run a tiny model
+of each runtime) as if run as `child.py MODEL MEMORY_MB CPU_S USER` in a private temporary
+directory that holds only the model. Before it reads the model it limits itself (CPU time, open
+files, file size, no core dumps), leaves the network (a new, empty network namespace), drops root
+to USER, and forbids regaining privileges; after its runtime is imported it caps its address
+space. Inference is single-threaded.
 
 Protocol (little endian; the parent sends only numbers, never a pickle):
     parent -> child  b"I" u32 n u32 d, then n*d float32     an observation batch
-    child -> parent  b"R" u32 len, JSON                       ready: {"obs_dim", "kind", "network"}
+    child -> parent  b"R" u32 len, JSON                       ready: {"isolation", "obs_dim"}
                      b"A" u32 n u32 2, then n*2 float32       actions
                      b"E" u32 len, UTF-8                      the model failed: the reason
 The child exits at end of input (the parent closed the pipe or died).
@@ -43,7 +43,10 @@ LINUX_CAPABILITY_VERSION_3 = 0x20080522
 MAX_OPEN_FILES = 64
 MAX_FILE_WRITE = 1024 * 1024  # bytes a model may write (it has no reason to write at all)
 MAX_THREADS = 64  # of a sandbox's own user id
-TORCH_AVAILABLE = importlib.util.find_spec("torch") is not None  # to the server: so it must be to sandboxes
+IDLE_BEFORE_PREPARING_S = 1.0  # a fork server prepares its other runtimes once no request came for this long
+# The runtimes installed here (so to sandboxes), by the suffix of the model file the server names them by
+RUNTIMES = {suffix: all(importlib.util.find_spec(module) for module in modules)
+            for suffix, modules in ((".onnx", ("onnx", "onnxruntime")), (".pt", ("torch",)))}
 # Landlock (linux/landlock.h): the syscalls are 444-446 on every architecture; rights with the ABI
 # version that introduced them
 SYS_LANDLOCK_CREATE_RULESET = 444
@@ -59,8 +62,11 @@ SYSTEM_READ = ("/usr", "/lib", "/lib64", "/lib32", "/etc/ld.so.cache", "/dev/ura
                "/sys/devices/system/cpu")
 DENIED_SYSCALLS = (
     "execve", "execveat", "fork", "vfork", "unshare", "setns",  # programs, processes, namespaces
-    "ptrace", "process_vm_readv", "process_vm_writev", "pidfd_open", "pidfd_getfd", "pidfd_send_signal", "kcmp",
-    "kill", "tkill", "rt_sigqueueinfo", "rt_tgsigqueueinfo",  # other processes
+    "ptrace", "process_vm_readv", "process_vm_writev", "process_madvise", "process_mrelease", "pidfd_open",
+    "pidfd_getfd", "pidfd_send_signal", "kcmp", "kill", "tkill", "rt_sigqueueinfo", "rt_tgsigqueueinfo",
+    "shmget", "shmat", "shmctl", "semget", "semop", "semtimedop", "semctl", "msgget", "msgsnd", "msgrcv", "msgctl",
+    "mq_open", "mq_unlink", "mq_timedsend", "mq_timedreceive", "mq_notify", "mq_getsetattr",  # other processes
+    "setsid", "setpgid",  # a session of its own is a scheduling group of its own (an autogroup, at nice 0)
     "socket", "socketpair",  # the network, unix sockets included (a database's socket file)
     "mount", "umount2", "pivot_root", "chroot", "open_tree", "move_mount", "fsopen", "fsconfig", "fsmount", "fspick",
     "mount_setattr", "open_by_handle_at", "name_to_handle_at",  # filesystems, and reading around Landlock
@@ -71,6 +77,17 @@ DENIED_SYSCALLS = (
     "setuid", "setgid", "setreuid", "setregid", "setresuid", "setresgid", "setfsuid", "setfsgid", "setgroups",
     "capset",  # identities, once the sandbox has its own
 )
+# System calls that act on the process one of their arguments names (0: the caller), and which argument:
+# refused for every process but the sandbox itself, 0 or its pid. (seccomp cannot tell the ids of its
+# threads from other processes'; the runtimes, on one thread, call these on 0 only.)
+ON_A_PROCESS = {"prlimit64": 0, "sched_setaffinity": 0, "sched_setattr": 0, "sched_setscheduler": 0,
+                "sched_setparam": 0, "migrate_pages": 0, "move_pages": 0, "get_robust_list": 0,
+                "setpriority": 1, "ioprio_set": 1}
+# ... of which these say in their first argument what the second names: a process only, never a
+# process group or a user (every process of the server's user)
+PRIO_PROCESS, IOPRIO_WHO_PROCESS = 0, 1
+ONLY_A_PROCESS = {"setpriority": PRIO_PROCESS, "ioprio_set": IOPRIO_WHO_PROCESS}
+ALL_BITS = (1 << 64) - 1  # seccomp compares a system call's arguments as 64-bit values
 
 
 # --------------------------------------------------------------------------- isolation
@@ -160,10 +177,12 @@ def read_roots() -> list[str]:
     return sorted(root for root in roots if os.path.exists(root))
 
 
-def restrict_files() -> int:
-    """Landlock: read-only access to `read_roots()`, its own directory (the working directory) read
-    and write, /dev/null; nothing else. Where the kernel has them, also no TCP at all and no signal
-    or abstract socket outside the sandbox. Returns the kernel's Landlock ABI version."""
+def files_ruleset() -> tuple[int, int]:
+    """Landlock's rules for the sandbox, as (ruleset fd, the kernel's Landlock ABI version): read-only
+    access to `read_roots()`, its own directory (the working directory) read and write, /dev/null;
+    nothing else. Where the kernel has them, also no TCP at all and no signal or abstract socket
+    outside the sandbox. Built before the sandbox leaves root: the sandbox's own user may not be
+    able to open the paths it names (a Python under a home only root may enter)."""
     abi = _landlock(0, None, 0, LANDLOCK_CREATE_RULESET_VERSION)
     fs_rights = sum(bit for bit, since in LANDLOCK_FS.values() if abi >= since)
     ruleset = LandlockRuleset(fs_rights, LANDLOCK_NET_TCP if abi >= 4 else 0, LANDLOCK_SCOPES if abi >= 6 else 0)
@@ -175,10 +194,18 @@ def restrict_files() -> int:
             _allow(fd, root, read_dir if os.path.isdir(root) else read_file)
         _allow(fd, ".", fs_rights)
         _allow(fd, os.devnull, read_file | LANDLOCK_FS["write_file"][0])
-        _landlock(2, fd, 0)  # landlock_restrict_self (no_new_privs is set)
-    finally:
+    except BaseException:
         os.close(fd)
-    return abi
+        raise
+    return fd, abi
+
+
+def restrict_files(ruleset: int) -> None:
+    """Enforce the rules of `files_ruleset()` on this process, for good (no_new_privs is set)."""
+    try:
+        _landlock(2, ruleset, 0)  # landlock_restrict_self
+    finally:
+        os.close(ruleset)
 
 
 class LandlockRuleset(ctypes.Structure):
@@ -212,7 +239,8 @@ def _landlock(call: int, *args) -> int:
 
 def restrict_syscalls() -> None:
     """seccomp: refuse (EPERM) what inference never needs -- running programs, new processes and
-    namespaces, sockets, signals to other processes, tracing, mounts, kernel and identity changes."""
+    namespaces, sockets, acting on other processes (signals, limits, priorities, CPUs, memory,
+    tracing, IPC), sessions, mounts, kernel and identity changes."""
     import errno
 
     import pyseccomp as seccomp
@@ -222,12 +250,31 @@ def restrict_syscalls() -> None:
     for name in DENIED_SYSCALLS:
         with contextlib.suppress(RuntimeError, ValueError):  # a syscall this architecture does not have
             rules.add_rule(refuse, name)
-    rules.add_rule(refuse, "tgkill", seccomp.Arg(0, seccomp.NE, os.getpid()))  # signals to itself only
+    own = os.getpid()
+    for name, argument in ON_A_PROCESS.items():
+        if name in ONLY_A_PROCESS:
+            rules.add_rule(refuse, name, seccomp.Arg(0, seccomp.NE, ONLY_A_PROCESS[name]))
+        # a rule compares an argument once, and rules of one action are alternatives: "neither 0 nor
+        # our pid" is "above our pid, or in one of the blocks that tile 1 .. pid - 1"
+        rules.add_rule(refuse, name, seccomp.Arg(argument, seccomp.GT, own))
+        for mask, value in blocks_between_zero_and(own):
+            rules.add_rule(refuse, name, seccomp.Arg(argument, seccomp.MASKED_EQ, mask, value))
+    rules.add_rule(refuse, "tgkill", seccomp.Arg(0, seccomp.NE, own))  # signals to itself only
     rules.add_rule(refuse, "clone", seccomp.Arg(0, seccomp.MASKED_EQ, CLONE_THREAD, 0))  # threads, no processes
     for flag in CLONE_NAMESPACES:
         rules.add_rule(refuse, "clone", seccomp.Arg(0, seccomp.MASKED_EQ, flag, flag))
     rules.add_rule(seccomp.ERRNO(errno.ENOSYS), "clone3")  # its flags are out of reach: glibc falls back to clone
     rules.load()
+
+
+def blocks_between_zero_and(pid: int) -> list[tuple[int, int]]:
+    """(mask, value) pairs such that `x & mask == value` for one of them exactly when 0 < x < pid:
+    the aligned blocks [2**b, 2**(b+1)) below pid's highest bit, then, for each lower bit b that pid
+    has, the values that equal pid above b and have 0 at b."""
+    top = pid.bit_length() - 1
+    below_top = [(ALL_BITS ^ ((1 << bit) - 1), 1 << bit) for bit in range(top)]
+    under_pid = [(ALL_BITS ^ ((1 << bit) - 1), pid >> (bit + 1) << (bit + 1)) for bit in range(top) if pid >> bit & 1]
+    return below_top + under_pid
 
 
 def cap_address_space(extra_mb: int) -> None:
@@ -261,19 +308,21 @@ def import_league_module(name: str) -> types.ModuleType:
     return importlib.import_module(f"league.{name}")
 
 
-def load_model(model_path: Path, memory_mb: int):
-    """Static checks, then the toolkit's loader (which dry-runs the model) under the memory cap."""
+def load_model(model_path: Path, memory_mb: int | None):
+    """Static checks, then the toolkit's loader (which dry-runs the model) under the memory cap (None:
+    no cap, for the fork server's own tiny models)."""
     agents = import_league_module("agents")
     checks = import_league_module("server.sandbox.checks")
     if model_path.suffix == ".onnx":
         checks.check_onnx(model_path)
         agents.import_onnxruntime().disable_telemetry_events()  # before the cap: its footprint is not the model's
-
-        cap_address_space(memory_mb)
+        if memory_mb is not None:
+            cap_address_space(memory_mb)
         return agents.load_agent(model_path, name="submission")
     checks.check_torchscript_archive(model_path)
     torch = _import_torch()
-    cap_address_space(memory_mb)
+    if memory_mb is not None:
+        cap_address_space(memory_mb)
     module = torch.jit.load(str(model_path), map_location="cpu")
     checks.check_torchscript_graph(module)
     return agents.torch_module_agent(module, name="submission")
@@ -293,6 +342,50 @@ def _import_torch():
     return torch
 
 
+def tiny_onnx(path: Path) -> Path:
+    """The heuristic driver as ONNX with its batch fixed to 1, which the loader then frees (as it
+    does for many exports): loading it runs every step an ONNX model's load can take."""
+    import onnx
+
+    import_league_module("agents").export_heuristic_onnx(path)
+    model = onnx.load(str(path))
+    for value in (*model.graph.input, *model.graph.output):
+        value.type.tensor_type.shape.dim[0].dim_value = 1
+    onnx.save(model, str(path))
+    return path
+
+
+def tiny_torchscript(path: Path) -> Path:
+    """A small MLP, scripted as students export theirs."""
+    nn = _import_torch().nn
+    mlp = nn.Sequential(nn.Linear(5, 8), nn.Tanh(), nn.Linear(8, 2))
+    return import_league_module("agents").export_torchscript(mlp, path)
+
+
+TINY_MODELS = {".onnx": tiny_onnx, ".pt": tiny_torchscript}
+PREPARED: dict[str, bytes] = {}  # runtime (its models' suffix) -> the tiny model it ran in this process
+
+
+def prepare_runtime(suffix: str) -> None:
+    """Load and run a tiny model of this runtime here, through the code a sandbox runs. Its sandboxes,
+    forked from here, then find everything they use imported and initialised: no sandbox repeats
+    the imports (torch's cost more than an ONNX sandbox's whole run), and a sandbox whose own user
+    cannot read this Python (installed under a home only root may enter) needs to read none of it."""
+    if suffix in PREPARED or not RUNTIMES.get(suffix):
+        return
+    import tempfile
+
+    with tempfile.TemporaryDirectory(prefix="league-runtime-") as folder:
+        path = TINY_MODELS[suffix](Path(folder) / f"tiny{suffix}")
+        run_tiny_model(path)
+        PREPARED[suffix] = path.read_bytes()
+
+
+def run_tiny_model(path: Path) -> None:
+    agent = load_model(path, memory_mb=None)
+    agent(import_league_module("agents").dry_run_observations(agent.obs_dim, 3))
+
+
 def failure_reason(error: BaseException, memory_mb: int) -> str:
     """One line for the student; the full message goes to the log (stderr)."""
     print(f"{type(error).__name__}: {error}", file=sys.stderr, flush=True)
@@ -305,16 +398,21 @@ def failure_reason(error: BaseException, memory_mb: int) -> str:
 # --------------------------------------------------------------------------- fork server
 
 
-def fork_server(control_fd: int) -> int:
-    """Import the runtimes once, then fork one sandbox per request: a start costs a fork and a
+def fork_server(control_fd: int, prepare_all: bool = False) -> int:
+    """Prepare the runtimes once, then fork one sandbox per request: a start costs a fork and a
     model load instead of a new interpreter and its imports (~0.25 s of CPU per sandbox).
 
     Requests on the control socket (SOCK_SEQPACKET, JSON): {"args", "workdir", "env"} with the
     sandbox's stdin, stdout and stderr as SCM_RIGHTS fds -> {"pid"}; {"wait": pid} -> {"status":
     exit code, -signal, or null while it runs}. A child stays a zombie until it is waited for, so
     its pid cannot be reused while the parent holds it. Ends when the control socket closes.
+    ONNX is prepared at once; TorchScript before the first sandbox that needs it or, with
+    `prepare_all` (a worker's job threads), once no request came for IDLE_BEFORE_PREPARING_S (a
+    backlog of jobs at a worker's start is served first).
     """
+    import select
     import socket
+    import traceback
 
     libc = ctypes.CDLL(None, use_errno=True)
     libc.prctl(PR_SET_PDEATHSIG, signal.SIGKILL)  # the worker's thread ended: so does this server
@@ -322,7 +420,14 @@ def fork_server(control_fd: int) -> int:
     single_thread_environment()  # before numpy: a fork must find one thread
     preload_runtimes()
     control = socket.socket(fileno=control_fd)
+    unprepared = [suffix for suffix in RUNTIMES if prepare_all and suffix not in PREPARED]
     while True:
+        if unprepared and not select.select([control], [], [], IDLE_BEFORE_PREPARING_S)[0]:
+            try:
+                prepare_runtime(unprepared.pop())
+            except Exception:  # tried again (and this server ends) when a sandbox needs it
+                traceback.print_exc()
+            continue
         message, fds, _, _ = socket.recv_fds(control, 65536, 3)
         if not message:
             return 0
@@ -331,26 +436,24 @@ def fork_server(control_fd: int) -> int:
             pid, status = os.waitpid(request["wait"], os.WNOHANG)
             reply = {"status": os.waitstatus_to_exitcode(status) if pid else None}
         else:
-            if request["args"][0].endswith(".pt") and TORCH_AVAILABLE:
-                _import_torch()  # once, at the first TorchScript model: ~1-2.5 s of CPU no sandbox repeats
+            model = request["args"][0]
+            for suffix in RUNTIMES if model == "--probe" else [Path(model).suffix]:
+                prepare_runtime(suffix)  # once, before the first sandbox that uses it
             reply = {"pid": fork_sandbox(request, fds, control)}
         control.send(json.dumps(reply).encode())
 
 
 def preload_runtimes() -> None:
-    """What every ONNX sandbox imports, all of which start no thread (onnxruntime only with its
-    telemetry off). Torch starts none either, but costs more than an ONNX sandbox's whole run: the
-    server imports it only once a TorchScript model comes (fork_server)."""
-    import contextlib
+    """What every sandbox imports, then ONNX prepared (prepare_runtime): none of it starts a thread
+    (onnxruntime only with its telemetry off), and neither does torch, prepared later."""
+    import encodings.cp437  # noqa: F401  (zipfile's, for names in archives that do not say UTF-8)
+    import traceback  # noqa: F401  (a sandbox's unexpected failure is printed with it)
 
     import pyseccomp  # noqa: F401  (what every sandbox confines itself with)
 
-    agents = import_league_module("agents")  # numpy
+    import_league_module("agents")  # numpy
     import_league_module("server.sandbox.checks")
-    with contextlib.suppress(agents.AgentError, ImportError):  # without the onnx extra: TorchScript only
-        import onnx  # noqa: F401  (the static checks)
-
-        agents.import_onnxruntime().disable_telemetry_events()
+    prepare_runtime(".onnx")
 
 
 def set_autogroup_nice(nice: int, pid: int | str = "self", wait_s: float = 2.0) -> None:
@@ -461,19 +564,21 @@ def serve(agent, proto_in: int, proto_out: int, memory_mb: int) -> None:
 
 def main(argv: list[str]) -> int:
     if argv[1:2] == ["--fork-server"]:
-        return fork_server(int(argv[2]))
+        return fork_server(int(argv[2]), prepare_all="--prepare-all" in argv[3:])
     return run_sandbox(argv[1:], os.getppid())
 
 
 def run_sandbox(args: list[str], server: int) -> int:
     """Serve one model: MODEL MEMORY_MB CPU_S UID_BASE, the protocol on stdin/stdout; `server` is the
-    process it must not outlive. With MODEL "--probe", confine, import the runtimes and report how
-    the sandbox is isolated."""
+    process it must not outlive. With MODEL "--probe", confine, run the tiny model of each runtime
+    and report how the sandbox is isolated."""
     model, memory_mb, cpu_seconds, uid_base = args[0], int(args[1]), int(args[2]), int(args[3])
     proto_in, proto_out = take_protocol_fds()
     try:
         isolation = confine(cpu_seconds, uid_base, server)
-        agent = probe_runtimes() if model == "--probe" else load_model(Path(model), memory_mb)
+        if model == "--probe":
+            isolation.update(probe_runtimes())
+        agent = None if model == "--probe" else load_model(Path(model), memory_mb)
     except BaseException as error:  # whatever the file did, it is the reason it is refused
         send_text(proto_out, b"E", failure_reason(error, memory_mb))
         return 1
@@ -488,20 +593,28 @@ def confine(cpu_seconds: int, uid_base: int, server: int) -> dict:
     network namespace, its own user, the parent-death signal, no new privileges, Landlock, seccomp."""
     limit_resources(cpu_seconds)
     network = isolate_network()
+    ruleset, landlock_abi = files_ruleset()  # (before it leaves root)
     user = become_sandbox_user(uid_base)
     die_with_the_server(server)
-    landlock_abi = restrict_files()
+    restrict_files(ruleset)
     restrict_syscalls()
     single_thread_environment()
     return {"network": network, "user": user, "landlock": landlock_abi, "seccomp": True}
 
 
-def probe_runtimes() -> None:
-    """What a sandbox imports, imported under the sandbox's confinement (does this install allow it?)."""
-    preload_runtimes()
-    if TORCH_AVAILABLE:
-        _import_torch()
-    return None
+def probe_runtimes() -> dict:
+    """Under the sandbox's confinement, load and run the tiny model of each runtime its server
+    prepared (does this install let sandboxes load models?), and say whether the sandbox's user can
+    read its runtime's files or uses them as its server loaded them."""
+    for suffix, data in PREPARED.items():
+        path = Path(f"probe{suffix}")
+        path.write_bytes(data)
+        run_tiny_model(path)
+    modules = [sys.modules[name] for name in ("os", "numpy", "onnxruntime", "torch") if name in sys.modules]
+    readable = all(os.access(module.__file__, os.R_OK) for module in modules)
+    kinds = import_league_module("constants").MODEL_SUFFIXES
+    return {"runtimes": sorted(kinds[suffix] for suffix in PREPARED),
+            "runtime": "readable" if readable else "preloaded"}
 
 
 if __name__ == "__main__":

@@ -1,21 +1,20 @@
 """The sandbox process seen from the worker: starting it (a fork server per thread), who it runs
 as, its environment and directory, and the pipe protocol of league/server/sandbox/child.py.
 
-Each thread that starts sandboxes has a `ForkServer`, a child.py process that has imported numpy,
-onnx and onnxruntime once and forks a sandbox per model (one start is a fork and a model load,
-~0.03 s, instead of a new interpreter, ~0.25 s). The server dies with its thread and takes its
-sandboxes with it (the kernel's parent-death signal, which follows the starting thread).
+Each thread that starts sandboxes has a `ForkServer`, a child.py process that has loaded and run a
+tiny model of each runtime once and forks a sandbox per model (one start is a fork and a model
+load, ~0.03 s, instead of a new interpreter, ~0.25 s, and torch's import, ~2.5 s). A worker's job
+threads start theirs when they start (ForkServer.prepare_this_thread). The server dies with its
+thread and takes its sandboxes with it (the kernel's parent-death signal, which follows the
+starting thread).
 Sandboxes run on the CPUs their thread may use when they start (see league.server.jobs.placement).
 """
 from __future__ import annotations
 
 import contextlib
-import functools
-import importlib.util
 import json
 import logging
 import os
-import pwd
 import select
 import shutil
 import signal
@@ -41,7 +40,7 @@ CHILD_SCRIPT = Path(child.__file__).resolve()
 HEADER, LENGTH = child.HEADER, child.LENGTH
 MAX_MESSAGE = 65536
 READ_CHUNK = 65536
-FORK_SERVER_TIMEOUT_S = 60.0  # its imports on a busy machine
+FORK_SERVER_TIMEOUT_S = 300.0  # its imports and tiny models on a busy machine (torch's took 35 s on one)
 # Wall-clock backstops of a CPU-time budget: only a child that stops using the CPU without
 # answering reaches them; a busy machine stretches a call's wall time far less than 30x.
 WALL_BACKSTOP, WALL_MARGIN_S = 30.0, 5.0  # a call: 30x its CPU budget, + 5 s
@@ -245,15 +244,32 @@ class ForkServer:
     def of_this_thread(cls) -> ForkServer:
         server = getattr(cls._threads, "server", None)
         if server is None or server.proc.poll() is not None:
-            server = cls._threads.server = cls()
+            server = cls._threads.server = cls(prepare_all=getattr(cls._threads, "prepare_all", False))
         return server
 
-    def __init__(self):
+    @classmethod
+    def prepare_this_thread(cls) -> None:
+        """Start this thread's server now, and have it (and any that replaces it) prepare every runtime
+        while no sandbox is asked for: a worker's job thread, so that its first TorchScript model
+        waits for no import of torch. Costs each job thread torch's memory from the start."""
+        cls._threads.prepare_all = True
+        cls.of_this_thread()
+
+    @classmethod
+    def release_this_thread(cls) -> None:
+        """End this thread's server: the thread starts no more sandboxes (it only probed isolation)."""
+        server = getattr(cls._threads, "server", None)
+        if server is not None:
+            cls._threads.server = None
+            server.close()
+
+    def __init__(self, prepare_all: bool = False):
         ours, theirs = socket.socketpair(socket.AF_UNIX, socket.SOCK_SEQPACKET)
         home = Path(tempfile.gettempdir())
         with theirs:
             self.proc = subprocess.Popen(
-                [sys.executable, "-s", "-B", "-P", str(CHILD_SCRIPT), "--fork-server", str(theirs.fileno())],
+                [sys.executable, "-s", "-B", "-P", str(CHILD_SCRIPT), "--fork-server", str(theirs.fileno()),
+                 *(["--prepare-all"] if prepare_all else [])],
                 cwd="/", env=_child_environment(home), stdin=subprocess.DEVNULL, stdout=subprocess.DEVNULL,
                 pass_fds=[theirs.fileno()], start_new_session=True)
         self.control = ours
@@ -285,6 +301,15 @@ class ForkServer:
             with contextlib.suppress(ProcessLookupError):  # (a dead server fails the request next)
                 os.sched_setaffinity(self.proc.pid, cpus)  # the server has one thread
             self.cpus = cpus
+
+    def close(self) -> None:
+        """End the server (it exits when its control socket closes; its sandboxes die with it)."""
+        self.control.close()
+        try:
+            self.proc.wait(timeout=10)
+        except subprocess.TimeoutExpired:
+            self.proc.kill()
+            self.proc.wait()
 
     def exit_status(self, pid: int) -> int | None:
         try:
@@ -362,16 +387,37 @@ class Isolation:
     seccomp: bool
     uid_base: int  # what sandboxes are started with (0: no user of their own)
     problem: str | None = None  # why a probe failed, if one did
+    without_own_user: str | None = None  # why a root server's sandboxes keep root's user id, if they do
+    runtime: str = "readable"  # or "preloaded": the sandbox's user cannot read it (loaded before the change)
+    runtimes: tuple[str, ...] = ()  # those whose tiny model the probe loaded and ran
+
+    @property
+    def missing(self) -> list[str]:
+        """What full isolation lacks here, each with what to do about it."""
+        if self.problem:
+            return [f"a sandbox that starts (the probe sandbox failed: {self.problem})"]
+        missing = []
+        if not self.landlock:
+            missing.append("Landlock, which keeps sandboxes from files their user may read (Linux 5.13 or later, "
+                           "with landlock in its lsm= boot parameter)")
+        if not self.seccomp:
+            missing.append("seccomp, which keeps sandboxes from other processes and the network (libseccomp2)")
+        if self.without_own_user:
+            missing.append(f"a user id of its own: {self.without_own_user}")
+        return missing
 
     @property
     def full(self) -> bool:
-        return self.problem is None and self.landlock > 0 and self.seccomp
+        return not self.missing
 
     def describe(self) -> str:
         if self.problem:
             return f"NOT isolated: {self.problem}"
-        return (f"Landlock ABI {self.landlock}, seccomp, network {self.network}, "
-                f"runs as {'a user id of its own' if self.uid_base else self.user}")
+        found = (f"Landlock ABI {self.landlock}, seccomp, network {self.network}, "
+                 f"runs as {'a user id of its own' if self.uid_base else self.user}")
+        if self.runtime == "preloaded":
+            found += " (which cannot read its runtime: it uses what its fork server loaded before)"
+        return f"{found}; NOT fully isolated, missing {'; and '.join(self.missing)}" if self.missing else found
 
     def check(self, limits: SandboxLimits) -> Isolation:
         """This isolation, or IsolationUnavailable if the limits require full isolation and it is not."""
@@ -381,24 +427,25 @@ class Isolation:
         return self
 
     def to_dict(self) -> dict:
-        return {"full": self.full, "network": self.network, "user": "own user id" if self.uid_base else self.user,
-                "landlock": self.landlock, "seccomp": self.seccomp, "problem": self.problem}
+        return {"full": self.full, "missing": self.missing, "network": self.network,
+                "user": "own user id" if self.uid_base else self.user, "landlock": self.landlock,
+                "seccomp": self.seccomp, "runtime": self.runtime, "runtimes": list(self.runtimes),
+                "problem": self.problem}
 
 
 _isolation_lock = threading.Lock()
-_isolation: Isolation | None = None
+_isolation: dict[int, Isolation] = {}  # by uid_base
 
 
 def sandbox_isolation(uid_base: int = SandboxLimits.uid_base) -> Isolation:
-    """This machine's sandbox isolation, found once per process by probe sandboxes started as every
-    sandbox is: with a user id of their own if we are root and the runtimes are readable by other
-    users, else as this process's user (root without capabilities)."""
-    global _isolation
+    """This machine's sandbox isolation, found once per process (and uid_base) by probe sandboxes
+    started as every sandbox is: with a user id of their own if we are root, else as this process's
+    user."""
     with _isolation_lock:
-        if _isolation is None:
-            _isolation = _probe_isolation(uid_base if os.geteuid() == 0 else 0)
-            (log.info if _isolation.full else log.error)("sandbox isolation: %s", _isolation.describe())
-        return _isolation
+        if uid_base not in _isolation:
+            found = _isolation[uid_base] = _probe_isolation(uid_base if os.geteuid() == 0 else 0)
+            (log.info if found.full else log.error)("sandbox isolation: %s", found.describe())
+        return _isolation[uid_base]
 
 
 def isolation(limits: SandboxLimits) -> Isolation:
@@ -408,19 +455,29 @@ def isolation(limits: SandboxLimits) -> Isolation:
 
 
 def _probe_isolation(uid_base: int) -> Isolation:
+    root, without_own_user = os.geteuid() == 0, None
     found = _run_probe(uid_base)
-    if isinstance(found, str) and uid_base:  # e.g. a standard library other users cannot read
+    if root and not uid_base:
+        without_own_user = ("LEAGUE_SANDBOX_UID_BASE is 0, so sandboxes run as root without capabilities, which "
+                            "still owns root's files and processes: unset it (each sandbox then runs as "
+                            f"{SandboxLimits.uid_base} + its pid)")
+    elif root and isinstance(found, str):
+        without_own_user = (f"with one, the probe sandbox failed ({found}), so sandboxes run as root without "
+                            "capabilities, which still owns root's files and processes: run the server as an "
+                            "ordinary user, or from a Python every user may read (league/server/README.md, "
+                            "\"Sandbox users\")")
         log.warning("sandboxes keep root's user id, without capabilities: with a user id of their own they "
-                    "cannot import their runtimes (%s)", found)
+                    "cannot load models (%s)", found)
         uid_base, found = 0, _run_probe(0)
     if isinstance(found, str):
-        return Isolation("unknown", "unknown", 0, False, uid_base, problem=found)
-    return Isolation(found["network"], found["user"], found["landlock"], found["seccomp"], uid_base)
+        return Isolation("unknown", "unknown", 0, False, 0, problem=found)
+    return Isolation(found["network"], found["user"], found["landlock"], found["seccomp"], uid_base,
+                     without_own_user=without_own_user, runtime=found["runtime"], runtimes=tuple(found["runtimes"]))
 
 
 def _run_probe(uid_base: int) -> dict | str:
-    """A sandbox without a model: confined as sandboxes are, it imports the runtimes and says how it
-    is isolated (a dict), or fails (the reason)."""
+    """A sandbox without a model: confined as sandboxes are, it loads and runs a tiny model of each
+    runtime and says how it is isolated (a dict), or fails (the reason)."""
     workdir = Path(tempfile.mkdtemp(prefix="league-probe-"))
     try:
         proc = ForkServer.of_this_thread().spawn(["--probe", "0", "600", str(uid_base)], workdir,

@@ -311,12 +311,16 @@ def test_sandboxes_start_on_the_cpus_their_thread_may_use_now(files):
 
 def test_without_landlock_and_seccomp_no_model_runs_unless_allowed():
     partial = Isolation("namespace", "the server's user", landlock=0, seccomp=True, uid_base=0)
-    with pytest.raises(IsolationUnavailable, match=r"not run here: the sandbox is Landlock ABI 0.*"
-                                                   r"LEAGUE_SANDBOX_REQUIRE_ISOLATION=false"):
+    assert partial.missing == ["Landlock, which keeps sandboxes from files their user may read (Linux 5.13 or "
+                               "later, with landlock in its lsm= boot parameter)"]
+    with pytest.raises(IsolationUnavailable, match=r"not run here: the sandbox is Landlock ABI 0, .*; NOT fully "
+                                                   r"isolated, missing Landlock, .*LEAGUE_SANDBOX_REQUIRE_ISOLATION=false"):
         partial.check(SandboxLimits())
     assert partial.check(SandboxLimits(require_isolation=False)) is partial
     broken = Isolation("unknown", "unknown", 0, False, 0, problem="ModuleNotFoundError: No module named 'torch'")
     assert broken.describe() == "NOT isolated: ModuleNotFoundError: No module named 'torch'"
+    assert broken.missing == ["a sandbox that starts (the probe sandbox failed: ModuleNotFoundError: No module "
+                              "named 'torch')"]
 
 
 def test_a_model_that_fails_to_load_leaves_no_directory(tmp_path):

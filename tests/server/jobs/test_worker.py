@@ -1,0 +1,43 @@
+"""A `league worker` as users start it: what its job threads prepare before their first job."""
+from __future__ import annotations
+
+from pathlib import Path
+
+from ..conftest import fresh_backend, make_server, wait_for
+
+
+def fork_servers(worker: int) -> list[int]:
+    """The fork servers the worker started (child.py --fork-server), its direct children."""
+    found = []
+    for entry in Path("/proc").iterdir():
+        try:
+            parent = int((entry / "stat").read_text().rsplit(")", 1)[1].split()[1]) if entry.name.isdigit() else 0
+            command = (entry / "cmdline").read_bytes().split(b"\0")
+        except OSError:  # ended meanwhile
+            continue
+        if parent == worker and b"--fork-server" in command:
+            found.append(int(entry.name))
+    return found
+
+
+def has_torch(pid: int) -> bool:
+    return "libtorch_cpu" in Path(f"/proc/{pid}/maps").read_text()
+
+
+def test_a_new_workers_job_threads_prepare_torch_before_their_first_job(tmp_path):
+    """Each job thread starts its fork server when the worker starts, at the jobs' nice value, and the
+    server prepares every runtime (a tiny model of each, run) while no job asks: the first
+    TorchScript model a new worker sees waits for no import of torch (35 s of a first upload's
+    47.8 s on a busy machine, issue 25). The isolation probe's own fork server is gone."""
+    with fresh_backend("sqlite", tmp_path) as urls:
+        server = make_server(tmp_path, urls, LEAGUE_WORKER_THREADS="2", LEAGUE_JOB_NICE="10")
+        worker = server.start_worker()
+        try:
+            servers = wait_for(lambda: fork_servers(worker.pid),
+                               lambda pids: len(pids) == 2 and all(has_torch(pid) for pid in pids), timeout=240)
+            nice = {int(Path(f"/proc/{pid}/stat").read_text().rsplit(")", 1)[1].split()[16]) for pid in servers}
+            threads = {len(list(Path(f"/proc/{pid}/task").iterdir())) for pid in servers}
+        finally:
+            server.stop_all()
+    assert nice == {10}  # their sandboxes inherit it
+    assert threads == {1}  # prepared, still forkable: torch and onnxruntime started no thread
