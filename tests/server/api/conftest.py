@@ -106,7 +106,7 @@ def evaluation_outcome(completed: int, episodes: int = 3, settings: dict | None 
     from league.evaluation import league_versions
     from league.server.jobs.evaluate import EvaluationOutcome
 
-    settings = settings or Settings(_env_file=None, **test_settings()).default_evaluation()
+    settings = settings or Settings(_env_file=None, **league_test_settings()).default_evaluation()
     rows = [{"seed": 1000 + i, "steps": 100 + i, "return": float(completed), "mean_speed": 0.3,
              "outcome": "finished" if i < completed else "off_road", "reason": None} for i in range(episodes)]
     record = {**settings, "versions": league_versions(), "result_key": settings_key(settings)}
@@ -115,7 +115,7 @@ def evaluation_outcome(completed: int, episodes: int = 3, settings: dict | None 
                               "settings": record}, None, "evaluated in a test")
 
 
-def test_settings() -> dict:
+def league_test_settings() -> dict:
     """TEST_SETTINGS as keyword arguments of Settings."""
     return {key.removeprefix("LEAGUE_").lower(): value for key, value in TEST_SETTINGS.items()}
 
@@ -127,7 +127,7 @@ def in_process_league(kind: str, tmp_path: Path, prepare: Callable[[str], None] 
     with fresh_backend(kind, tmp_path) as (database_url, queue_url, queue_name):
         if prepare is not None:
             prepare(database_url)
-        values = test_settings()
+        values = league_test_settings()
         values.update(public_cache_s=0)  # every answer fresh: tests independent of their order
         values.update(baselines_dir=tmp_path / "baselines")  # empty: the heuristic driver is the baseline
         settings = Settings(_env_file=None, **{**values, **settings}, data_dir=tmp_path / "data",
