@@ -126,7 +126,7 @@ def test_the_grades_are_data_in_any_spreadsheet(app_league):
     assert isinstance(grades.pop("rank"), float)  # among the baselines other tests evaluated
     assert grades == {"student": ann.name, "agent": "fast;'=2+5;'=cmd|' /C calc'!A0", "submission_id": agent.id,
                       "completed": 2, "episodes": 3, "mean_return": 4.0, "mean_steps": 500.0, "mean_speed": 0.3,
-                      "rating": ""}
+                      "rating": "", "stale": ""}
 
 
 @pytest.mark.slow
