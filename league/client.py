@@ -263,7 +263,8 @@ def stage(submission: dict) -> str:
     evaluation = submission.get("evaluation") or {}
     if submission["status"] != "ready":
         return submission["status"]
-    return "done" if evaluation.get("status") == "done" else f"evaluation {evaluation.get('status', 'queued')}"
+    done = "done" if evaluation.get("status") == "done" else f"evaluation {evaluation.get('status', 'queued')}"
+    return f"{done} (stale: other settings)" if evaluation.get("stale") else done
 
 
 def settled(submission: dict) -> bool:
@@ -306,8 +307,10 @@ def report_submission(submission: dict, as_json: bool) -> int:
     elif evaluation["status"] != "done":
         print(f"submission {submission['id']} is ready, but its evaluation failed: {evaluation['error']}")
     else:
-        result = MetricsResult.from_dict({"episodes": evaluation["episodes"],
-                                          "settings": {**evaluation["settings"], "agent": submission["name"]}})
+        # the server's record, as `league evaluate` prints its own: the same result key, the same tracks
+        record = {**evaluation["settings"], "agent": submission["name"], "versions": evaluation.get("versions"),
+                  "result_key": evaluation.get("result_key")}
+        result = MetricsResult.from_dict({"episodes": evaluation["episodes"], "settings": record})
         print(f"submission {submission['id']} is ready\n{result.table()}")
     ok = submission["status"] == "ready" and evaluation and evaluation["status"] == "done"
     return EXIT_OK if ok else EXIT_REJECTED
@@ -335,7 +338,8 @@ def run_leaderboard(args: argparse.Namespace) -> int:
             return EXIT_OK
         rows = api.get("/api/leaderboard", size=100)["items"]
     _print_table(["rank", "student", "agent", "id", "completed", "mean return", "mean speed", "rating"],
-                 [[r["rank"], r["owner"], r["name"], r["submission_id"], f"{r['completed']}/{r['episodes']}",
+                 [["stale" if r.get("stale") else r["rank"], r["owner"], r["name"], r["submission_id"],
+                   f"{r['completed']}/{r['episodes']}",
                    f"{r['mean_return']:.3f}", f"{r['mean_speed']:.3f}",
                    "" if r["rating"] is None else f"{r['rating']:.2f}"] for r in rows], False)
     return EXIT_OK

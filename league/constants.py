@@ -6,6 +6,11 @@ takes them from here. Change a number here, then rebuild: ``python setup.py buil
 """
 import math
 
+# -- versions -------------------------------------------------------------------------------
+# Bump when dynamics, rewards or observations change: evaluation results of another physics
+# version are never compared with this one's (league.evaluation.result_key).
+PHYSICS_VERSION = 1
+
 # -- map ----------------------------------------------------------------------------------
 GRID = 1300  # cells per side of the square map
 ORIGIN = GRID // 2  # cell of world coordinate 0: cell = int(x * CELLS_PER_UNIT) + ORIGIN

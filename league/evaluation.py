@@ -8,6 +8,7 @@ classification and a compact, versioned replay.
 from __future__ import annotations
 
 import functools
+import hashlib
 import json
 import os
 from dataclasses import dataclass, field
@@ -18,10 +19,10 @@ import numpy as np
 from tqdm.auto import tqdm
 
 from league.agents import COMPACT_DIM, LIDAR_DIM, Agent, AgentError, as_agent, compact_from_lidar
-from league.constants import FINISHED, OUTCOMES, RUNNING
+from league.constants import FINISHED, OUTCOMES, PHYSICS_VERSION, RUNNING
 from league.parallel_env import parallel_env
 from league.physics import RaceOptions, episode_start, new_cars, place_car
-from league.track import Track
+from league.track import FORMAT_VERSION, Track
 
 LOCKSTEP_EPISODES = 128  # episodes metrics_run advances together; their maps (1.69 MB each) bound its memory
 REPLAY_FORMAT = "microracer-replay"
@@ -70,6 +71,30 @@ def _full_options(env_options: dict) -> dict:
     return options
 
 
+# --------------------------------------------------------------------------- what produced a result
+
+
+def league_versions() -> dict:
+    """What produces results: the simulator (its physics and its track format) and the package."""
+    import league  # at call time: league/__init__.py imports this module
+
+    return {"physics": PHYSICS_VERSION, "track_format": FORMAT_VERSION, "package": league.__version__}
+
+
+def result_key(seed: int, episodes: int, env_options: dict, versions: dict | None = None) -> str:
+    """16 hex digits that two evaluations share when their results compare: the same seed,
+    episode count and environment options (defaults filled in, so ``{}`` and
+    ``{"obstacles": True}`` are one), on the same simulator (`versions`' physics and track
+    format; default: this one's). The package's version is recorded beside it, not part of it:
+    a release that changes no dynamics keeps every result comparable."""
+    versions = versions or league_versions()
+    options = {name: value if value is None else type(getattr(RaceOptions, name))(value)  # 1 and 1.0: one width
+               for name, value in _full_options(env_options).items()}
+    what = {"seed": int(seed), "episodes": int(episodes), "env_options": options,
+            "physics": versions["physics"], "track_format": versions["track_format"]}
+    return hashlib.sha256(json.dumps(what, sort_keys=True, separators=(",", ":")).encode()).hexdigest()[:16]
+
+
 # --------------------------------------------------------------------------- metrics_run
 
 
@@ -94,7 +119,8 @@ class EpisodeResult:
 
 @dataclass(frozen=True)
 class MetricsResult:
-    """The result of `metrics_run`: per-episode figures, totals, and the settings that produced them."""
+    """The result of `metrics_run`: per-episode figures, totals, and what produced them (`settings`:
+    the run's options, the versions of the simulator and package, and the `result_key`)."""
 
     episodes: list[EpisodeResult]
     settings: dict = field(default_factory=dict)
@@ -156,12 +182,20 @@ class MetricsResult:
         rows = [("completed", f"{self.completed} / {self.episodes_total}"), ("mean return", f"{self.mean_return:.3f}"),
                 ("mean steps", f"{self.mean_steps:.1f}"), ("mean speed", f"{self.mean_speed:.3f}"),
                 ("outcomes", outcomes)]
+        if s.get("versions"):
+            rows.append(("simulator", versions_text(s["versions"])))
+        if s.get("result_key"):
+            rows.append(("result key", f"{s['result_key']} (results with the same key compare)"))
         lines += [f"  {label:<12} {value}" for label, value in rows]
         return "\n".join(lines)
 
 
 def _mean(values: Sequence[float]) -> float:
     return float(np.mean(values)) if len(values) else 0.0
+
+
+def versions_text(versions: dict) -> str:
+    return f"physics {versions['physics']}, track format {versions['track_format']} (league {versions['package']})"
 
 
 def _options_text(options: dict) -> str:
@@ -235,7 +269,9 @@ def metrics_run(agent: Agent | str | os.PathLike, episodes: int = 100, seed: int
         MetricsResult: per episode seed, steps, return, mean speed, outcome ("finished",
         "off_road", "wrong_direction", "too_slow", "timeout" when truncated, "dnf" when the
         agent failed, with its reason); totals completed / episodes_total, mean return,
-        mean steps, mean speed; ``to_dict()`` and ``table()``.
+        mean steps, mean speed; ``settings``, what produced them: seed, episodes, every
+        environment option, ``versions`` (`league_versions`) and ``result_key`` (`result_key`:
+        results with the same key compare); ``to_dict()`` and ``table()``.
     """
     agent = as_agent(agent)
     env_options = _checked_options(env_options)
@@ -260,10 +296,12 @@ def metrics_run(agent: Agent | str | os.PathLike, episodes: int = 100, seed: int
             for first in range(0, episodes, LOCKSTEP_EPISODES):
                 chunk = seeds[first:first + LOCKSTEP_EPISODES]
                 _run_lockstep(agent, chunk, options, lambda i, result, first=first: finish(first + i, result))
+    versions = league_versions()
     settings = {"agent": agent.name, "obs_dim": agent.obs_dim, "episodes": episodes, "seed": seed,
                 "seeding": "numpy.random.SeedSequence(seed).generate_state(episodes)",
                 "lockstep_episodes": LOCKSTEP_EPISODES,  # batched agent calls: tells these results from older ones
-                "env_options": _full_options(env_options)}
+                "env_options": _full_options(env_options), "versions": versions,
+                "result_key": result_key(seed, episodes, env_options, versions)}
     return MetricsResult(results, settings)
 
 
@@ -516,6 +554,7 @@ def _build_replay(penv: Any, cars: list[CarLog], classification: list[dict], see
         "tstep": penv.options.tstep,
         "track": penv.track.to_dict(),
         "track_given": track_given,  # raced on a given track rather than the seed's
+        "versions": league_versions(),  # the simulator and package that raced it
         "initial_speed": cars[0].speed[0],
         "classification": classification,
         "cars": [car.to_replay() for car in cars],

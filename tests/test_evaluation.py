@@ -10,11 +10,13 @@ from league.agents import Agent, AgentError, callable_agent, heuristic_agent, he
 from league.evaluation import (
     MetricsResult,
     episode_seeds,
+    league_versions,
     load_replay,
     metrics_run,
     race,
     race_again,
     replay_track,
+    result_key,
     run_episode,
     save_replay,
 )
@@ -197,6 +199,28 @@ def test_result_converts_to_json_and_table_and_back():
     assert f"completed    {result.completed} / 4" in table and "options: chicanes, turn limit" in table
 
 
+def test_a_result_records_what_produced_it_and_its_key_tells_what_compares():
+    result = metrics_run("heuristic", episodes=2, seed=9, obstacles=False, max_episode_steps=50)
+    versions = {"physics": league.constants.PHYSICS_VERSION, "track_format": league.track.FORMAT_VERSION,
+                "package": league.__version__}
+    assert result.settings["versions"] == league_versions() == versions
+    key = result.settings["result_key"]
+    assert key == result_key(9, 2, {"obstacles": False, "max_episode_steps": 50}) and len(key) == 16
+    assert "  simulator    physics 1, track format 1 (league " in result.table()
+    assert f"  result key   {key} (results with the same key compare)" in result.table()
+    # the same settings written otherwise, and another package release, share the key
+    assert result_key(9, 2, {"obstacles": False, "max_episode_steps": 50, "chicanes": True, "track_width": 0.04}) == \
+        result_key(9, 2, {"obstacles": False, "max_episode_steps": 50}, {**versions, "package": "9.9"}) == key
+    assert result_key(0, 100, {"track_width": 0.05}) == result_key(0, 100, {"track_width": 0.050000})
+    # anything that changes the figures changes it
+    others = [result_key(10, 2, {"obstacles": False, "max_episode_steps": 50}),
+              result_key(9, 3, {"obstacles": False, "max_episode_steps": 50}),
+              result_key(9, 2, {"max_episode_steps": 50}),
+              result_key(9, 2, {"obstacles": False, "max_episode_steps": 50}, {**versions, "physics": 2}),
+              result_key(9, 2, {"obstacles": False, "max_episode_steps": 50}, {**versions, "track_format": 2})]
+    assert len({key, *others}) == 6
+
+
 def test_observation_follows_the_agent():
     with pytest.raises(ValueError, match="follows the agent's obs_dim"):
         metrics_run("heuristic", episodes=1, observation="lidar")
@@ -263,6 +287,7 @@ def test_replay_round_trips_and_stays_small(ten_car_race, tmp_path):
     replay = load_replay(path)
     assert replay == json.loads(json.dumps(result.replay))
     assert replay_track(replay) == league.Track.from_dict(result.replay["track"])
+    assert replay["versions"] == league_versions()  # what raced it
     car = replay["cars"][3]
     assert len(car["x"]) == len(car["acc"]) + 1  # the start, then one state per action
     np.testing.assert_allclose(car["x"], result.cars[3].x, atol=1e-5)

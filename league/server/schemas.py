@@ -64,6 +64,11 @@ class EvaluationOut(BaseModel):
     status: str = Field(description="queued, running, done or failed")
     error: str | None
     settings: dict[str, Any]
+    result_key: str = Field(description="results with the same key compare (settings and simulator version); "
+                                        "`league evaluate --json` prints the key of a local run")
+    versions: dict[str, Any] | None = Field(description="what produced it: {physics, track_format, package}; "
+                                                        "null until done")
+    stale: bool = Field(False, description="of other settings than the course's current ones: it does not rank")
     completed: int | None
     episodes_total: int | None
     mean_return: float | None
@@ -128,6 +133,11 @@ class EvaluationSettings(BaseModel):
     env_options: dict[str, Any] = Field(default_factory=dict, description="options of league.MicroRacerEnv")
 
 
+class EvaluationSettingsChange(EvaluationSettings):
+    reevaluating: list[int] = Field(description="ids of the submissions queued to be evaluated with these settings "
+                                                "(at low priority; none when results of them exist)")
+
+
 class UploadLimits(BaseModel):
     """What an upload must fit (public: `league check` measures a model against it before uploading)."""
 
@@ -158,6 +168,7 @@ class JobOut(BaseModel):
     evaluation_id: int | None
     race_id: int | None
     status: str
+    priority: int = Field(description="0 normal, 1 low (re-evaluations: claimed when no normal job waits)")
     attempts: int
     worker_id: str | None
     error: str | None
@@ -234,6 +245,8 @@ class RaceOut(BaseModel):
     error: str | None
     seed: int
     env_options: dict[str, Any]
+    versions: dict[str, Any] | None = Field(description="what raced it: {physics, track_format, package}; "
+                                                        "null until done")
     created_at: datetime
     finished_at: datetime | None
     championship_id: int | None
@@ -298,7 +311,9 @@ class StandingsPage(Page):
 
 
 class LeaderboardRow(BaseModel):
-    rank: int
+    rank: int | None = Field(description="null for a stale row")
+    stale: bool = Field(description="its results are all of other settings than the current ones: shown after "
+                                    "the ranked rows, unranked, until it is evaluated again")
     owner: str
     submission_id: int
     name: str

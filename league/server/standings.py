@@ -3,7 +3,7 @@
 Nothing here is stored: championship standings and OpenSkill ratings come from the finished
 rounds' classifications, in order, with `league.championship` (the rules the toolkit uses too),
 so every figure can be re-derived; the leaderboard from each submission's newest finished
-evaluation.
+evaluation of the current settings.
 """
 from __future__ import annotations
 
@@ -12,8 +12,9 @@ from typing import Any
 from sqlalchemy.orm import Session
 
 from league import championship as rules
+from league.server import results
 from league.server.db import crud
-from league.server.db.models import BASELINE, DONE, STUDENT, Championship, ChampionshipRound
+from league.server.db.models import BASELINE, DONE, STUDENT, Championship, ChampionshipRound, Course
 
 
 def finished_heats(rounds: list[ChampionshipRound]) -> list[list[dict]]:
@@ -71,16 +72,23 @@ def course_ratings(session: Session, *, course_id: int | None) -> dict[int, rule
 
 def leaderboard_rows(session: Session, *, course_id: int | None) -> list[dict]:
     """Each student's best evaluated submission (completion rate, then mean return), and every
-    bundled baseline as a reference row; best first, with the course-wide rating."""
+    bundled baseline as a reference row; best first, with the course-wide rating. Only results of
+    the course's current settings rank (league.server.results); a student or baseline whose results
+    are all of other settings follows the ranked rows, stale and unranked, by name."""
+    course = session.get(Course, course_id) if course_id is not None else None
+    ranked: dict[tuple[str, int], Any] = {}
+    stale: dict[tuple[str, int], Any] = {}
     # the newest finished evaluation: a re-run in progress does not take an agent off the board
-    best: dict[tuple[str, int], Any] = {}
-    for entry in crud.leaderboard_entries(session, course_id=course_id):
-        key = leaderboard_key(entry)
+    for entry in crud.leaderboard_entries(session, course_id=course_id, result_key=results.current_key(course)):
+        best, key = stale if entry.stale else ranked, leaderboard_key(entry)
         if key not in best or _score(entry) > _score(best[key]):
             best[key] = entry
     ratings = course_ratings(session, course_id=course_id)
-    ordered = sorted(best.values(), key=lambda entry: (_score(entry), -entry.id), reverse=True)
-    return [_leaderboard_row(rank, entry, ratings.get(entry.id)) for rank, entry in enumerate(ordered, start=1)]
+    ordered = sorted(ranked.values(), key=lambda entry: (_score(entry), -entry.id), reverse=True)
+    unranked = sorted((entry for key, entry in stale.items() if key not in ranked),
+                      key=lambda entry: (entry.owner, entry.name, entry.id))
+    return ([_leaderboard_row(rank, entry, ratings.get(entry.id)) for rank, entry in enumerate(ordered, start=1)]
+            + [_leaderboard_row(None, entry, ratings.get(entry.id)) for entry in unranked])
 
 
 def leaderboard_key(entry) -> tuple[str, int]:
@@ -95,9 +103,9 @@ def _score(entry) -> tuple[float, float]:
     return (entry.completed / max(entry.episodes_total, 1), entry.mean_return)
 
 
-def _leaderboard_row(rank: int, entry, rating: rules.Rating | None) -> dict:
+def _leaderboard_row(rank: int | None, entry, rating: rules.Rating | None) -> dict:
     """`entry`: a row of crud.leaderboard_entries (a submission, its owner, its figures)."""
-    return {"rank": rank, "owner": entry.owner, "submission_id": entry.id, "name": entry.name,
+    return {"rank": rank, "stale": bool(entry.stale), "owner": entry.owner, "submission_id": entry.id, "name": entry.name,
             "public": entry.public, "completed": entry.completed, "episodes": entry.episodes_total,
             "mean_return": entry.mean_return, "mean_steps": entry.mean_steps,
             "mean_speed": entry.mean_speed, "rating": rating.conservative if rating else None,
@@ -108,17 +116,21 @@ def _leaderboard_row(rank: int, entry, rating: rules.Rating | None) -> dict:
 
 
 LEADERBOARD_GRADES = ["rank", "student", "agent", "submission_id", "completed", "episodes", "mean_return",
-                      "mean_steps", "mean_speed", "rating"]
+                      "mean_steps", "mean_speed", "rating", "stale"]
 STANDINGS_GRADES = ["rank", "student", "agent", "submission_id", "points", "wins", "heats", "rating", "mu", "sigma"]
+STALE_FIGURES = ("rank", "completed", "episodes", "mean_return", "mean_steps", "mean_speed")  # empty when stale
 
 
 def grade_rows(session: Session, rows: list[dict], *, course_id: int | None, columns: list[str]) -> list[list]:
     """The board's rows of the course's students (rank as the board shows it), then every other
     student of the course with empty figures: one line per student to grade (or more, for
-    standings, when their active submission changed between rounds). Baselines are left out."""
+    standings, when their active submission changed between rounds). Baselines are left out. A
+    stale row (its figures are of other settings) keeps its agent, is marked `stale` = yes and
+    has its rank and figures empty, so that a gradebook never reads them as this course's."""
     students = [u.name for u in crud.course_users(session, course_id=course_id) if u.role == STUDENT]
     enrolled = set(students)
-    mine = [{**row, "student": row["owner"], "agent": row["name"], "heats": len(row.get("finishes", ()))}
+    mine = [{**row, "student": row["owner"], "agent": row["name"], "heats": len(row.get("finishes", ())),
+             **(dict.fromkeys(STALE_FIGURES) if row.get("stale") else {}), "stale": "yes" if row.get("stale") else None}
             for row in rows if row["owner"] in enrolled]
     ranked = {row["student"] for row in mine}
     mine += [{"student": name} for name in students if name not in ranked]

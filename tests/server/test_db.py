@@ -1,13 +1,19 @@
 """The schema: the Alembic migrations build exactly what the models describe, on both backends."""
 from __future__ import annotations
 
+from datetime import datetime
+
+import pytest
 from alembic import command
 from alembic.autogenerate import compare_metadata
 from alembic.migration import MigrationContext
-from sqlalchemy import inspect
+from sqlalchemy import MetaData, inspect, text
 
 from league.server.db.models import Base
 from league.server.db.session import alembic_config, make_engine, migrate
+from league.server.results import settings_key
+
+from .conftest import BACKENDS
 
 
 def test_migrations_match_the_models_and_run_twice(backend):
@@ -37,3 +43,96 @@ def test_downgrade_to_nothing_and_back(backend):
     with engine.connect() as connection:
         assert "jobs" in inspect(connection).get_table_names()
     engine.dispose()
+
+
+# --------------------------------------------------------------------------- 0007: results carry what produced them
+
+COURSE_SETTINGS = {"seed": 11, "episodes": 3, "env_options": {}}  # conftest.TEST_SETTINGS: the server's defaults
+EARLIER_SETTINGS = {"seed": 5, "episodes": 7, "env_options": {"obstacles": False}}  # changed, never re-run
+
+
+def fill_0006(database_url: str) -> None:
+    """A league as the 0006 schema held it, written by alembic and plain SQL: a course whose
+    instructor once evaluated with other settings, a baseline, three students, a queued upload and
+    a finished race."""
+    engine = make_engine(database_url)
+    config = alembic_config(database_url)
+    now = datetime(2026, 11, 20, 12, 0)
+    with engine.connect() as connection:
+        config.attributes["connection"] = connection
+        command.upgrade(config, "0006")
+    with engine.begin() as connection:
+        tables = MetaData()
+        tables.reflect(bind=connection)
+
+        def insert(table: str, expected_id: int | None = None, **row) -> None:
+            """A row, its id drawn by the database (a fresh one: 1, 2, ... as the test expects)."""
+            new_id = connection.execute(tables.tables[table].insert().values(**row)).inserted_primary_key[0]
+            assert expected_id is None or new_id == expected_id
+
+        insert("courses", 1, name="default", eval_seed=11, eval_episodes=3, eval_env_options={},
+               created_at=now, updated_at=now)
+        insert("users", 1, name="baselines", role="baseline", course_id=None, created_at=now)
+        for user_id, name in ((2, "ann"), (3, "bob"), (4, "cy")):
+            insert("users", user_id, name=name, role="student", course_id=1, token_hash=name * 16, created_at=now)
+        # submission: (owner, [(evaluation settings, completed of 3 or 7, status)...])
+        agents = {1: (1, [(COURSE_SETTINGS, 1, "done")]),
+                  2: (2, [(COURSE_SETTINGS, 3, "done")]), 3: (2, [(COURSE_SETTINGS, 2, "done")]),
+                  4: (3, [(COURSE_SETTINGS, 2, "done"), (EARLIER_SETTINGS, 7, "done"), (COURSE_SETTINGS, None, "failed")]),
+                  5: (4, [(EARLIER_SETTINGS, 6, "done")]),
+                  6: (2, [(COURSE_SETTINGS, None, "queued")])}
+        evaluation_id = 0
+        for submission_id, (owner, evaluations) in agents.items():
+            insert("submissions", submission_id, owner_id=owner, name=f"agent{submission_id}", filename="a.onnx",
+                   kind="onnx", sha256=f"{submission_id}".ljust(64, "0"), size=1, status="ready", obs_dim=5,
+                   public=owner == 1, created_at=now, updated_at=now)
+            for settings, completed, status in evaluations:
+                evaluation_id += 1
+                episodes = settings["episodes"]
+                figures = {} if completed is None else {
+                    "completed": completed, "episodes_total": episodes, "mean_return": completed * 2.0,
+                    "mean_steps": 500.0, "mean_speed": 0.3, "result_settings": {**settings, "agent": "a"}}
+                insert("evaluations", evaluation_id, submission_id=submission_id, course_id=1, settings=settings,
+                       status=status, created_at=now, finished_at=None if status == "queued" else now, **figures)
+                insert("jobs", kind="evaluate", owner_id=owner, submission_id=submission_id,
+                       evaluation_id=evaluation_id, status=status, attempts=int(status != "queued"), max_attempts=3,
+                       created_at=now, enqueued_at=now, finished_at=None if status == "queued" else now)
+        insert("races", 1, course_id=1, seed=3, env_options={}, status="done", created_at=now, finished_at=now,
+               entrants=[{"submission_id": 2, "name": "agent2", "owner": "ann"}],
+               classification=[{"position": 1, "car": "car_0", "submission_id": 2, "name": "agent2", "owner": "ann",
+                                "outcome": "finished", "time": 20.0, "distance": 1.0, "reason": None}])
+    engine.dispose()
+
+
+@pytest.mark.parametrize("kind", BACKENDS)
+def test_0007_keys_existing_results_so_that_the_board_keeps_what_0006_ranked(kind, tmp_path):
+    """Upgraded by the server's own start: every result the 0006 board ranked with the course's
+    settings keeps its rank and figures; what it mixed in from earlier settings is shown apart,
+    stale; what produced each finished result is recorded; the queued upload keeps its place; and
+    down to 0006 again, nothing is lost."""
+    from .api.conftest import in_process_league
+
+    with in_process_league(kind, tmp_path, prepare=fill_0006, bootstrap=False) as league:
+        with league.client() as public:
+            board = public.get("/api/leaderboard", params={"size": 100}).json()["items"]
+            race = public.get("/api/races/1").json()
+        with league.client(league.instructor_token) as instructor:
+            ann_agent = instructor.get("/api/submissions/2").json()["evaluation"]
+            bob_agent = instructor.get("/api/submissions/4").json()["evaluation"]
+            queued = [job for job in instructor.get("/api/jobs").json() if job["status"] == "queued"]
+        engine = make_engine(league.settings.database_url)  # and back to 0006, every row kept
+        with engine.connect() as connection:
+            config = alembic_config(league.settings.database_url)
+            config.attributes["connection"] = connection
+            command.downgrade(config, "0006")
+            assert connection.execute(text("SELECT count(*) FROM evaluations")).scalar() == 8
+        engine.dispose()
+    # 0006 ranked: bob 7/7 (earlier settings), cy 6/7 (earlier settings), ann 3/3, the baseline 1/3
+    assert [(row["rank"], row["owner"], row["submission_id"], row["completed"], row["episodes"], row["stale"])
+            for row in board] == [(1, "ann", 2, 3, 3, False), (2, "bob", 4, 2, 3, False),
+                                  (3, "baselines", 1, 1, 3, False), (None, "cy", 5, 6, 7, True)]
+    versions = {"physics": 1, "track_format": 1, "package": "0.1.0"}
+    assert ann_agent["result_key"] == settings_key(COURSE_SETTINGS) and ann_agent["versions"] == versions
+    assert (bob_agent["status"], bob_agent["stale"]) == ("failed", False)  # its newest of the course's settings
+    assert race["versions"] == versions
+    assert [(job["submission_id"], job["priority"]) for job in queued] == [(6, 0)]

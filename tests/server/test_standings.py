@@ -4,6 +4,7 @@ from __future__ import annotations
 from league.server.db import crud
 from league.server.db.models import BASELINE, DONE, READY, STUDENT
 from league.server.db.session import make_engine, make_sessionmaker, migrate
+from league.server.results import settings_key
 from league.server.standings import leaderboard_rows
 
 
@@ -11,8 +12,9 @@ def add_evaluated(session, owner, name: str, completed: int) -> int:
     submission, _ = crud.create_submission(session, owner=owner, name=name, filename=f"{name}.onnx", kind="onnx",
                                            sha256=name.ljust(64, "0"), size=1, max_attempts=1)
     submission.status = READY
-    evaluation, _ = crud.create_evaluation(session, submission=submission, course=owner.course,
-                                           settings={"seed": 0, "episodes": 10, "env_options": {}}, max_attempts=1)
+    settings = {"seed": 0, "episodes": 10, "env_options": {}}
+    evaluation, _ = crud.create_evaluation(session, submission=submission, course=owner.course, settings=settings,
+                                           result_key=settings_key(settings), max_attempts=1)
     evaluation.status, evaluation.completed, evaluation.episodes_total = DONE, completed, 10
     evaluation.mean_return, evaluation.mean_steps, evaluation.mean_speed = float(completed), 500.0, 0.3
     session.flush()

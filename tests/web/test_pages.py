@@ -179,6 +179,10 @@ def test_student_uploads_an_agent_and_sees_it_ready_with_its_chart(web, web_serv
     summary = web.page.inner_text("#evaluation-summary")
     assert summary.startswith(f"Completed {evaluation['completed']} of {evaluation['episodes_total']} laps")
     assert f"mean return {evaluation['mean_return']:.2f}" in summary
+    versions = evaluation["versions"]  # what produced it, as `league evaluate` prints it
+    assert web.page.inner_text("#evaluation-provenance") == (
+        f"Simulator: physics {versions['physics']}, track format {versions['track_format']} "
+        f"(league {versions['package']}) · result key {evaluation['result_key']}")
     assert_drawn(canvas_pixels(web, "#episode-chart", [FINISHED_COLOR]), [FINISHED_COLOR])
     assert web.page.get_attribute("#episode-chart", "aria-label").startswith(f"Chart of {evaluation['episodes_total']} episodes")
     legend = web.page.inner_text("#chart-legend")
@@ -398,7 +402,11 @@ def test_instructor_creates_students_changes_settings_and_reruns(web, web_server
     web.page.wait_for_selector("#settings-message.success")
     with web_server.client(token) as instructor:
         saved = instructor.get("/api/settings/evaluation").json()
+        ready = sum(s["status"] == "ready" for s in instructor.get("/api/submissions?all=true").json())
     assert saved == {**original, "episodes": 2, "env_options": {"obstacles": False}}
+    assert web.page.inner_text("#settings-message") == (  # the course's students have none: the baselines
+        f"Saved. {ready} submission{'s' if ready != 1 else ''} will be evaluated again with these settings, "
+        "after the students' own uploads; until then their results show as stale.")
 
     # re-running every evaluation asks first, saying how many jobs and with which settings
     with web_server.client(token) as instructor:
@@ -493,6 +501,29 @@ def test_student_sees_their_agent_on_the_leaderboard(web, web_server, agent_file
     returns = [float(t) for t in web.page.locator("#leaderboard tbody tr td:nth-child(5)").all_inner_texts()]
     assert returns == sorted(returns, reverse=True)
     web.screenshot("leaderboard-own-row")
+
+
+def test_a_settings_change_shows_every_earlier_result_apart_as_stale(web, web_server):
+    with web_server.client(web_server.instructor_token) as instructor:
+        before = instructor.get("/api/settings/evaluation").json()
+        try:  # re-evaluations of 1000 episodes: none is over while the page is read
+            changed = instructor.put("/api/settings/evaluation",
+                                     json={**before, "seed": before["seed"] + 1, "episodes": 1000})
+            assert changed.status_code == 200 and changed.json()["reevaluating"], changed.text
+            web.goto("/")
+            stale = web.page.locator("#leaderboard tbody tr.apart")
+            stale.first.wait_for()
+            board = web_server.client().get("/api/leaderboard?page=1&size=50").json()["items"]
+            assert board and all(row["stale"] and row["rank"] is None for row in board)
+            assert stale.count() == web.page.locator("#leaderboard tbody tr").count() == len(board)
+            assert stale.locator("td:first-child .badge.stale").count() == len(board)
+            assert [text.split("\t")[1] for text in stale.all_inner_texts()] == [row["owner"] for row in board]
+            web.screenshot("leaderboard-stale-rows")
+        finally:  # back, and the re-evaluation a worker started stopped
+            instructor.put("/api/settings/evaluation", json=before)
+            for job in instructor.get("/api/jobs", params={"status": "running"}).json():
+                if job["priority"] == 1:
+                    instructor.post(f"/api/jobs/{job['id']}/cancel")
 
 
 def tie_break(row: dict, above: dict | None) -> str | None:

@@ -6,14 +6,14 @@ from dataclasses import dataclass
 from datetime import datetime, timedelta
 from typing import Any
 
-from sqlalchemy import delete, func, select, update
+from sqlalchemy import case, delete, func, select, update
 from sqlalchemy.dialects.postgresql import insert as postgresql_insert
 from sqlalchemy.dialects.sqlite import insert as sqlite_insert
 from sqlalchemy.orm import Session
 
 from league.server.db.models import (
-    BASELINE, DONE, EVALUATE, FAILED, QUEUED, RACE, READY, REJECTED, RUNNING, STUDENT, VALIDATE, Blob, Championship,
-    ChampionshipRound, Course, EpisodeResult, Evaluation, Job, Race, Submission, User, utcnow,
+    BASELINE, DONE, EVALUATE, FAILED, NORMAL, QUEUED, RACE, READY, REJECTED, RUNNING, STUDENT, VALIDATE, Blob,
+    Championship, ChampionshipRound, Course, EpisodeResult, Evaluation, Job, Race, Submission, User, utcnow,
 )
 from league.server.security import hash_token, new_token
 
@@ -128,8 +128,8 @@ def lock_user(session: Session, *, user_id: int) -> None:
 
 
 def jobs_in_flight(session: Session, *, owner_id: int) -> int:
-    """The owner's jobs waiting or running."""
-    return session.scalar(select(func.count(Job.id)).where(Job.owner_id == owner_id,
+    """The owner's jobs waiting or running (but re-evaluations the league queued at low priority)."""
+    return session.scalar(select(func.count(Job.id)).where(Job.owner_id == owner_id, Job.priority == NORMAL,
                                                           Job.status.in_((QUEUED, RUNNING)))) or 0
 
 
@@ -188,28 +188,30 @@ def create_submission(session: Session, *, owner: User, name: str, filename: str
 
 
 def create_job(session: Session, *, kind: str, owner_id: int | None, submission_id: int | None = None,
-               evaluation_id: int | None = None, race_id: int | None = None, max_attempts: int = 3) -> Job:
+               evaluation_id: int | None = None, race_id: int | None = None, max_attempts: int = 3,
+               priority: int = NORMAL) -> Job:
     job = Job(kind=kind, owner_id=owner_id, submission_id=submission_id, evaluation_id=evaluation_id,
-              race_id=race_id, status=QUEUED, max_attempts=max_attempts)
+              race_id=race_id, status=QUEUED, max_attempts=max_attempts, priority=priority)
     session.add(job)
     session.flush()
     return job
 
 
-def create_evaluation(session: Session, *, submission: Submission, course: Course | None,
-                      settings: dict[str, Any], max_attempts: int) -> tuple[Evaluation, Job]:
+def create_evaluation(session: Session, *, submission: Submission, course: Course | None, settings: dict[str, Any],
+                      result_key: str, max_attempts: int, priority: int = NORMAL) -> tuple[Evaluation, Job]:
     evaluation = Evaluation(submission_id=submission.id, course_id=course.id if course else None,
-                            settings=settings, status=QUEUED)
+                            settings=settings, result_key=result_key, status=QUEUED)
     session.add(evaluation)
     session.flush()
     job = create_job(session, kind=EVALUATE, owner_id=submission.owner_id, submission_id=submission.id,
-                     evaluation_id=evaluation.id, max_attempts=max_attempts)
+                     evaluation_id=evaluation.id, max_attempts=max_attempts, priority=priority)
     return evaluation, job
 
 
-def latest_evaluation(session: Session, *, submission_id: int) -> Evaluation | None:
+def latest_evaluation(session: Session, *, submission_id: int, result_key: str | None) -> Evaluation | None:
+    """The submission's newest evaluation of `result_key` if it has one, else its newest."""
     return session.scalar(select(Evaluation).where(Evaluation.submission_id == submission_id)
-                          .order_by(Evaluation.id.desc()).limit(1))
+                          .order_by((Evaluation.result_key == result_key).desc(), Evaluation.id.desc()).limit(1))
 
 
 def episode_page(session: Session, *, evaluation_id: int, offset: int, limit: int) -> tuple[list[EpisodeResult], int]:
@@ -221,14 +223,53 @@ def episode_page(session: Session, *, evaluation_id: int, offset: int, limit: in
     return list(rows), total or 0
 
 
-def latest_evaluations(session: Session, *, submission_ids: list[int]) -> dict[int, Evaluation]:
-    """Each submission's newest evaluation."""
+def latest_evaluations(session: Session, *, submission_ids: list[int],
+                       result_keys: dict[int, str | None]) -> dict[int, Evaluation]:
+    """Each submission's newest evaluation of its key in `result_keys` (submission id -> key) if it
+    has one, else its newest."""
     if not submission_ids:
         return {}
     newest = (select(func.max(Evaluation.id)).where(Evaluation.submission_id.in_(submission_ids))
-              .group_by(Evaluation.submission_id))
-    rows = session.scalars(select(Evaluation).where(Evaluation.id.in_(newest)))
-    return {evaluation.submission_id: evaluation for evaluation in rows}
+              .group_by(Evaluation.submission_id, Evaluation.result_key))
+    shown: dict[int, Evaluation] = {}
+    for evaluation in session.scalars(select(Evaluation).where(Evaluation.id.in_(newest)).order_by(Evaluation.id)):
+        kept = shown.get(evaluation.submission_id)
+        if kept is None or kept.result_key != result_keys.get(evaluation.submission_id):
+            shown[evaluation.submission_id] = evaluation  # newer, and the kept one is not of the key
+    return shown
+
+
+def submissions_with_results(session: Session, *, result_key: str) -> set[int]:
+    """Submissions with an evaluation of `result_key` done, running or queued."""
+    return set(session.scalars(select(Evaluation.submission_id).distinct().where(
+        Evaluation.result_key == result_key, Evaluation.status.in_((DONE, RUNNING, QUEUED)))))
+
+
+def queued_evaluations(session: Session, *, course_id: int, other_than: str) -> list[Any]:
+    """(evaluation id, submission id, job id) of the course's queued evaluations whose key is not
+    `other_than`: normal priority first, then the oldest."""
+    return list(session.execute(
+        select(Evaluation.id, Evaluation.submission_id, Job.id).join(Job, Job.evaluation_id == Evaluation.id)
+        .where(Evaluation.course_id == course_id, Evaluation.status == QUEUED, Job.status == QUEUED,
+               Evaluation.result_key != other_than)
+        .order_by(Job.priority, Evaluation.id)))
+
+
+def retarget_evaluation(session: Session, *, evaluation_id: int, settings: dict[str, Any], result_key: str) -> bool:
+    """Give a queued evaluation other settings; False if a worker took it meanwhile."""
+    return bool(session.execute(update(Evaluation).where(Evaluation.id == evaluation_id, Evaluation.status == QUEUED)
+                                .values(settings=settings, result_key=result_key)).rowcount)
+
+
+def supersede_evaluation(session: Session, *, evaluation_id: int, job_id: int, reason: str) -> bool:
+    """Fail a queued evaluation and its job for good, unrun; False if a worker took it meanwhile."""
+    now = utcnow()
+    if not session.execute(update(Job).where(Job.id == job_id, Job.status == QUEUED)
+                           .values(status=FAILED, error=reason, finished_at=now)).rowcount:
+        return False
+    session.execute(update(Evaluation).where(Evaluation.id == evaluation_id)
+                    .values(status=FAILED, error=reason, finished_at=now))
+    return True
 
 
 def submissions_of(session: Session, *, owner_ids: list[int]) -> list[Submission]:
@@ -280,19 +321,24 @@ def active_students(session: Session, *, course_id: int | None) -> list[User]:
                                                    User.revoked_at.is_(None)).order_by(User.id)))
 
 
-def leaderboard_entries(session: Session, *, course_id: int | None) -> list[Any]:
-    """Every ready submission of the course's active students and of the baselines' account, newest
-    first, with its owner and its newest finished evaluation's figures: plain rows (one query, no
-    objects: the board is recomputed after every evaluation of a deadline rush)."""
-    # joined to a derived table of the newest ids (not `id IN (subquery)`, which SQLite's planner
-    # ran 50x slower: 111 ms against 2 ms for 600 evaluations)
-    newest = (select(Evaluation.submission_id, func.max(Evaluation.id).label("id"))
+def leaderboard_entries(session: Session, *, course_id: int | None, result_key: str | None) -> list[Any]:
+    """Every ready submission of the course's active students and of the baselines' account with a
+    finished evaluation, newest first, with its owner and the figures of its newest finished
+    evaluation of `result_key`, else (`stale`) of its newest finished one: plain rows (one query,
+    no objects: the board is recomputed after every evaluation of a deadline rush)."""
+    # joined to a derived table of the newest ids, of the key and of any, from one pass over the
+    # finished evaluations (not `id IN (subquery)`, which SQLite's planner ran 50x slower: 111 ms
+    # against 2 ms for 600 evaluations)
+    newest = (select(Evaluation.submission_id, func.max(Evaluation.id).label("any_id"),
+                     func.max(case((Evaluation.result_key == result_key, Evaluation.id))).label("current_id"))
               .where(Evaluation.status == DONE).group_by(Evaluation.submission_id).subquery())
     query = (select(Submission.id, Submission.name, Submission.public, Submission.owner_id,
                     User.name.label("owner"), User.role.label("owner_role"), Evaluation.completed,
-                    Evaluation.episodes_total, Evaluation.mean_return, Evaluation.mean_steps, Evaluation.mean_speed)
+                    Evaluation.episodes_total, Evaluation.mean_return, Evaluation.mean_steps, Evaluation.mean_speed,
+                    newest.c.current_id.is_(None).label("stale"))
              .join(User, Submission.owner_id == User.id)
-             .join(newest, newest.c.submission_id == Submission.id).join(Evaluation, Evaluation.id == newest.c.id)
+             .join(newest, newest.c.submission_id == Submission.id)
+             .join(Evaluation, Evaluation.id == func.coalesce(newest.c.current_id, newest.c.any_id))
              .where(((User.course_id == course_id) & (User.role == STUDENT) & User.revoked_at.is_(None))
                     | (User.role == BASELINE), Submission.status == READY)
              .order_by(Submission.id.desc()))
@@ -301,16 +347,18 @@ def leaderboard_entries(session: Session, *, course_id: int | None) -> list[Any]
 
 def public_state_stamp(session: Session) -> tuple:
     """What the public answers (leaderboard, standings) are computed from changes with this, each
-    part read from one index: the newest finished evaluation and heat (their results are written as
-    their job ends) and revocations (the board's students). Uploads and validations change no public
-    answer (a submission shows once an evaluation of it is done), nor does this stamp; a public flag
-    or a roster change shows within the cache's maximum age."""
+    part read from one index (or the few rows of courses): the newest finished evaluation and heat
+    (their results are written as their job ends), revocations (the board's students) and the
+    courses' last change (their evaluation settings decide which results rank). Uploads and
+    validations change no public answer (a submission shows once an evaluation of it is done), nor
+    does this stamp; a public flag or a roster change shows within the cache's maximum age."""
     def newest_finished(kind: str):
         return select(func.max(Job.finished_at)).where(Job.kind == kind).scalar_subquery()
     return tuple(session.execute(select(
         newest_finished(EVALUATE), newest_finished(RACE),
         select(func.max(User.revoked_at)).scalar_subquery(),
-        select(func.count(User.revoked_at)).scalar_subquery())).one())
+        select(func.count(User.revoked_at)).scalar_subquery(),
+        select(func.max(Course.updated_at)).scalar_subquery())).one())
 
 
 # --------------------------------------------------------------------------- races and championships

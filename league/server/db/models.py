@@ -8,7 +8,7 @@ from datetime import datetime, timezone
 from typing import Any
 
 from sqlalchemy import (
-    JSON, BigInteger, DateTime, Float, ForeignKey, Index, Integer, LargeBinary, String, Text, UniqueConstraint,
+    JSON, BigInteger, DateTime, Float, ForeignKey, Index, Integer, LargeBinary, String, Text, UniqueConstraint, text,
 )
 from sqlalchemy.orm import DeclarativeBase, Mapped, mapped_column, relationship
 from sqlalchemy.types import TypeDecorator
@@ -24,6 +24,9 @@ QUEUED, RUNNING, DONE = "queued", "running", "done"
 
 # job kinds
 VALIDATE, EVALUATE, RACE = "validate", "evaluate", "race"
+
+# job priorities: a low one is claimed only when no normal one waits
+NORMAL, LOW = 0, 1
 
 
 def utcnow() -> datetime:
@@ -128,9 +131,15 @@ class Submission(Base):
 
 
 class Evaluation(Base):
-    """One `metrics_run` of a submission with a course's settings; re-runs add new rows."""
+    """One `metrics_run` of a submission with a course's settings; re-runs add new rows.
+
+    `result_key` (league.evaluation.result_key: the settings and the simulator's version) is what
+    its results compare by: the requested one while it waits, the one its worker's simulator
+    produced once done. Boards rank only results of their course's current key (league.server.results).
+    """
 
     __tablename__ = "evaluations"
+    __table_args__ = (Index("ix_evaluations_key_status_submission", "result_key", "status", "submission_id"),)
 
     id: Mapped[int] = mapped_column(primary_key=True)
     submission_id: Mapped[int] = mapped_column(ForeignKey("submissions.id"), index=True)
@@ -145,6 +154,10 @@ class Evaluation(Base):
     mean_steps: Mapped[float | None] = mapped_column(Float, default=None)
     mean_speed: Mapped[float | None] = mapped_column(Float, default=None)
     result_settings: Mapped[dict[str, Any] | None] = mapped_column(JSON, default=None)  # metrics_run's record
+    # every row has one (crud.create_evaluation); nullable in the schema only: SQLite cannot make an existing
+    # column NOT NULL without copying the table, which the foreign keys to it forbid (migration 0007)
+    result_key: Mapped[str] = mapped_column(String(16), nullable=True)
+    versions: Mapped[dict[str, Any] | None] = mapped_column(JSON, default=None)  # {"physics", "track_format", "package"} once done
     created_at: Mapped[datetime] = mapped_column(default=utcnow)
     finished_at: Mapped[datetime | None] = mapped_column(default=None)
 
@@ -174,7 +187,8 @@ class Job(Base):
     while it works, and writes the results in the same transaction that marks the job done,
     only if it still holds the lease. The reaper gives jobs whose heartbeat stopped to another
     worker (fishtest's dead-task scavenging). `owner_id` is whose job it is: the queue serves
-    owners in turn, and limits how many jobs each has waiting.
+    owners in turn, and limits how many jobs each has waiting. `priority` LOW (the re-evaluations
+    a settings change queues) waits until no NORMAL job does, and counts in no owner's limit.
     """
 
     __tablename__ = "jobs"
@@ -189,6 +203,7 @@ class Job(Base):
     evaluation_id: Mapped[int | None] = mapped_column(ForeignKey("evaluations.id"))
     race_id: Mapped[int | None] = mapped_column(ForeignKey("races.id"), index=True, default=None)
     status: Mapped[str] = mapped_column(String(20), default=QUEUED)
+    priority: Mapped[int] = mapped_column(Integer, default=NORMAL, server_default=text("0"))  # NORMAL or LOW
     attempts: Mapped[int] = mapped_column(Integer, default=0)
     max_attempts: Mapped[int] = mapped_column(Integer, default=3)
     worker_id: Mapped[str | None] = mapped_column(String(100), default=None)
@@ -272,6 +287,7 @@ class Race(Base):
     error: Mapped[str | None] = mapped_column(Text, default=None)
     log: Mapped[str | None] = mapped_column(Text, default=None)  # what the cars' sandboxes printed, truncated
     classification: Mapped[list[Any] | None] = mapped_column(JSON, default=None)
+    versions: Mapped[dict[str, Any] | None] = mapped_column(JSON, default=None)  # the simulator's and package's, once raced
     created_at: Mapped[datetime] = mapped_column(default=utcnow)
     started_at: Mapped[datetime | None] = mapped_column(default=None)
     finished_at: Mapped[datetime | None] = mapped_column(default=None)

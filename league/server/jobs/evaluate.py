@@ -1,5 +1,5 @@
-"""The evaluation job: the toolkit's `metrics_run` of a submission's sandboxed agent, with its
-course's settings; and queueing one."""
+"""The evaluation job: the toolkit's `metrics_run` of a submission's sandboxed agent, with the
+settings its evaluation holds (league.server.results queues them)."""
 from __future__ import annotations
 
 from dataclasses import dataclass
@@ -11,27 +11,11 @@ from sqlalchemy.orm import Session
 from league.agents import AgentError
 from league.evaluation import metrics_run
 from league.track import TrackGenerationError
-from league.server.db import crud
-from league.server.db.models import DONE, FAILED, RUNNING, EpisodeResult, Evaluation, Job, Submission, User, utcnow
+from league.server.db.models import DONE, FAILED, RUNNING, EpisodeResult, Evaluation, Job, utcnow
 from league.server.jobs.runner import JobRun
 from league.server.sandbox.agent import SandboxedAgent
 from league.server.sandbox.limits import SandboxLimits
 from league.server.sandbox.log import LogBuffer
-
-
-def evaluation_course(session: Session, owner: User):
-    """The course whose settings evaluate a submission: its owner's, or the first course for the baselines."""
-    if owner.course is not None:
-        return owner.course
-    return crud.first_course(session)
-
-
-def queue_evaluation(session: Session, *, submission: Submission, max_attempts: int, course=None) -> Job:
-    """A new evaluation with the course's current settings (by default the owner's course)."""
-    course = course or evaluation_course(session, submission.owner)
-    _, job = crud.create_evaluation(session, submission=submission, course=course,
-                                    settings=course.evaluation_settings(), max_attempts=max_attempts)
-    return job
 
 
 @dataclass
@@ -89,5 +73,8 @@ def _store_result(session: Session, evaluation: Evaluation, result: dict[str, An
                                   reason=e["reason"]) for i, e in enumerate(result["episodes"]))
     for key in ("completed", "episodes_total", "mean_return", "mean_steps", "mean_speed"):
         setattr(evaluation, key, result[key])
-    evaluation.result_settings = result["settings"]
+    # what produced it, as the worker's metrics_run recorded it: its simulator may not be the API's
+    record = result["settings"]
+    evaluation.result_settings, evaluation.result_key, evaluation.versions = \
+        record, record["result_key"], record["versions"]
     session.expire(evaluation, ["episodes"])

@@ -3,8 +3,8 @@
 As in fishtest, a worker that takes a task keeps it alive with heartbeats and a scavenger
 reclaims tasks whose worker went quiet. Here:
 
-* claim: the fairest queued job (owners in turn, validations first) goes `queued -> running` by a
-  conditional UPDATE (one worker wins), with a fresh attempt id;
+* claim: the fairest queued job (normal priority first, owners in turn, validations first) goes
+  `queued -> running` by a conditional UPDATE (one worker wins), with a fresh attempt id;
 * heartbeat: refreshes `heartbeat_at` while the job runs; False once the lease was taken away;
 * complete: the results are written in the transaction that moves `running -> done`, and only
   if this attempt still holds the lease -- so a re-run job is counted once;
@@ -31,9 +31,11 @@ CANDIDATES = 8  # fairest queued jobs tried per claim (others' workers may take 
 
 
 def claim_next(sessions: sessionmaker[Session], handlers: Mapping[str, Any], *, attempt_id: str) -> Job | None:
-    """Claim the fairest queued job: owners take turns (a job's rank counts its owner's jobs running
-    or queued before it), so one student's backlog delays another's first job by one job at most;
-    at equal rank validations go first, then evaluations, then races, then the oldest."""
+    """Claim the fairest queued job: normal priority before low (the re-evaluations of a settings
+    change never delay a student's upload); within a priority owners take turns (a job's rank counts
+    its owner's jobs of that priority running or queued before it), so one student's backlog delays
+    another's first job by one job at most; at equal rank validations go first, then evaluations,
+    then races, then the oldest."""
     while candidates := fairest_queued(sessions):
         for job_id in candidates:
             job = claim(sessions, handlers, job_id=job_id, attempt_id=attempt_id)
@@ -46,13 +48,14 @@ def claim_next(sessions: sessionmaker[Session], handlers: Mapping[str, Any], *, 
 
 def fairest_queued(sessions: sessionmaker[Session], limit: int = CANDIDATES) -> list[int]:
     active = Job.status.in_((QUEUED, RUNNING))
-    rank = func.row_number().over(partition_by=func.coalesce(Job.owner_id, -1),
+    rank = func.row_number().over(partition_by=(Job.priority, func.coalesce(Job.owner_id, -1)),
                                   order_by=(case((Job.status == RUNNING, 0), else_=1), Job.id))
     kind_order = case((Job.kind == VALIDATE, 0), (Job.kind == EVALUATE, 1), else_=2)
-    ranked = select(Job.id, Job.status, rank.label("rank"), kind_order.label("kind_order")).where(active).subquery()
+    ranked = select(Job.id, Job.status, Job.priority, rank.label("rank"),
+                    kind_order.label("kind_order")).where(active).subquery()
     with sessions() as session:
-        return list(session.scalars(select(ranked.c.id).where(ranked.c.status == QUEUED)
-                                    .order_by(ranked.c.rank, ranked.c.kind_order, ranked.c.id).limit(limit)))
+        return list(session.scalars(select(ranked.c.id).where(ranked.c.status == QUEUED).order_by(
+            ranked.c.priority, ranked.c.rank, ranked.c.kind_order, ranked.c.id).limit(limit)))
 
 
 def claim(sessions: sessionmaker[Session], handlers: Mapping[str, Any], *, job_id: int,

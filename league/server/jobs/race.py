@@ -81,6 +81,7 @@ class RunRace:
             race_row.status, race_row.error = FAILED, outcome.error
             return []
         race_row.classification, race_row.status, race_row.error = outcome.classification, DONE, None
+        race_row.versions = outcome.replay["versions"]  # the worker's simulator and package
         replay = session.get(RaceReplay, race_row.id) or RaceReplay(race_id=race_row.id)
         replay.data = gzip.compress(json.dumps(outcome.replay, separators=(",", ":")).encode(), compresslevel=6)
         session.add(replay)

@@ -5,8 +5,8 @@ from sqlalchemy.orm import Session
 
 from league.server.db import crud
 from league.server.db.models import FAILED, READY, REJECTED, VALIDATING, Job, Submission
-from league.server.jobs.evaluate import queue_evaluation
 from league.server.jobs.runner import JobRun
+from league.server.results import queue_evaluation
 from league.server.sandbox.limits import SandboxLimits
 from league.server.sandbox.validation import ValidationReport, validate_model
 

@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import contextlib
 import uuid
+from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -19,6 +20,7 @@ from league.server.config import Settings
 from league.server.db import crud
 from league.server.db.models import DONE, INSTRUCTOR, READY, REJECTED, STUDENT, Submission, User
 from league.server.db.session import make_sessionmaker
+from league.server.results import settings_key
 
 from ..conftest import BACKENDS, TEST_SETTINGS, fresh_backend
 
@@ -76,9 +78,11 @@ class InProcessLeague:
             if status == REJECTED:
                 submission.error = "the model returned NaN or infinite actions"
             if status == READY and evaluated:
+                settings = self.settings.default_evaluation()
                 evaluation, _ = crud.create_evaluation(session, submission=submission,
                                                        course=owner.course or crud.first_course(session),
-                                                       settings=self.settings.default_evaluation(), max_attempts=1)
+                                                       settings=settings, result_key=settings_key(settings),
+                                                       max_attempts=1)
                 evaluation.status, evaluation.completed, evaluation.episodes_total = DONE, completed, 3
                 evaluation.mean_return, evaluation.mean_steps, evaluation.mean_speed = completed * 2.0, 500.0, 0.3
             session.flush()
@@ -96,23 +100,34 @@ class InProcessLeague:
         complete(self.sessions, HANDLERS, job_id=job_id, attempt_id="test", outcome=outcome)
 
 
-def evaluation_outcome(completed: int, episodes: int = 3):
-    """What an evaluation job returns (MetricsResult.to_dict()), made up: `completed` of `episodes` finished."""
+def evaluation_outcome(completed: int, episodes: int = 3, settings: dict | None = None):
+    """What an evaluation job returns (MetricsResult.to_dict()), made up: `completed` of `episodes` finished,
+    recorded as run with `settings` (default: the test settings) on this simulator."""
+    from league.evaluation import league_versions
     from league.server.jobs.evaluate import EvaluationOutcome
 
+    settings = settings or Settings(_env_file=None, **league_test_settings()).default_evaluation()
     rows = [{"seed": 1000 + i, "steps": 100 + i, "return": float(completed), "mean_speed": 0.3,
              "outcome": "finished" if i < completed else "off_road", "reason": None} for i in range(episodes)]
+    record = {**settings, "versions": league_versions(), "result_key": settings_key(settings)}
     return EvaluationOutcome({"episodes": rows, "completed": completed, "episodes_total": episodes,
                               "mean_return": float(completed), "mean_steps": 100.0, "mean_speed": 0.3,
-                              "settings": {"seed": 0}}, None, "evaluated in a test")
+                              "settings": record}, None, "evaluated in a test")
+
+
+def league_test_settings() -> dict:
+    """TEST_SETTINGS as keyword arguments of Settings."""
+    return {key.removeprefix("LEAGUE_").lower(): value for key, value in TEST_SETTINGS.items()}
 
 
 @contextlib.contextmanager
-def in_process_league(kind: str, tmp_path: Path, **settings):
-    """The app with the test settings (and `settings`) on a fresh database of `kind`; an instructor;
-    no worker."""
+def in_process_league(kind: str, tmp_path: Path, prepare: Callable[[str], None] | None = None, **settings):
+    """The app with the test settings (and `settings`) on a fresh database of `kind` (given first to
+    `prepare(database_url)`, e.g. to hold an older schema's data); an instructor; no worker."""
     with fresh_backend(kind, tmp_path) as (database_url, queue_url, queue_name):
-        values = {key.removeprefix("LEAGUE_").lower(): value for key, value in TEST_SETTINGS.items()}
+        if prepare is not None:
+            prepare(database_url)
+        values = league_test_settings()
         values.update(public_cache_s=0)  # every answer fresh: tests independent of their order
         values.update(baselines_dir=tmp_path / "baselines")  # empty: the heuristic driver is the baseline
         settings = Settings(_env_file=None, **{**values, **settings}, data_dir=tmp_path / "data",

@@ -10,9 +10,9 @@ import pytest
 
 from league.server.config import Settings
 from league.server.db import crud
-from league.server.db.models import DONE, FAILED, QUEUED, RUNNING, Job, utcnow
+from league.server.db.models import DONE, FAILED, LOW, QUEUED, RUNNING, Job, utcnow
 from league.server.db.session import make_engine, make_sessionmaker, migrate
-from league.server.jobs.leases import cancel, claim, complete, fairest_queued, heartbeat
+from league.server.jobs.leases import cancel, claim, claim_next, complete, fairest_queued, heartbeat
 from league.server.jobs.placement import Placement
 from league.server.jobs.queue import build_queue
 from league.server.jobs.runner import JobCannotSucceed, JobRun, WorkerContext, reap, release_active, run_job
@@ -230,6 +230,21 @@ def test_validations_go_before_evaluations_and_races(context):
     race, evaluation, validation = (queued_jobs(context, owner, [kind])[0]
                                     for owner, kind in ((alice, "race"), (bob, "evaluate"), (carol, "validate")))
     assert fairest_queued(context.sessions, limit=3) == [validation, evaluation, race]
+
+
+def test_a_students_jobs_are_claimed_before_any_low_priority_re_evaluation(context):
+    """The backlog of a settings change (everyone's re-evaluations, older than the upload) waits, and
+    one's own re-evaluations, queued or running, do not hold one's upload back behind others'."""
+    alice, bob = owners(context, 2)
+    with context.sessions.begin() as session:
+        backlog = [crud.create_job(session, kind="evaluate", owner_id=owner, priority=LOW).id
+                   for owner in (alice, bob) for _ in range(3)]
+    handlers = {kind: Recorder() for kind in ("validate", "evaluate", "race")}
+    claim(context.sessions, handlers, job_id=backlog[0], attempt_id="busy")  # one of alice's runs
+    uploads = queued_jobs(context, alice, ["validate", "evaluate"]) + queued_jobs(context, bob, ["race"])
+    assert fairest_queued(context.sessions, limit=5) == [uploads[0], uploads[2], uploads[1], backlog[3], backlog[1]]
+    claimed = [claim_next(context.sessions, handlers, attempt_id=f"w{i}").id for i in range(4)]
+    assert claimed == [uploads[0], uploads[2], uploads[1], backlog[3]]
 
 
 def test_a_job_that_cannot_succeed_fails_once_without_retrying(context, recorder):

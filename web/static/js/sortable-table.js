@@ -7,14 +7,16 @@ import { element } from "./dom.js";
 /**
  * columns: [{key, label, value(row) -> sortable value, render(row) -> Node|string,
  *            better: "higher"|"lower" (optional), numeric (bool)}]
- * options: {rowKey(row), isOwn(row), emptyText, sort: {key, descending}}
+ * options: {rowKey(row), isOwn(row), apart(row): shown after the others (class "apart"), whatever the
+ *           sort (e.g. results that do not rank), emptyText, sort: {key, descending}}
  */
 export class SortableTable {
-  constructor(table, columns, { rowKey, isOwn = () => false, emptyText = "Nothing yet.", sort } = {}) {
+  constructor(table, columns, { rowKey, isOwn = () => false, apart = () => false, emptyText = "Nothing yet.", sort } = {}) {
     this.table = table;
     this.columns = columns;
     this.rowKey = rowKey;
     this.isOwn = isOwn;
+    this.apart = apart;
     this.emptyText = emptyText;
     this.sort = sort || { key: columns[0].key, descending: false };
     this.rows = [];
@@ -68,6 +70,7 @@ export class SortableTable {
     const value = column.value || ((row) => row[column.key]);
     const sign = this.sort.descending ? -1 : 1;
     return [...this.rows].sort((a, b) => {
+      if (this.apart(a) !== this.apart(b)) return this.apart(a) ? 1 : -1;
       const x = value(a);
       const y = value(b);
       if (x === y) return 0;
@@ -86,6 +89,7 @@ export class SortableTable {
     this.body.replaceChildren(...this.sortedRows().map((row) => {
       const tr = element("tr", { attrs: { "data-key": this.rowKey ? this.rowKey(row) : null } });
       if (this.isOwn(row)) tr.classList.add("own");
+      if (this.apart(row)) tr.classList.add("apart");
       for (const column of this.columns) {
         const content = column.render ? column.render(row) : row[column.key];
         tr.append(element("td", { className: column.numeric ? "num" : "" },

@@ -1,4 +1,4 @@
-"""The course's evaluation settings, and re-running evaluations after a change."""
+"""The course's evaluation settings (a change re-evaluates what it concerns), and re-running evaluations."""
 from __future__ import annotations
 
 from fastapi import APIRouter, HTTPException, status
@@ -7,9 +7,9 @@ from league.server.api.deps import (
     CurrentUser, InstructorUser, QueueDep, SessionDep, SettingsDep, check_env_options, user_course,
 )
 from league.server.db import crud
-from league.server.db.models import READY, Submission, User
-from league.server.schemas import EvaluationSettings, RerunOut, RerunRequest, UploadLimits
-from league.server.jobs.evaluate import queue_evaluation
+from league.server.db.models import LOW, NORMAL, READY, Submission, User
+from league.server.results import change_settings, queue_evaluation
+from league.server.schemas import EvaluationSettings, EvaluationSettingsChange, RerunOut, RerunRequest, UploadLimits
 
 router = APIRouter(tags=["evaluations"])
 
@@ -26,28 +26,34 @@ def read_upload_limits(settings: SettingsDep) -> UploadLimits:
     return UploadLimits(**{name: getattr(settings, name) for name in UploadLimits.model_fields})
 
 
-@router.put("/settings/evaluation", response_model=EvaluationSettings)
-def update_evaluation_settings(body: EvaluationSettings, instructor: InstructorUser,
-                               session: SessionDep) -> EvaluationSettings:
-    """Change the evaluation settings (existing results stay until you re-run them)."""
+@router.put("/settings/evaluation", response_model=EvaluationSettingsChange)
+def update_evaluation_settings(body: EvaluationSettings, instructor: InstructorUser, session: SessionDep,
+                               queue: QueueDep, settings: SettingsDep) -> EvaluationSettingsChange:
+    """Change the evaluation settings: results of other settings no longer rank (stale) and every ready
+    submission without a result of these settings is evaluated again, after the students' own jobs."""
     check_env_options(body.env_options)
-    course = crud.set_evaluation_settings(session, course=user_course(session, instructor), seed=body.seed,
-                                          episodes=body.episodes, env_options=body.env_options)
+    course = user_course(session, instructor)
+    change = change_settings(session, course=course, settings=body.model_dump(),
+                             max_attempts=settings.max_job_attempts)
     session.commit()
-    return EvaluationSettings(**course.evaluation_settings())
+    for job in change.queued:
+        queue.enqueue(job.id)
+    return EvaluationSettingsChange(**course.evaluation_settings(), reevaluating=change.reevaluated)
 
 
 @router.post("/evaluations/rerun", response_model=RerunOut, status_code=status.HTTP_202_ACCEPTED)
 def rerun_evaluations(body: RerunRequest, instructor: InstructorUser, session: SessionDep, queue: QueueDep,
                       settings: SettingsDep) -> RerunOut:
-    """Evaluate again, with the current settings, one ready submission or all of the course's."""
+    """Evaluate again, with the current settings, one ready submission or all of the course's (those at
+    low priority: after the students' own jobs)."""
     if body.all == (body.submission_id is not None):
         raise HTTPException(status.HTTP_422_UNPROCESSABLE_CONTENT, "give either submission_id or all=true")
     submissions = (crud.course_submissions(session, course_id=instructor.course_id, status=READY) if body.all
                    else [ready_submission(session, instructor, body.submission_id)])
     course = user_course(session, instructor)
-    jobs = [queue_evaluation(session, submission=s, max_attempts=settings.max_job_attempts, course=course)
-            for s in submissions]
+    priority = LOW if body.all else NORMAL  # a whole course's backlog waits for the students' own jobs
+    jobs = [queue_evaluation(session, submission=s, max_attempts=settings.max_job_attempts, course=course,
+                             priority=priority) for s in submissions]
     session.commit()
     for job in jobs:
         queue.enqueue(job.id)

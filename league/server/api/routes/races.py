@@ -138,6 +138,7 @@ def existing_race(session: Session, race_id: int) -> Race:
 def race_out(session: Session, race: Race) -> RaceOut:
     championship_round = session.get(ChampionshipRound, race.round_id) if race.round_id else None
     return RaceOut(id=race.id, status=race.status, error=race.error, seed=race.seed, env_options=race.env_options,
-                   created_at=race.created_at, finished_at=race.finished_at, championship_id=race.championship_id,
+                   versions=race.versions, created_at=race.created_at, finished_at=race.finished_at,
+                   championship_id=race.championship_id,
                    round=championship_round.number if championship_round else None, heat=race.heat,
                    entrants=race.entrants, classification=race.classification)

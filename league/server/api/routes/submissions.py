@@ -13,6 +13,7 @@ from league.server.api.cache import etag_response
 from league.server.api.deps import CurrentUser, Id, SessionDep, check_jobs_in_flight, check_upload_quota
 from league.server.db import crud
 from league.server.db.models import INSTRUCTOR, READY, STUDENT, Evaluation, Submission, User
+from league.server.results import owners_current_keys
 from league.server.rounds import active_submission_ids
 from league.server.schemas import (
     DbId, EpisodeOut, EpisodePage, EvaluationOut, EvaluationSummary, SubmissionCreated, SubmissionDetail,
@@ -92,9 +93,12 @@ def read_submissions(user: CurrentUser, session: SessionDep, all: bool = False) 
         submissions = crud.course_submissions(session, course_id=user.course_id)[::-1]
     else:
         submissions = crud.submissions_of(session, owner_ids=[user.id])
-    evaluations = crud.latest_evaluations(session, submission_ids=[s.id for s in submissions])
-    active = active_submission_ids(session, owners=list({s.owner_id: s.owner for s in submissions}.values()))
-    return [submission_out(s, evaluations.get(s.id), s.id in active) for s in submissions]
+    owners = list({s.owner_id: s.owner for s in submissions}.values())
+    keys = owners_current_keys(session, owners)
+    evaluations = crud.latest_evaluations(session, submission_ids=[s.id for s in submissions],
+                                          result_keys={s.id: keys[s.owner_id] for s in submissions})
+    active = active_submission_ids(session, owners=owners)
+    return [submission_out(s, evaluations.get(s.id), keys[s.owner_id], s.id in active) for s in submissions]
 
 
 PRIVATE = "private, no-cache"  # the browser keeps it, and asks (If-None-Match) before reusing it
@@ -103,12 +107,14 @@ NOT_MODIFIED = {304: {"description": "unchanged since the ETag sent in If-None-M
 
 @router.get("/{submission_id}", response_model=SubmissionDetail, responses=NOT_MODIFIED)
 def read_submission(submission_id: Id, request: Request, user: CurrentUser, session: SessionDep) -> Response:
-    """One submission's status: validation, sandbox log, its latest evaluation's figures, and a link to
-    that evaluation's episodes. Poll it with the ETag it sent (If-None-Match): 304 while nothing changed."""
+    """One submission's status: validation, sandbox log, its evaluation (the newest of the current
+    settings, else the newest) with what produced it, and a link to that evaluation's episodes. Poll
+    it with the ETag it sent (If-None-Match): 304 while nothing changed."""
     submission = readable_submission(session, user, submission_id)
-    evaluation = crud.latest_evaluation(session, submission_id=submission.id)
+    key = owners_current_keys(session, [submission.owner])[submission.owner_id]
+    evaluation = crud.latest_evaluation(session, submission_id=submission.id, result_key=key)
     detail = SubmissionDetail(**submission_fields(submission), log=submission.log,
-                              evaluation=EvaluationSummary.model_validate(evaluation) if evaluation else None,
+                              evaluation=evaluation_out(evaluation, key, EvaluationSummary),
                               links=SubmissionLinks(episodes=episodes_link(submission.id, evaluation)),
                               active=submission.status == READY  # only a ready one can be: no query while polling
                               and submission.id in active_submission_ids(session, owners=[submission.owner]))
@@ -120,10 +126,12 @@ def read_episodes(submission_id: Id, request: Request, user: CurrentUser, sessio
                   evaluation_id: Annotated[DbId | None, Query(description="default: the latest")] = None,
                   offset: Annotated[int, Query(ge=0, le=10_000)] = 0,
                   limit: Annotated[int, Query(ge=1, le=1000)] = 100) -> Response:
-    """The episodes of the submission's latest evaluation (or of `evaluation_id`), in order, paged."""
+    """The episodes of the submission's evaluation (the one its status shows, or `evaluation_id`), in
+    order, paged."""
     submission = readable_submission(session, user, submission_id)
-    evaluation = (crud.latest_evaluation(session, submission_id=submission.id) if evaluation_id is None
-                  else session.get(Evaluation, evaluation_id))
+    key = owners_current_keys(session, [submission.owner])[submission.owner_id]
+    evaluation = (crud.latest_evaluation(session, submission_id=submission.id, result_key=key)
+                  if evaluation_id is None else session.get(Evaluation, evaluation_id))
     if evaluation is None or evaluation.submission_id != submission.id:
         raise HTTPException(status.HTTP_404_NOT_FOUND, "no such evaluation of this submission")
     rows, total = crud.episode_page(session, evaluation_id=evaluation.id, offset=offset, limit=limit)
@@ -159,8 +167,10 @@ def update_submission(submission_id: Id, body: SubmissionUpdate, user: CurrentUs
     if body.public is not None:
         submission.public = body.public
     session.commit()
-    evaluation = crud.latest_evaluation(session, submission_id=submission.id)
-    return submission_out(submission, evaluation, submission.id in active_submission_ids(session, owners=[user]))
+    key = owners_current_keys(session, [user])[user.id]
+    evaluation = crud.latest_evaluation(session, submission_id=submission.id, result_key=key)
+    return submission_out(submission, evaluation, key,
+                          submission.id in active_submission_ids(session, owners=[user]))
 
 
 def may_read(user: User, submission: Submission) -> bool:
@@ -178,6 +188,14 @@ def submission_fields(submission: Submission) -> dict:
     return {**{name: getattr(submission, name) for name in COLUMNS}, "owner": submission.owner.name}
 
 
-def submission_out(submission: Submission, evaluation, active: bool) -> SubmissionOut:
+def submission_out(submission: Submission, evaluation: Evaluation | None, current_key: str | None,
+                   active: bool) -> SubmissionOut:
     return SubmissionOut(**submission_fields(submission), active=active,
-                         evaluation=EvaluationOut.model_validate(evaluation) if evaluation else None)
+                         evaluation=evaluation_out(evaluation, current_key, EvaluationOut))
+
+
+def evaluation_out(evaluation: Evaluation | None, current_key: str | None, model: type[EvaluationOut]):
+    """The evaluation as `model`, stale when its key is not the current one."""
+    if evaluation is None:
+        return None
+    return model.model_validate(evaluation).model_copy(update={"stale": evaluation.result_key != current_key})

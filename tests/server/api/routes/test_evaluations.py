@@ -1,18 +1,29 @@
-"""Evaluation settings and re-runs: over real HTTP with a worker, and the refusals in process."""
+"""Evaluation settings and re-runs: over real HTTP with a worker; the refusals, and a settings change
+on the boards and in the grades, in process."""
 from __future__ import annotations
 
+import csv
+import io
 import uuid
 
 import pytest
+from sqlalchemy import select
 
 from league.agents import load_agent
 from league.evaluation import metrics_run
-from league.server.db.models import REJECTED
+from league.server.db import crud
+from league.server.db.models import BASELINE, EVALUATE, LOW, QUEUED, REJECTED, STUDENT, Job
+from league.server.jobs.leases import fairest_queued
+from league.server.results import SUPERSEDED
+from league.server.sandbox.validation import ValidationReport
 
 from ...conftest import create_student, episodes, submission, upload, wait_for, wait_settled
+from ..conftest import evaluation_outcome, in_process_league
 
 
-def test_instructor_changes_settings_and_reruns_one_submission(league_server, models):
+def test_a_settings_change_re_evaluates_the_submissions_with_the_new_settings(league_server, models):
+    """The worker evaluates again with the new settings, as `league evaluate` does on them; going back
+    to the old settings, whose results exist, re-evaluates nothing."""
     student = create_student(league_server, f"ivy-{uuid.uuid4().hex[:6]}")
     submission_id = upload(student, models["onnx"]).json()["id"]
     first = wait_settled(student, submission_id)["evaluation"]
@@ -20,22 +31,25 @@ def test_instructor_changes_settings_and_reruns_one_submission(league_server, mo
         before = instructor.get("/api/settings/evaluation").json()
         new = {"seed": 5, "episodes": 2, "env_options": {"obstacles": False, "chicanes": False}}
         try:
-            assert instructor.put("/api/settings/evaluation", json=new).json() == new
+            changed = instructor.put("/api/settings/evaluation", json=new).json()
+            assert {key: changed[key] for key in new} == new and submission_id in changed["reevaluating"]
             assert student.get("/api/settings/evaluation").json() == new
+            evaluation = wait_for(lambda: submission(student, submission_id)["evaluation"],
+                                  lambda e: e["id"] != first["id"] and e["status"] == "done")
             rerun = instructor.post("/api/evaluations/rerun", json={"submission_id": submission_id})
             assert rerun.status_code == 202 and rerun.json() == {"queued": [submission_id]}
         finally:
-            instructor.put("/api/settings/evaluation", json=before)
+            back = instructor.put("/api/settings/evaluation", json=before).json()
+        assert submission_id not in back["reevaluating"]  # its result of these settings counts again
 
-    evaluation = wait_for(lambda: submission(student, submission_id)["evaluation"],
-                          lambda e: e["id"] != first["id"] and e["status"] == "done")
-
-    assert evaluation["settings"] == new
+    assert evaluation["settings"] == new and evaluation["stale"] is False
     local = metrics_run(load_agent(models["onnx"]), episodes=2, seed=5, obstacles=False, chicanes=False).to_dict()
     served = episodes(student, submission_id, evaluation["id"])
     assert [(e["seed"], e["steps"], e["outcome"]) for e in served] == \
         [(e["seed"], e["steps"], e["outcome"]) for e in local["episodes"]]
     assert evaluation["mean_return"] == pytest.approx(local["mean_return"], abs=1e-9)
+    assert evaluation["result_key"] == local["settings"]["result_key"] != first["result_key"]
+    assert submission(student, submission_id)["evaluation"]["id"] == first["id"]  # the current settings' result
 
 
 def test_rerun_all_queues_every_ready_submission_including_the_baselines(league_server):
@@ -71,3 +85,130 @@ def test_rerun_of_a_rejected_submission_is_a_conflict(app_league):
         assert response.status_code == 409
         assert response.json() == {"detail": f"submission {rejected} is rejected: only ready submissions are evaluated"}
         assert instructor.post("/api/evaluations/rerun", json={}).status_code == 422
+
+
+# --------------------------------------------------------------------------- a settings change never mixes results
+
+
+def board_and_grades(league, instructor) -> tuple[list[dict], list[dict]]:
+    with league.client() as public:
+        board = public.get("/api/leaderboard", params={"size": 100}).json()["items"]
+    response = instructor.get("/api/leaderboard.csv")
+    assert response.status_code == 200, response.text
+    return board, list(csv.DictReader(io.StringIO(response.text)))
+
+
+def validated(league, owner) -> int:
+    """A new upload of `owner`, through its validation job (which queues its evaluation): its id."""
+    with league.sessions.begin() as session:
+        submission, validation = crud.create_submission(
+            session, owner=session.get(type(owner), owner.id), name=f"{owner.name}-agent", filename="a.onnx",
+            kind="onnx", sha256=uuid.uuid4().hex.ljust(64, "0"), size=1, max_attempts=1)
+        submission_id, validation_id = submission.id, validation.id
+    assert fairest_queued(league.sessions, limit=1) == [validation_id]  # before any re-evaluation
+    league.finish_job(validation_id, ValidationReport(True, 5, None, "validated in a test"))
+    return submission_id
+
+
+def queued_evaluation_jobs(league) -> dict[int, Job]:
+    """Queued evaluation jobs by submission id."""
+    with league.sessions() as session:
+        return {job.submission_id: job for job in session.scalars(
+            select(Job).where(Job.kind == EVALUATE, Job.status == QUEUED).order_by(Job.id))}
+
+
+@pytest.mark.parametrize("kind", ["sqlite", "postgres"])
+def test_a_settings_change_never_mixes_results_on_the_board_or_in_the_grades(kind, tmp_path):
+    """After a change the old results are stale, apart and unranked, at once (a long cache period);
+    the re-evaluations wait at low priority behind a student's new upload; as they finish the board
+    ranks them; the same settings again, or the old ones back, queue nothing for what has results."""
+    old = {"seed": 11, "episodes": 3, "env_options": {}}  # conftest.TEST_SETTINGS
+    new = {"seed": 9, "episodes": 7, "env_options": {"obstacles": False}}
+    with in_process_league(kind, tmp_path, bootstrap=False, public_cache_s=60, public_cache_max_age_s=60) as league:
+        with league.sessions.begin() as session:
+            course = crud.first_course(session)
+            baselines, _ = crud.create_user(session, name="baselines", role=BASELINE, course=None, with_token=False)
+            students = [crud.create_user(session, name=name, role=STUDENT, course=course)[0]
+                        for name in ("ann", "bob", "cy")]
+        owners = [baselines, *students]
+        agents = [validated(league, owner) for owner in owners]
+        for k, submission_id in enumerate(agents):  # evaluated with the old settings: the baseline 0/3, ..., cy 3/3
+            league.finish_job(queued_evaluation_jobs(league)[submission_id].id, evaluation_outcome(k, settings=old))
+        with league.client(league.instructor_token) as instructor:
+            board, grades = board_and_grades(league, instructor)
+            assert [(r["rank"], r["owner"], r["stale"]) for r in board] == \
+                [(1, "cy", False), (2, "bob", False), (3, "ann", False), (4, "baselines", False)]
+
+            changed = instructor.put("/api/settings/evaluation", json=new)
+            assert changed.status_code == 200, changed.text
+            assert changed.json() == {**new, "reevaluating": sorted(agents)}
+            board, grades = board_and_grades(league, instructor)
+            assert [(r["rank"], r["owner"], r["stale"], r["episodes"]) for r in board] == [  # by name, unranked
+                (None, "ann", True, 3), (None, "baselines", True, 3), (None, "bob", True, 3), (None, "cy", True, 3)]
+            assert [(g["student"], g["agent"] != "", g["stale"], g["rank"], g["completed"], g["mean_return"])
+                    for g in grades] == [(name, True, "yes", "", "", "") for name in ("ann", "bob", "cy")]
+            reevaluations = queued_evaluation_jobs(league)
+            assert sorted(reevaluations) == sorted(agents) and {j.priority for j in reevaluations.values()} == {LOW}
+            with league.sessions() as session:
+                assert crud.jobs_in_flight(session, owner_id=students[0].id) == 0  # no upload refused for them
+
+            # a student's new upload is validated and evaluated before any re-evaluation
+            late = validated(league, students[0])
+            assert fairest_queued(league.sessions, limit=1) == [queued_evaluation_jobs(league)[late].id]
+            league.finish_job(queued_evaluation_jobs(league)[late].id,
+                              evaluation_outcome(7, episodes=7, settings=new))
+            board, _ = board_and_grades(league, instructor)
+            assert [(r["rank"], r["owner"], r["submission_id"], r["stale"], r["episodes"]) for r in board] == [
+                (1, "ann", late, False, 7),  # ann's new agent, on the new tracks; her old one's result is not shown
+                (None, "baselines", agents[0], True, 3), (None, "bob", agents[2], True, 3),
+                (None, "cy", agents[3], True, 3)]
+
+            for k, submission_id in enumerate(agents):  # the re-evaluations finish: the baseline 6/7, ..., cy 3/7
+                league.finish_job(reevaluations[submission_id].id, evaluation_outcome(6 - k, episodes=7, settings=new))
+            board, grades = board_and_grades(league, instructor)
+            assert [(r["rank"], r["owner"], r["stale"], r["completed"], r["episodes"]) for r in board] == [
+                (1, "ann", False, 7, 7), (2, "baselines", False, 6, 7), (3, "bob", False, 4, 7), (4, "cy", False, 3, 7)]
+            assert [(g["rank"], g["student"], g["stale"], g["completed"]) for g in grades] == \
+                [("1", "ann", "", "7"), ("3", "bob", "", "4"), ("4", "cy", "", "3")]
+
+            assert instructor.put("/api/settings/evaluation", json=new).json()["reevaluating"] == []
+            back = instructor.put("/api/settings/evaluation", json=old).json()
+            assert back["reevaluating"] == [late]  # evaluated with the new settings only
+            assert list(queued_evaluation_jobs(league)) == [late]
+            board, _ = board_and_grades(league, instructor)
+            assert [(r["rank"], r["owner"], r["submission_id"], r["stale"]) for r in board] == [
+                (1, "cy", agents[3], False), (2, "bob", agents[2], False), (3, "ann", agents[1], False),
+                (4, "baselines", agents[0], False)]  # the old results count again, as they were
+
+
+@pytest.mark.parametrize("kind", ["sqlite", "postgres"])
+def test_queued_evaluations_take_the_new_settings_or_are_superseded(kind, tmp_path):
+    """An upload whose evaluation waits keeps its place and takes the new settings; a re-evaluation
+    still queued when the old settings come back is superseded: its result of them counts again."""
+    old = {"seed": 11, "episodes": 3, "env_options": {}}  # conftest.TEST_SETTINGS
+    new = {"seed": 4, "episodes": 5, "env_options": {}}
+    with in_process_league(kind, tmp_path, bootstrap=False) as league:
+        with league.sessions.begin() as session:
+            course = crud.first_course(session)
+            done, waiting = (crud.create_user(session, name=name, role=STUDENT, course=course)[0]
+                             for name in ("dee", "eve"))
+        evaluated = validated(league, done)
+        first = queued_evaluation_jobs(league)[evaluated]
+        league.finish_job(first.id, evaluation_outcome(2, settings=old))
+        uploaded = validated(league, waiting)
+        upload_job = queued_evaluation_jobs(league)[uploaded].id
+        with league.client(league.instructor_token) as instructor:
+            assert instructor.put("/api/settings/evaluation", json=new).json()["reevaluating"] == \
+                sorted([evaluated, uploaded])
+            jobs = queued_evaluation_jobs(league)
+            assert (jobs[uploaded].id, jobs[uploaded].priority, jobs[evaluated].priority) == (upload_job, 0, LOW)
+            assert instructor.get(f"/api/submissions/{uploaded}").json()["evaluation"]["settings"] == new
+
+            assert instructor.put("/api/settings/evaluation", json=old).json()["reevaluating"] == [uploaded]
+            assert list(queued_evaluation_jobs(league)) == [uploaded]  # the same job, the old settings again
+            assert queued_evaluation_jobs(league)[uploaded].id == upload_job
+            with league.sessions() as session:
+                superseded = session.get(Job, jobs[evaluated].id)
+            assert (superseded.status, superseded.error) == ("failed", SUPERSEDED)
+            shown = instructor.get(f"/api/submissions/{evaluated}").json()["evaluation"]
+            assert (shown["status"], shown["completed"], shown["stale"]) == ("done", 2, False)

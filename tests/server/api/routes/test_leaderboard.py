@@ -126,7 +126,7 @@ def test_the_grades_are_data_in_any_spreadsheet(app_league):
     assert isinstance(grades.pop("rank"), float)  # among the baselines other tests evaluated
     assert grades == {"student": ann.name, "agent": "fast;'=2+5;'=cmd|' /C calc'!A0", "submission_id": agent.id,
                       "completed": 2, "episodes": 3, "mean_return": 4.0, "mean_steps": 500.0, "mean_speed": 0.3,
-                      "rating": ""}
+                      "rating": "", "stale": ""}
 
 
 @pytest.mark.slow
@@ -158,12 +158,13 @@ def test_an_agent_stays_on_the_leaderboard_while_it_is_evaluated_again(tmp_path,
 
 def heat_outcome(race: dict, order: list[int]):
     """A heat's classification in the given order of submission ids, as the race job writes it."""
+    from league.evaluation import league_versions
     from league.server.jobs.race import RaceOutcome
 
     by_id = {entrant["submission_id"]: entrant for entrant in race["entrants"]}
     rows = [{"position": position, "car": f"car_{race['entrants'].index(by_id[i])}", **by_id[i], "outcome": "finished",
              "time": 10.0 + position, "distance": 100.0, "reason": None} for position, i in enumerate(order, start=1)]
-    return RaceOutcome(rows, {"classification": rows}, None, "")
+    return RaceOutcome(rows, {"classification": rows, "versions": league_versions()}, None, "")
 
 
 @pytest.mark.parametrize("kind", ["sqlite", "postgres"])
@@ -173,6 +174,7 @@ def test_colliding_ids_and_a_long_cache_period_every_change_shows_on_the_next_re
     next request, the rating column equal to the standings' as soon as the round is done."""
     from league.server.db import crud
     from league.server.db.models import BASELINE, READY, STUDENT, Job
+    from league.server.results import queue_evaluation
 
     from ..conftest import evaluation_outcome, in_process_league
 
@@ -188,8 +190,7 @@ def test_colliding_ids_and_a_long_cache_period_every_change_shows_on_the_next_re
                                                        kind="onnx", sha256=f"{k}".ljust(64, "0"), size=1,
                                                        max_attempts=1)
                 submission.status, submission.public, submission.obs_dim = READY, owner is baselines, 5
-                _, job = crud.create_evaluation(session, submission=submission, course=course,
-                                                settings=league.settings.default_evaluation(), max_attempts=1)
+                job = queue_evaluation(session, submission=submission, course=course, max_attempts=1)
                 submissions.append(submission)
                 jobs.append(job)
             session.flush()

@@ -14,6 +14,7 @@ from datetime import datetime, timedelta
 
 import pytest
 
+from league.evaluation import league_versions
 from league.server.db.models import REJECTED
 
 from ...conftest import BACKENDS, create_student, episodes, submission, upload, wait_settled
@@ -40,6 +41,7 @@ def test_upload_becomes_ready_with_the_figures_of_league_evaluate(league_server,
     evaluation = result["evaluation"]
     assert evaluation["status"] == "done", evaluation["error"]
     assert evaluation["settings"] == {"seed": SEED, "episodes": EPISODES, "env_options": {}}
+    assert evaluation["stale"] is False and evaluation["versions"] == league_versions()
     # what the student gets from `league evaluate` on the same seed: the same figures, to the last bit
     cli = subprocess.run([sys.executable, "-m", "league.cli", "evaluate", str(models[kind]), "--seed", str(SEED),
                           "--episodes", str(EPISODES), "--json", "--no-progress"],
@@ -52,6 +54,9 @@ def test_upload_becomes_ready_with_the_figures_of_league_evaluate(league_server,
     assert [{k: v for k, v in e.items() if k != "index"} for e in served] == local["episodes"]
     assert evaluation["completed"] == local["completed"] and evaluation["episodes_total"] == EPISODES
     assert (evaluation["mean_return"], evaluation["mean_speed"]) == (local["mean_return"], local["mean_speed"])
+    # what produced it, as the student's own run records it: compare the keys
+    assert (evaluation["result_key"], evaluation["versions"]) == (local["settings"]["result_key"],
+                                                                    local["settings"]["versions"])
     assert "network namespace" in evaluation["log"] or "network user-namespace" in evaluation["log"]
 
 
@@ -270,6 +275,7 @@ def test_the_status_answer_is_small_its_episodes_paged_and_pollers_get_304(app_l
     and does not grow with them; the link pages through all of them; an unchanged answer is 304."""
     from league.server.db import crud
     from league.server.db.models import Submission
+    from league.server.results import queue_evaluation
 
     owner, student = app_league.student("poller")
     ready = app_league.submission(owner, evaluated=False)
@@ -277,10 +283,7 @@ def test_the_status_answer_is_small_its_episodes_paged_and_pollers_get_304(app_l
         before = student.get(f"/api/submissions/{ready.id}")
         assert before.status_code == 200 and before.json()["links"] == {"episodes": None}
         with app_league.sessions.begin() as session:
-            _, job = crud.create_evaluation(session, submission=session.get(Submission, ready.id),
-                                            course=crud.first_course(session),
-                                            settings=app_league.settings.default_evaluation(), max_attempts=1)
-            job_id = job.id
+            job_id = queue_evaluation(session, submission=session.get(Submission, ready.id), max_attempts=1).id
         app_league.finish_job(job_id, evaluation_outcome(60, episodes=100))
         response = student.get(f"/api/submissions/{ready.id}")
         assert response.status_code == 200 and response.headers["cache-control"] == "private, no-cache"
@@ -317,6 +320,6 @@ def test_the_status_answer_is_small_its_episodes_paged_and_pollers_get_304(app_l
                               params={"evaluation_id": evaluation["id"] + 10_000})
         assert foreign.status_code == 404 and foreign.json() == {"detail": "no such evaluation of this submission"}
         with app_league.sessions() as session:
-            their_evaluation = crud.latest_evaluation(session, submission_id=theirs.id).id
+            their_evaluation = crud.latest_evaluation(session, submission_id=theirs.id, result_key=None).id
         mixed = student.get(f"/api/submissions/{ready.id}/episodes", params={"evaluation_id": their_evaluation})
         assert mixed.status_code == 404

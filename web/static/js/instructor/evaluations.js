@@ -19,7 +19,11 @@ export async function setUpEvaluations() {
     try {
       saved = await api("/api/settings/evaluation", { method: "PUT", json: body });
       showSettings(saved, options);
-      say($("settings-message"), "Saved. New submissions are evaluated with these settings; re-run the others to update them.", "success");
+      const again = saved.reevaluating.length;
+      say($("settings-message"), `Saved. ${again ? `${count(again, "submission")} will be evaluated again with these ` +
+        "settings, after the students' own uploads; until then their results show as stale." : "No submission needs " +
+        "evaluating again: each has a result of these settings."}`, "success");
+      submissionsPoller.poll();
     } catch (error) {
       say($("settings-message"), `Not saved: ${error.message}`, "error");
     }
@@ -96,7 +100,8 @@ function submissionRow(s, poller) {
     element("td", { className: "num", text: s.id }), element("td", { text: s.owner }),
     element("td", { text: s.name, attrs: { title: s.error || s.filename } }),
     element("td", {}, badge(s.status)),
-    element("td", {}, evaluation ? badge(evaluation.status) : element("span", { className: "muted", text: "–" })),
+    element("td", {}, ...(evaluation ? [badge(evaluation.status), evaluation.stale ? badge("stale") : null]
+      : [element("span", { className: "muted", text: "–" })])),
     element("td", { className: "num", text: done ? `${evaluation.completed}/${evaluation.episodes_total}` : "–" }),
     element("td", { className: "num", text: done ? number(evaluation.mean_return) : "–" }),
     element("td", {}, actions));

@@ -25,8 +25,11 @@ const standings = new SortableTable($("standings"), [
   { key: "rating", label: "Rating", numeric: true, better: "higher", render: ratingCell },
 ], { rowKey: (row) => row.submission_id, isOwn, emptyText: "No standings yet: no round has been run." });
 
+const STALE_TITLE = "Evaluated with other settings than the current ones: not ranked until it is evaluated again (queued).";
+
 const leaderboard = new SortableTable($("leaderboard"), [
-  { key: "rank", label: "Rank", numeric: true, better: "lower" },
+  { key: "rank", label: "Rank", numeric: true, better: "lower",
+    render: (row) => (row.stale ? element("span", { attrs: { title: STALE_TITLE } }, badge("stale")) : String(row.rank)) },
   { key: "owner", label: "Student" },
   { key: "name", label: "Agent", render: (row) => raceableName(row) },
   { key: "completed", label: "Laps completed", numeric: true, better: "higher", value: completionRate,
@@ -35,7 +38,7 @@ const leaderboard = new SortableTable($("leaderboard"), [
   { key: "mean_speed", label: "Mean speed", numeric: true, better: "higher", render: (row) => number(row.mean_speed, 3) },
   { key: "mean_steps", label: "Mean steps", numeric: true, render: (row) => number(row.mean_steps, 0) },
   { key: "rating", label: "Rating", numeric: true, better: "higher", render: (row) => number(row.rating, 2) },
-], { rowKey: (row) => row.submission_id, isOwn, emptyText: "No evaluated submissions yet." });
+], { rowKey: (row) => row.submission_id, isOwn, apart: (row) => row.stale, emptyText: "No evaluated submissions yet." });
 
 const standingsPager = new Pager($("standings-pager"), { size: PAGE_SIZE, label: "standings", onChange: refreshStandings });
 const leaderboardPager = new Pager($("leaderboard-pager"), { size: PAGE_SIZE, label: "the leaderboard", onChange: refreshLeaderboard });

@@ -96,6 +96,7 @@ function statusBadges(s) {
   if (s.status === "ready" && evaluation !== "done") {
     cell.append(badge(evaluation === "failed" ? "failed" : "running", evaluation === "failed" ? "evaluation failed" : "evaluating"));
   }
+  if (s.evaluation?.stale) cell.append(badge("stale"));
   return cell;
 }
 
@@ -161,6 +162,8 @@ async function renderEvaluation(s) {
   if (!evaluation || evaluation.status !== "done") {
     $("evaluation-summary").replaceChildren(evaluation ? badge(evaluation.status) : badge("queued"),
       evaluation?.status === "failed" ? "" : " The evaluation runs as soon as a worker is free; this page updates by itself.");
+    if (evaluation) showProvenance(evaluation);
+    else $("evaluation-provenance").textContent = "";
     $("chart-box").hidden = true;
     shownEvaluation = null;
     return;
@@ -170,6 +173,7 @@ async function renderEvaluation(s) {
   $("evaluation-summary").textContent = `Completed ${evaluation.completed} of ${evaluation.episodes_total} laps · ` +
     `mean return ${number(evaluation.mean_return)} · mean speed ${number(evaluation.mean_speed, 3)} · ` +
     `mean steps ${number(evaluation.mean_steps, 0)} (seed ${settings.seed}${options ? `, ${options}` : ""}).`;
+  showProvenance(evaluation);
   const key = `${evaluation.id}:${evaluation.status}`;
   if (key === shownEvaluation) return; // already drawn: no flicker on every poll
   const episodes = await allEpisodes(s.links.episodes, evaluation.episodes_total);
@@ -182,6 +186,15 @@ async function renderEvaluation(s) {
     element("td", { className: "num", text: e.steps }), element("td", { className: "num", text: number(e.return) }),
     element("td", { className: "num", text: number(e.mean_speed, 3) }),
     element("td", { text: e.reason && e.outcome === "dnf" ? `${outcomeText(e.outcome)}: ${e.reason}` : outcomeText(e.outcome) }))));
+}
+
+/** What produced the result, as `league evaluate` prints it: compare the result keys. */
+function showProvenance(evaluation) {
+  const versions = evaluation.versions;
+  $("evaluation-provenance").textContent = (versions ? `Simulator: physics ${versions.physics}, track format ` +
+    `${versions.track_format} (league ${versions.package}) · ` : "") + `result key ${evaluation.result_key}` +
+    (evaluation.stale ? " · stale: evaluated with other settings than the course's current ones, so it does not " +
+      "rank until it is evaluated again." : "");
 }
 
 /** The episodes behind a status answer's link (it carries none), fetched once per evaluation. */

@@ -1,0 +1,113 @@
+"""Which evaluation results count: those of the current settings.
+
+An evaluation's `result_key` (league.evaluation.result_key) names the settings and the simulator
+version that produced it. Boards and grades rank only results of the current key: the course's
+evaluation settings on this server's simulator. Any other result is stale, shown apart, until the
+submission is evaluated again; a change of the settings queues those re-evaluations at low priority.
+
+This module is the one home of "the current settings" (today a course's) and of what a change of
+them queues.
+"""
+from __future__ import annotations
+
+import hashlib
+import json
+import logging
+from dataclasses import dataclass, field
+from typing import Any
+
+from sqlalchemy.orm import Session
+
+from league.evaluation import result_key
+from league.server.db import crud
+from league.server.db.models import LOW, NORMAL, READY, Course, Job, Submission, User
+
+log = logging.getLogger("league.server.results")
+SUPERSEDED = "superseded: the evaluation settings changed before it ran, to settings its submission has an evaluation of"
+
+
+def settings_key(settings: dict[str, Any]) -> str:
+    """The result key of evaluation settings on this simulator. Settings the simulator refuses
+    (they fail every evaluation) get a key of their own text."""
+    try:
+        return result_key(settings["seed"], settings["episodes"], settings["env_options"])
+    except (TypeError, ValueError):
+        text = json.dumps(settings, sort_keys=True, default=str)
+        return hashlib.sha256(text.encode()).hexdigest()[:16]
+
+
+def evaluation_course(session: Session, owner: User) -> Course | None:
+    """The course whose settings evaluate a submission: its owner's, or the first course for the baselines."""
+    if owner.course is not None:
+        return owner.course
+    return crud.first_course(session)
+
+
+def current_key(course: Course | None) -> str | None:
+    """The key that results must have to count in the course (None: no course, nothing counts)."""
+    return None if course is None else settings_key(course.evaluation_settings())
+
+
+def owners_current_keys(session: Session, owners: list[User]) -> dict[int, str | None]:
+    """Each owner's current key, by user id: that of the course evaluating their submissions."""
+    courses = {owner.id: evaluation_course(session, owner) for owner in owners}
+    keys = {course.id: current_key(course) for course in courses.values() if course is not None}
+    return {owner_id: None if course is None else keys[course.id] for owner_id, course in courses.items()}
+
+
+def queue_evaluation(session: Session, *, submission: Submission, max_attempts: int, course: Course | None = None,
+                     priority: int = NORMAL) -> Job:
+    """A new evaluation with the course's current settings (by default the owner's course)."""
+    course = course or evaluation_course(session, submission.owner)
+    settings = course.evaluation_settings()
+    _, job = crud.create_evaluation(session, submission=submission, course=course, settings=settings,
+                                    result_key=settings_key(settings), max_attempts=max_attempts, priority=priority)
+    return job
+
+
+@dataclass
+class SettingsChange:
+    """What a change of the settings did to the queue (submission ids)."""
+
+    queued: list[Job] = field(default_factory=list)  # new re-evaluations, LOW priority: send them to the queue
+    retargeted: list[int] = field(default_factory=list)  # queued evaluations that take the new settings instead
+    superseded: list[int] = field(default_factory=list)  # queued evaluations no longer needed
+
+    @property
+    def reevaluated(self) -> list[int]:
+        return sorted([job.submission_id for job in self.queued] + self.retargeted)
+
+
+def change_settings(session: Session, *, course: Course, settings: dict[str, Any], max_attempts: int) -> SettingsChange:
+    """Give the course new evaluation settings and queue what they call for (in the caller's transaction).
+
+    Evaluations of the course still queued take the new settings (a new upload keeps its place in
+    the queue), unless their submission has a result of them already (they are superseded). Every
+    other ready submission of the course, and every baseline, without a result of the new settings
+    (done, running or queued) is queued for re-evaluation at LOW priority. Settings with the
+    current key (the same, perhaps written otherwise) queue nothing.
+    """
+    key, unchanged = settings_key(settings), settings_key(course.evaluation_settings())
+    crud.set_evaluation_settings(session, course=course, seed=settings["seed"], episodes=settings["episodes"],
+                                 env_options=settings["env_options"])
+    change = SettingsChange()
+    if key == unchanged:
+        return change
+    covered = crud.submissions_with_results(session, result_key=key)
+    for evaluation_id, submission_id, job_id in crud.queued_evaluations(session, course_id=course.id,
+                                                                         other_than=key):
+        if submission_id in covered:
+            if crud.supersede_evaluation(session, evaluation_id=evaluation_id, job_id=job_id, reason=SUPERSEDED):
+                change.superseded.append(submission_id)
+        elif crud.retarget_evaluation(session, evaluation_id=evaluation_id, settings=settings, result_key=key):
+            change.retargeted.append(submission_id)
+            covered.add(submission_id)
+    # each owner's newest submission first: the fair queue serves owners in turn, so every student's
+    # latest agent is back on the board before anyone's older ones
+    for submission in reversed(crud.course_submissions(session, course_id=course.id, status=READY)):
+        if submission.id not in covered:
+            change.queued.append(queue_evaluation(session, submission=submission, max_attempts=max_attempts,
+                                                  course=course, priority=LOW))
+    log.info("course %s: new evaluation settings %s; %d re-evaluations queued, %d queued evaluations retargeted, "
+             "%d superseded", course.name, key, len(change.queued), len(change.retargeted), len(change.superseded))
+    return change
