@@ -20,6 +20,19 @@ from league.constants import OUTCOMES
 
 cnp.import_array()
 
+cdef extern from "numpy/arrayobject.h":
+    object PyArray_Scalar(void* data, cnp.dtype descr, object base)
+
+cdef cnp.dtype FLOAT64 = np.dtype(np.float64)
+
+
+cdef inline object float64(double value):
+    """`numpy.float64(value)` without a Python call (infos are numpy scalars)."""
+    return PyArray_Scalar(&value, FLOAT64, None)
+
+
+OUTCOME_CODES = tuple(np.int64(code) for code in range(len(OUTCOMES)))  # info["outcome_code"]
+
 cdef enum:
     # Bits of a grid cell
     VALID = 1                    # a car may be here (road minus obstacles)
@@ -739,13 +752,18 @@ cdef class CarBatch:
         return out
 
     def info(self, int c):
-        """Car c's outcome, lap progress, time (s), distance and speed."""
+        """Car c's outcome (name and code), lap progress, time (s), distance and speed.
+
+        Numbers are numpy scalars: libraries read an info value's dtype (torchrl's info reader).
+        """
+        cdef int code = self.oc[c]
         return {
-            "outcome": OUTCOMES[self.oc[c]],
-            "progress": self.lap_progress(c),
-            "time": self.taken[c] * self.tstep,
-            "distance": self.ds[c],
-            "speed": self.vs[c],
+            "outcome": OUTCOMES[code],
+            "outcome_code": OUTCOME_CODES[code],
+            "progress": float64(self.lap_progress(c)),
+            "time": float64(self.taken[c] * self.tstep),
+            "distance": float64(self.ds[c]),
+            "speed": float64(self.vs[c]),
         }
 
 

@@ -13,7 +13,7 @@ import numpy as np
 from gymnasium.utils import seeding
 
 from league import lidar
-from league.constants import (  # noqa: F401 (FINISHED, MAX_ACC, MAX_TURN, RUNNING: re-exported for the envs)
+from league.constants import (  # noqa: F401 (FINISHED, MAX_ACC, MAX_TURN, OUTCOMES, RUNNING: re-exported for the envs)
     COMPACT_DIM, FINISHED, LIDAR_DIM, MAX_ACC, MAX_TURN, OUTCOMES, RUNNING, TSTEP, TURN_LIMIT_COEFF,
 )
 from league.track import CURVES, MAX_TRACK_WIDTH, N_OBSTACLES, TRACK_WIDTH, Track, generate_track
@@ -30,7 +30,6 @@ TSTEP_RANGE = (0.01, 0.2)  # seconds
 # Episode starts kept per process by `episode_start`. A track holds its 1300 x 1300 map
 # (1.69 MB) once a car has driven on it, so the cache holds at most ~220 MB.
 TRACK_CACHE_SIZE = 128
-OUTCOME_CODES = {name: code for code, name in enumerate(OUTCOMES)}  # numeric infos, the thesis' `completation`
 
 
 @dataclass(frozen=True)
