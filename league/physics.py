@@ -155,15 +155,16 @@ def start_cars(cars: lidar.CarBatch | None, n: int, track: Track, options: RaceO
     return cars
 
 
-def turn_bound(speed: float, acc: float, options: RaceOptions) -> float:
-    """The largest turn (rad) of a step from `speed` with acceleration action `acc` (SPEC 'Car').
+def turn_bound(cars: lidar.CarBatch, c: int, acc: float) -> float:
+    """The largest turn (rad) of car c's next step with acceleration action `acc` (SPEC 'Car'),
+    with the batch's physics numbers.
 
     The compiled core applies the same rule; the thesis' interface reports it as `max_turnrad`.
     """
-    new_speed = max(0.0, speed + min(1.0, max(-1.0, acc)) * MAX_ACC * options.tstep)
-    if options.turn_limit and new_speed > 0:
-        return min(MAX_TURN, TURN_LIMIT_COEFF * options.tstep / new_speed)
-    return MAX_TURN
+    new_speed = max(0.0, float(cars.speed[c]) + min(1.0, max(-1.0, acc)) * cars.max_acc * cars.tstep)
+    if cars.turn_limit and new_speed > 0:
+        return min(cars.max_turn, TURN_LIMIT_COEFF * cars.tstep / new_speed)
+    return cars.max_turn
 
 
 def place_car(cars: lidar.CarBatch, c: int, track: Track, speed: float) -> None:
