@@ -250,7 +250,9 @@ def main(argv: Sequence[str] | None = None) -> int:
         try:
             status = _run(argv)
         except SystemExit as done:  # argparse: --help, or a mistake in the command line
-            status = done.code if isinstance(done.code, int) else 0 if done.code is None else EXIT_ERROR
+            if not isinstance(done.code, (int, type(None))):
+                raise  # a message for Python to print
+            status = done.code or 0
         sys.stdout.flush()  # what is left goes out here, where a closed pipe can still be handled
         return status
     except BrokenPipeError as error:
