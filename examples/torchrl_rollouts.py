@@ -1,7 +1,7 @@
-"""torchrl: rollouts of the single-car env (GymEnv) and of a multi-car race (PettingZooWrapper).
+"""torchrl: rollouts of single-car envs in worker processes (GymEnv) and of a multi-car race (PettingZooWrapper).
 
     pip install "torch==2.13.0" "microracer-league[rl]"
-    python examples/torchrl_rollouts.py --steps 1000
+    python examples/torchrl_rollouts.py --steps 1000 --envs 3
 
 The policy is SPEC's heuristic driver as a TensorDictModule; put your torch network in its place.
 """
@@ -24,12 +24,18 @@ def heuristic(observation: torch.Tensor) -> torch.Tensor:
     return torch.as_tensor(heuristic_actions(flat)).reshape(*observation.shape[:-1], 2)
 
 
-def single_car(steps: int, seed: int) -> None:
-    env = GymEnv("league/MicroRacer-v0")  # the registry's 4000-step TimeLimit applies
+def single_cars(steps: int, seed: int, num_envs: int = 3) -> None:
+    # num_envs: that many envs in worker processes, each a fresh interpreter: the "league:" prefix
+    # makes Gymnasium import league there. numeric_infos: torchrl makes a tensor of every info
+    # value, so the outcome's name stays out (its code, "outcome_code", is in).
+    env = GymEnv("league:league/MicroRacer-v0", num_envs=num_envs, numeric_infos=True)  # 4000-step limit
     env.set_seed(seed)
     policy = TensorDictModule(heuristic, in_keys=["observation"], out_keys=["action"])
-    rollout = env.rollout(steps, policy)  # stops at the end of the episode
-    print(f"GymEnv: {rollout.shape[0]} steps, return {rollout['next', 'reward'].sum().item():.2f}")
+    rollout = env.rollout(steps, policy)  # stops when an episode ends
+    env.close()
+    returns = ", ".join(f"{r:.2f}" for r in rollout["next", "reward"].sum(dim=(1, 2)).tolist())
+    print(f"GymEnv: {num_envs} cars, {rollout.shape[1]} steps, returns {returns}, "
+          f"progress {rollout['next', 'progress'][:, -1].tolist()}")
 
 
 def race(steps: int, seed: int, n_cars: int = 3) -> None:
@@ -49,8 +55,9 @@ def main(argv: list[str] | None = None) -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--steps", type=int, default=1000, help="longest rollout")
     parser.add_argument("--seed", type=int, default=0)
+    parser.add_argument("--envs", type=int, default=3, help="single-car envs, each in a worker process")
     args = parser.parse_args(argv)
-    single_car(args.steps, args.seed)
+    single_cars(args.steps, args.seed, args.envs)
     race(args.steps, args.seed)
 
 

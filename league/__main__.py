@@ -1,4 +1,6 @@
 """`python -m league` is the `league` command."""
+import sys
+
 from league.cli import main
 
-main()
+sys.exit(main())

@@ -7,7 +7,8 @@
     league check model.onnx && league submit model.onnx --wait      (a league server: league login)
 
 Errors print one line saying what went wrong and what to do, and exit with status 2
-(``LEAGUE_DEBUG=1`` shows the traceback). The server adds its own commands
+(``LEAGUE_DEBUG=1`` shows the traceback). Output into a pipe whose reader quit (``league ... |
+head``) ends the command quietly, with status 141 as SIGPIPE would. The server adds its own commands
 (``serve``, ``worker``, ``users``) through ``league.server.cli.add_commands``.
 """
 from __future__ import annotations
@@ -19,6 +20,7 @@ import sys
 from typing import Sequence
 
 EXIT_ERROR = 2
+EXIT_CLOSED_PIPE = 128 + 13  # as a command that SIGPIPE ended: the reader of its output had quit
 ENV_SWITCHES = {  # option -> what --no-OPTION does
     "obstacles": "no obstacles on the track",
     "chicanes": "no chicane on the track",
@@ -244,18 +246,54 @@ class UsageError(Exception):
 
 def main(argv: Sequence[str] | None = None) -> int:
     """Entry point of the ``league`` console script; returns the exit status."""
-    parser = build_parser()
-    args = parser.parse_args(argv)
+    try:
+        try:
+            status = _run(argv)
+        except SystemExit as done:  # argparse: --help, or a mistake in the command line
+            if not isinstance(done.code, (int, type(None))):
+                raise  # a message for Python to print
+            status = done.code or 0
+        sys.stdout.flush()  # what is left goes out here, where a closed pipe can still be handled
+        return status
+    except BrokenPipeError as error:
+        if not reader_gone(sys.stdout):  # another pipe (a sandbox's, say) broke: an error like any other
+            return _report(error)
+        # `league ... | head`: the reader has what it wanted. The interpreter's last flush goes nowhere.
+        os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
+        return EXIT_CLOSED_PIPE
+
+
+def _run(argv: Sequence[str] | None) -> int:
+    args = build_parser().parse_args(argv)
     try:
         return args.run(args)
     except KeyboardInterrupt:
         print("league: interrupted", file=sys.stderr)
         return 130
+    except BrokenPipeError:
+        raise
     except Exception as error:  # one line for the user, never a traceback (unless LEAGUE_DEBUG)
-        if os.environ.get("LEAGUE_DEBUG"):
-            raise
-        print(f"league: error: {_describe(error)}", file=sys.stderr)
-        return getattr(error, "exit_code", EXIT_ERROR)  # the server client's codes: league/client.py
+        return _report(error)
+
+
+def _report(error: Exception) -> int:
+    if os.environ.get("LEAGUE_DEBUG"):
+        raise error
+    print(f"league: error: {_describe(error)}", file=sys.stderr)
+    return getattr(error, "exit_code", EXIT_ERROR)  # the server client's codes: league/client.py
+
+
+def reader_gone(stream) -> bool:
+    """Whether the pipe `stream` writes to has lost its reader (`league ... | head` once head quit):
+    poll reports an error on such a pipe; never on a terminal or a file."""
+    import select
+
+    try:
+        poller = select.poll()  # not on Windows: there a broken pipe is reported as an error
+        poller.register(stream.fileno(), select.POLLOUT)
+    except (AttributeError, OSError, ValueError):
+        return False
+    return any(events & select.POLLERR for _, events in poller.poll(0))
 
 
 def _describe(error: Exception) -> str:

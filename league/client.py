@@ -11,13 +11,16 @@ from __future__ import annotations
 
 import argparse
 import json
+import logging
 import os
 import sys
 import time
+from contextlib import contextmanager
 from dataclasses import dataclass, replace
 from pathlib import Path
 
 from league.spreadsheet import csv_text
+from league.cli import EXIT_CLOSED_PIPE
 
 # Exit codes a script can test (also in `league submit --help`).
 EXIT_OK, EXIT_REJECTED, EXIT_USAGE, EXIT_AUTH, EXIT_REFUSED, EXIT_UNREACHABLE, EXIT_TIMEOUT = 0, 1, 2, 3, 4, 5, 6
@@ -25,10 +28,11 @@ EXIT_CODES = f"""exit codes:
   {EXIT_OK}  done (submit --wait: ready and evaluated; check: the server would accept the file)
   {EXIT_REJECTED}  the model was rejected (by the check or the server), or its evaluation failed
   {EXIT_USAGE}  a mistake in the command, or a local problem (missing file, no server configured)
-  {EXIT_AUTH}  the server refused the token (missing, wrong or revoked), or the action is not yours
+  {EXIT_AUTH}  the server refused the token (missing, replaced, wrong or revoked), or the action is not yours
   {EXIT_REFUSED}  the server refused the request: quota, jobs in flight, file size or type, ...
   {EXIT_UNREACHABLE}  the server cannot be reached or failed
-  {EXIT_TIMEOUT}  --wait gave up before the submission was settled"""
+  {EXIT_TIMEOUT}  --wait gave up before the submission was settled
+  {EXIT_CLOSED_PIPE}  the output's reader quit (`league submissions | head`), as for any command SIGPIPE ends"""
 TERMINAL = {"ready", "rejected", "failed"}
 STAGES = ["pending", "validating", "ready", "evaluation queued", "evaluation running", "done"]
 
@@ -113,7 +117,10 @@ class Api:
         if response.is_success:
             return response.json() if "json" in response.headers.get("content-type", "") else response.text
         detail = _detail(response)
-        if response.status_code in (401, 403):
+        if response.status_code == 401:  # the server says why (replaced, revoked) and whom to ask
+            raise ClientError(f"the server refused the token: {detail}; once you have a new one: "
+                              f"league login --server {self.conn.server}", EXIT_AUTH)
+        if response.status_code == 403:
             raise ClientError(f"the server refused: {detail}", EXIT_AUTH)
         if response.status_code >= 500:
             raise ClientError(f"the server failed ({response.status_code}): {detail}", EXIT_UNREACHABLE)
@@ -167,7 +174,28 @@ def check_files(paths: list[Path], api: Api | None = None):
                    f"unsupported file type {path.suffix or '(none)'!r}: upload an .onnx or a TorchScript .pt file"
                    if kind is None else
                    f"file too large: the limit is {max_bytes / 2**20:g} MB" if size > max_bytes else None)
-        yield path, (ValidationReport(False, None, refusal, "") if refusal else validate_model(path, kind, limits)), limits
+        if refusal:
+            yield path, ValidationReport(False, None, refusal, ""), limits
+            continue
+        with sandbox_notes_unsaid():
+            report = validate_model(path, kind, limits)
+        yield path, report, limits
+
+
+@contextmanager
+def sandbox_notes_unsaid():
+    """Keep the sandbox's notes on this machine's isolation (for a server's operator: that as root
+    its sandboxes keep root's user id, say) off a student's terminal: the check runs isolated as
+    far as this machine allows, and its verdict does not depend on it."""
+    notes = logging.getLogger("league.server.sandbox")
+    propagate, notes.propagate = notes.propagate, False
+    quiet = logging.NullHandler()  # a handler: Python's last-resort one, which prints, stays out
+    notes.addHandler(quiet)
+    try:
+        yield
+    finally:
+        notes.removeHandler(quiet)
+        notes.propagate = propagate
 
 
 def check_report(path: Path, report, limits) -> str:
@@ -175,9 +203,7 @@ def check_report(path: Path, report, limits) -> str:
     if report.ok:
         return (f"{path.name}: the server would accept it: observation size {report.obs_dim}, "
                 f"{report.cpu_ms_per_observation:.2f} ms of CPU per observation ({budget})")
-    timing = (f" ({report.cpu_ms_per_observation:.2f} ms of CPU per observation, {budget})"
-              if report.cpu_ms_per_observation else "")
-    return f"{path.name}: the server would reject it: {report.error}{timing}"
+    return f"{path.name}: the server would reject it: {report.error}"  # a timing's figures are in it
 
 
 def run_check(args: argparse.Namespace) -> int:
@@ -274,17 +300,21 @@ def settled(submission: dict) -> bool:
 
 
 def wait_settled(api: Api, submission_id: int, timeout: float, progress: bool = True) -> dict:
-    """Poll the submission until validated and evaluated, with a bar of its stages."""
+    """Poll the submission until validated and evaluated, with a bar of its stages (it counts
+    stages, not episodes: the server tells an evaluation's figures when it is done)."""
     from tqdm import tqdm
 
     deadline = time.monotonic() + timeout
-    with tqdm(total=len(STAGES) - 1, disable=not progress, file=sys.stderr, bar_format="{desc} {bar} {n}/{total}") as bar:
+    with tqdm(total=len(STAGES), disable=not progress, file=sys.stderr,
+              bar_format="{desc} {bar} stage {n}/{total}") as bar:
         while True:
             submission = api.get(f"/api/submissions/{submission_id}")
             now = stage(submission)
-            bar.set_description_str(f"submission {submission_id}: {now}")
+            episodes = (submission.get("evaluation") or {}).get("settings", {}).get("episodes")
+            bar.set_description_str(f"submission {submission_id}: {now}"
+                                    + (f" ({episodes} episodes)" if now.startswith("evaluation") and episodes else ""))
             if now in STAGES:
-                bar.update(STAGES.index(now) - bar.n)
+                bar.update(STAGES.index(now) + 1 - bar.n)
             if settled(submission):
                 return submission
             if time.monotonic() > deadline:
@@ -347,14 +377,31 @@ def run_leaderboard(args: argparse.Namespace) -> int:
 
 def run_standings(args: argparse.Namespace) -> int:
     with Api(connection(args, need_token=args.csv)) as api:
+        championship = championship_id(api, args.championship)
         if args.csv:  # instructors: the grades
-            sys.stdout.write(api.get(f"/api/championships/{args.championship}/standings.csv"))
+            sys.stdout.write(api.get(f"/api/championships/{championship}/standings.csv"))
             return EXIT_OK
-        rows = api.get(f"/api/championships/{args.championship}/standings", size=100)["items"]
+        rows = api.get(f"/api/championships/{championship}/standings", size=100)["items"]
     _print_table(["rank", "student", "agent", "id", "points", "wins", "heats", "rating"],
                  [[r["rank"], r["owner"], r["name"], r["submission_id"], r["points"], r["wins"], len(r["finishes"]),
                    f"{r['rating']:.2f}"] for r in rows], False)
     return EXIT_OK
+
+
+def championship_id(api: Api, wanted: str) -> int:
+    """The id of the championship `wanted` names: its id (digits) or its name (any case)."""
+    if wanted.isdigit():
+        return int(wanted)
+    championships = api.get("/api/championships")
+    found = [c for c in championships if c["name"] == wanted] or [
+        c for c in championships if c["name"].casefold() == wanted.casefold()]
+    if len(found) == 1:
+        return found[0]["id"]
+    listing = ", ".join(f"{c['id']} ({c['name']})" for c in championships) or "none yet"
+    if found:
+        raise ClientError(f"{len(found)} championships are named {wanted!r}: give the id of one of "
+                          f"{', '.join(str(c['id']) for c in found)}", EXIT_USAGE)
+    raise ClientError(f"no championship named {wanted!r}; the championships: {listing}", EXIT_USAGE)
 
 
 def run_race_server(args: argparse.Namespace) -> int:
@@ -436,7 +483,8 @@ def add_commands(subparsers) -> None:
     board.add_argument("--csv", action="store_true", help="instructors: the grades, as CSV")
 
     standings = command("standings", "print a championship's standings", run_standings)
-    standings.add_argument("championship", type=int, metavar="CHAMPIONSHIP", help="the championship's id")
+    standings.add_argument("championship", metavar="CHAMPIONSHIP",
+                           help="the championship's name (quoted if it has spaces) or its id")
     standings.add_argument("--csv", action="store_true", help="instructors: the grades, as CSV")
 
     race = command("race-server", "race submissions on the server (a friendly race) and print the classification",

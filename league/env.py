@@ -5,7 +5,7 @@ import gymnasium as gym
 import numpy as np
 from gymnasium import spaces
 
-from league.physics import MAX_TURN, OUTCOME_CODES, RUNNING, RaceOptions, as_actions, start_cars
+from league.physics import MAX_TURN, RUNNING, RaceOptions, as_actions, start_cars
 from league.render import FRAME_SHAPE
 from league.track import Track
 
@@ -23,10 +23,12 @@ def observation_space(observation: str) -> spaces.Box:
     return spaces.Box(low, high, dtype=np.float32)
 
 
-def env_info(cars, i: int) -> dict:
-    """Car i's info: the same keys and types every step, numbers beside the outcome's name."""
+def env_info(cars, i: int, numeric: bool = False) -> dict:
+    """Car i's info: the same keys and types every step, numpy numbers beside the outcome's name
+    (left out when `numeric`, for libraries that make a tensor of every info value)."""
     info = cars.info(i)
-    info["outcome_code"] = OUTCOME_CODES[info["outcome"]]  # a dict lookup: cheaper than reading the array
+    if numeric:
+        del info["outcome"]
     return info
 
 
@@ -69,8 +71,10 @@ class MicroRacerEnv(gym.Env):
     ## Info
     The same keys and types at every step: "outcome" says why the episode ended ("running",
     "finished", "off_road", "wrong_direction", "too_slow") and "outcome_code" is its index in
-    `league.physics.OUTCOMES` (0 to 4, the thesis' `completation` codes); "progress" (lap
-    fraction), "time" (s), "distance" and "speed".
+    `league.physics.OUTCOMES` (0 to 4, the thesis' `completation` codes, a `numpy.int64`);
+    "progress" (lap fraction), "time" (s), "distance" and "speed" (`numpy.float64`).
+    `numeric_infos=True` leaves out the "outcome" string, for libraries that make a tensor of
+    every info value (torchrl's `GymEnv`, whose `num_envs=N` runs N of these envs).
 
     ## Rendering
     `render_mode="rgb_array"` returns uint8 frames of one fixed shape, `metadata["render_frame_shape"]`
@@ -81,7 +85,8 @@ class MicroRacerEnv(gym.Env):
     ```python
     gymnasium.make("league/MicroRacer-v0", obstacles=True, chicanes=True, turn_limit=True,
                    low_speed_termination=True, observation="compact", curves=20,
-                   track_width=0.04, n_obstacles=6, tstep=0.04, max_episode_steps=4000)
+                   track_width=0.04, n_obstacles=6, tstep=0.04, max_episode_steps=4000,
+                   numeric_infos=False)
     ```
     An unknown argument raises Python's own `TypeError` ("got an unexpected keyword argument").
     `reset(options={"track": track})` races on a given `league.track.Track` instead of a new
@@ -96,11 +101,12 @@ class MicroRacerEnv(gym.Env):
 
     metadata = {"render_modes": ["human", "rgb_array"], "render_fps": 25, "render_frame_shape": FRAME_SHAPE}
 
-    def __init__(self, render_mode: str | None = None, **options):
+    def __init__(self, render_mode: str | None = None, numeric_infos: bool = False, **options):
         self.options = RaceOptions.from_kwargs("MicroRacerEnv.__init__", **options)
         if render_mode is not None and render_mode not in self.metadata["render_modes"]:
             raise ValueError(f"render_mode must be one of {self.metadata['render_modes']} or None, got {render_mode!r}")
         self.render_mode = render_mode
+        self.numeric_infos = numeric_infos
         self.action_space = action_space()
         self.observation_space = observation_space(self.options.observation)
         self.cars = None  # league.lidar.CarBatch of one car, made at reset
@@ -116,7 +122,7 @@ class MicroRacerEnv(gym.Env):
         speed = self.options.initial_speed(self.np_random) if speed is None else float(speed)
         self.cars = start_cars(self.cars, 1, self.track, self.options, speed)
         self._trail = [self.track.start_position]
-        return self.cars.observation(0), env_info(self.cars, 0)
+        return self.cars.observation(0), env_info(self.cars, 0, self.numeric_infos)
 
     def step(self, action):
         cars = self.cars
@@ -135,7 +141,8 @@ class MicroRacerEnv(gym.Env):
                 self.render()
         limit = self.options.max_episode_steps
         truncated = outcome == RUNNING and limit is not None and cars.steps >= limit
-        return cars.observation(0), cars.reward[0].item(), outcome != RUNNING, truncated, env_info(cars, 0)
+        return (cars.observation(0), cars.reward[0].item(), outcome != RUNNING, truncated,
+                env_info(cars, 0, self.numeric_infos))
 
     def render(self):
         from league import render

@@ -20,6 +20,19 @@ from league.constants import OUTCOMES
 
 cnp.import_array()
 
+cdef extern from "numpy/arrayobject.h":
+    object PyArray_Scalar(void* data, cnp.dtype descr, object base)
+
+cdef cnp.dtype FLOAT64 = np.dtype(np.float64)
+
+
+cdef inline object float64(double value):
+    """`numpy.float64(value)` without a Python call (infos are numpy scalars)."""
+    return PyArray_Scalar(&value, FLOAT64, None)
+
+
+OUTCOME_CODES = tuple(np.int64(code) for code in range(len(OUTCOMES)))  # info["outcome_code"]
+
 cdef enum:
     # Bits of a grid cell
     VALID = 1                    # a car may be here (road minus obstacles)
@@ -513,13 +526,15 @@ cdef class CarBatch:
 
     `reset` puts every car at one start on one grid; `place` starts car c's own episode on its
     grid. Arrays are exposed read-only-by-convention to Python (positions for rendering and
-    replays, outcomes, observations); all per-step bookkeeping happens here in C.
+    replays, outcomes, observations); all per-step bookkeeping happens here in C. The physics
+    numbers may change between steps (the thesis' writable `Racer.tstep`, `Racer.max_acc`...).
     """
     cdef readonly cnp.ndarray x, y, heading, speed, theta, outcome, rays, obs, reward
     cdef readonly cnp.ndarray distance, finish_time, steps_taken
     cdef readonly list grids  # each car's track grid (None before it starts)
-    cdef readonly double tstep
-    cdef readonly bint turn_limit, low_speed_termination, compact
+    cdef public double tstep, max_acc, max_turn
+    cdef public bint turn_limit, low_speed_termination
+    cdef readonly bint compact
     cdef readonly int n, obs_dim
     cdef readonly long steps  # step calls since the last `reset`
     cdef const unsigned char** gs
@@ -546,9 +561,10 @@ cdef class CarBatch:
     def __dealloc__(self):
         free(self.gs)
 
-    def __init__(self, int n, *, double tstep, bint turn_limit, bint low_speed_termination, bint compact):
+    def __init__(self, int n, *, double tstep, bint turn_limit, bint low_speed_termination, bint compact,
+                 double max_acc=MAX_ACC, double max_turn=MAX_TURN):
         self.n = n
-        self.tstep = tstep
+        self.tstep, self.max_acc, self.max_turn = tstep, max_acc, max_turn
         self.turn_limit, self.low_speed_termination, self.compact = turn_limit, low_speed_termination, compact
         self.obs_dim = COMPACT_DIM if compact else LIDAR_DIM
         self.grids = [None] * n
@@ -587,6 +603,13 @@ cdef class CarBatch:
         cdef const unsigned char* g = grid_data(grid)
         self.grids[c] = grid
         self.start(c, g, x, y, heading, speed, False)
+
+    def set_grid(self, int c, grid):
+        """Car c drives on another track grid from its next step, from where it stands."""
+        if not 0 <= c < self.n:
+            raise IndexError(f"car {c} is not in a batch of {self.n}")
+        self.gs[c] = grid_data(grid)
+        self.grids[c] = grid
 
     cdef void start(self, int c, const unsigned char* g, double x, double y, double heading, double speed,
                     bint copy_first_rays):
@@ -664,10 +687,10 @@ cdef class CarBatch:
         cdef const unsigned char* g = self.gs[c]
         acc = min(1.0, max(-1.0, acc))
         turn = min(1.0, max(-1.0, turn))
-        v = max(0.0, self.vs[c] + acc * MAX_ACC * self.tstep)
-        bound = MAX_TURN
+        v = max(0.0, self.vs[c] + acc * self.max_acc * self.tstep)
+        bound = self.max_turn
         if self.turn_limit and v > 0:
-            bound = min(MAX_TURN, TURN_LIMIT_COEFF * self.tstep / v)
+            bound = min(self.max_turn, TURN_LIMIT_COEFF * self.tstep / v)
         h = self.hs[c] - turn * bound
         nx = self.xs[c] + v * cos(h) * self.tstep
         ny = self.ys[c] + v * sin(h) * self.tstep
@@ -695,8 +718,8 @@ cdef class CarBatch:
         write_observation(self.ry + c * N_RAYS, v, self.compact, self.ob + c * self.obs_dim)
 
     def __reduce__(self):
-        options = dict(tstep=self.tstep, turn_limit=self.turn_limit,
-                       low_speed_termination=self.low_speed_termination, compact=self.compact)
+        options = dict(tstep=self.tstep, turn_limit=self.turn_limit, low_speed_termination=self.low_speed_termination,
+                       compact=self.compact, max_acc=self.max_acc, max_turn=self.max_turn)
         state = {name: getattr(self, name).copy() for name in STATE_ARRAYS}
         state["steps"] = self.steps
         return (_restore_car_batch, (self.n, options, self.grids, state))
@@ -739,13 +762,18 @@ cdef class CarBatch:
         return out
 
     def info(self, int c):
-        """Car c's outcome, lap progress, time (s), distance and speed."""
+        """Car c's outcome (name and code), lap progress, time (s), distance and speed.
+
+        Numbers are numpy scalars: libraries read an info value's dtype (torchrl's info reader).
+        """
+        cdef int code = self.oc[c]
         return {
-            "outcome": OUTCOMES[self.oc[c]],
-            "progress": self.lap_progress(c),
-            "time": self.taken[c] * self.tstep,
-            "distance": self.ds[c],
-            "speed": self.vs[c],
+            "outcome": OUTCOMES[code],
+            "outcome_code": OUTCOME_CODES[code],
+            "progress": float64(self.lap_progress(c)),
+            "time": float64(self.taken[c] * self.tstep),
+            "distance": float64(self.ds[c]),
+            "speed": float64(self.vs[c]),
         }
 
 

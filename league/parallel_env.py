@@ -39,8 +39,8 @@ class MicroRacerParallelEnv(ParallelEnv):
     "progress", "time", "distance", "speed", "position" (1-based finishing order) and
     "finish_time" (s), both 0 until the car finishes; the finish time is interpolated inside the
     step in which the car crossed the line, so cars finishing in the same step are ordered.
-    `numeric_infos=True` leaves out the "outcome" string, for libraries that turn every info
-    value into a tensor (torchrl's `PettingZooWrapper`).
+    Numbers are numpy scalars. `numeric_infos=True` leaves out the "outcome" string, for
+    libraries that turn every info value into a tensor (torchrl's `PettingZooWrapper`).
 
     ## Batched interface
     `step_arrays(actions)` takes a float32 `(n_cars, 2)` array and returns arrays
@@ -50,17 +50,25 @@ class MicroRacerParallelEnv(ParallelEnv):
     ```python
     league.parallel_env(n_cars=4, render_mode=None, numeric_infos=False, **options)  # options as league/MicroRacer-v0
     ```
+    `max_cycles=N` (PettingZoo's name, as its `max_cycles_test` passes it) is `max_episode_steps=N`:
+    a car still running after N steps is truncated.
     Rendering and frames as `league/MicroRacer-v0` (`metadata["render_frame_shape"]`).
     """
 
     metadata = {"name": "microracer_v0", "render_modes": ["human", "rgb_array"], "render_fps": 25,
                 "is_parallelizable": True, "render_frame_shape": FRAME_SHAPE}
 
-    def __init__(self, n_cars: int = 4, render_mode: str | None = None, numeric_infos: bool = False, **options):
+    def __init__(self, n_cars: int = 4, render_mode: str | None = None, numeric_infos: bool = False,
+                 max_cycles: int | None = None, **options):
         if not isinstance(n_cars, (int, np.integer)) or n_cars < 1:
             raise ValueError(f"n_cars must be an integer >= 1, got {n_cars!r}")
         if render_mode is not None and render_mode not in self.metadata["render_modes"]:
             raise ValueError(f"render_mode must be one of {self.metadata['render_modes']} or None, got {render_mode!r}")
+        if max_cycles is not None:
+            if "max_episode_steps" in options:
+                raise TypeError("give max_cycles (PettingZoo's name) or max_episode_steps, not both: they are "
+                                "the same episode limit")
+            options["max_episode_steps"] = max_cycles
         self.options = RaceOptions.from_kwargs("parallel_env", **options)
         self.render_mode = render_mode
         self.numeric_infos = numeric_infos
@@ -166,15 +174,12 @@ class MicroRacerParallelEnv(ParallelEnv):
 
     def _infos(self, index: dict[str, int]) -> dict[str, dict]:
         """Infos of the cars in `index` (agent -> car), with the same keys at every step."""
-        positions = self.position.tolist()
         # 0 until a car finishes (not NaN: NaN != NaN breaks equality checks such as PettingZoo's seed test)
-        finish_times = np.where(self.position > 0, self.cars.finish_time, 0.0).tolist()
+        finish_times = np.where(self.position > 0, self.cars.finish_time, 0.0)
         infos = {}
         for agent, i in index.items():
-            info = infos[agent] = env_info(self.cars, i)
-            info["position"], info["finish_time"] = positions[i], finish_times[i]
-            if self.numeric_infos:
-                del info["outcome"]
+            info = infos[agent] = env_info(self.cars, i, self.numeric_infos)
+            info["position"], info["finish_time"] = self.position[i], finish_times[i]  # numpy scalars
         return infos
 
     def car_states(self) -> dict[str, np.ndarray]:

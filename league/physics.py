@@ -13,7 +13,7 @@ import numpy as np
 from gymnasium.utils import seeding
 
 from league import lidar
-from league.constants import (  # noqa: F401 (FINISHED, MAX_ACC, MAX_TURN, RUNNING: re-exported for the envs)
+from league.constants import (  # noqa: F401 (FINISHED, MAX_ACC, MAX_TURN, OUTCOMES, RUNNING: re-exported for the envs)
     COMPACT_DIM, FINISHED, LIDAR_DIM, MAX_ACC, MAX_TURN, OUTCOMES, RUNNING, TSTEP, TURN_LIMIT_COEFF,
 )
 from league.track import (
@@ -31,7 +31,6 @@ TSTEP_RANGE = (0.01, 0.2)  # seconds
 # Episode starts kept per process by `episode_start`. A track holds its 1300 x 1300 map
 # (1.69 MB) once a car has driven on it, so the cache holds at most ~220 MB.
 TRACK_CACHE_SIZE = 128
-OUTCOME_CODES = {name: code for code, name in enumerate(OUTCOMES)}  # numeric infos, the thesis' `completation`
 
 
 @dataclass(frozen=True)
@@ -157,15 +156,16 @@ def start_cars(cars: lidar.CarBatch | None, n: int, track: Track, options: RaceO
     return cars
 
 
-def turn_bound(speed: float, acc: float, options: RaceOptions) -> float:
-    """The largest turn (rad) of a step from `speed` with acceleration action `acc` (SPEC 'Car').
+def turn_bound(cars: lidar.CarBatch, c: int, acc: float) -> float:
+    """The largest turn (rad) of car c's next step with acceleration action `acc` (SPEC 'Car'),
+    with the batch's physics numbers.
 
     The compiled core applies the same rule; the thesis' interface reports it as `max_turnrad`.
     """
-    new_speed = max(0.0, speed + min(1.0, max(-1.0, acc)) * MAX_ACC * options.tstep)
-    if options.turn_limit and new_speed > 0:
-        return min(MAX_TURN, TURN_LIMIT_COEFF * options.tstep / new_speed)
-    return MAX_TURN
+    new_speed = max(0.0, float(cars.speed[c]) + min(1.0, max(-1.0, acc)) * cars.max_acc * cars.tstep)
+    if cars.turn_limit and new_speed > 0:
+        return min(cars.max_turn, TURN_LIMIT_COEFF * cars.tstep / new_speed)
+    return cars.max_turn
 
 
 def place_car(cars: lidar.CarBatch, c: int, track: Track, speed: float) -> None:

@@ -255,6 +255,19 @@ def cell_of(x, y):
     return int(x * CELLS_PER_UNIT) + ORIGIN, int(y * CELLS_PER_UNIT) + ORIGIN
 
 
+def grid_of_map(valid: np.ndarray, road: np.ndarray) -> np.ndarray:
+    """The grid map (as `Track.grid`) of a bool map of the cells a car may occupy: FREE where
+    the cell and its 4 neighbours are valid (none beyond the edge), ROAD from `road` (drawing only)."""
+    valid = np.asarray(valid, dtype=bool)
+    if valid.shape != (GRID, GRID):
+        raise ValueError(f"a map must have shape ({GRID}, {GRID}), like Track.valid; got {valid.shape}")
+    free = np.zeros_like(valid)
+    inner = valid[1:-1, 1:-1]
+    free[1:-1, 1:-1] = inner & valid[:-2, 1:-1] & valid[2:, 1:-1] & valid[1:-1, :-2] & valid[1:-1, 2:]
+    grid = valid * np.uint8(lidar.VALID_BIT) | free * np.uint8(lidar.FREE_BIT)
+    return grid | np.asarray(road, dtype=bool) * np.uint8(lidar.ROAD_BIT)
+
+
 def obstacle_half_size(width: float) -> int:
     return int(width * CELLS_PER_UNIT / 4)
 

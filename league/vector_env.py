@@ -43,7 +43,8 @@ class MicroRacerVectorEnv(VectorEnv):
     Arrays of shape `(num_envs,)`: "outcome" (names: "running", "finished", "off_road",
     "wrong_direction", "too_slow"), "outcome_code" (their index in `league.constants.OUTCOMES`),
     "progress" (lap fraction), "time" (s), "distance" and "speed", each with its all-True
-    Gymnasium mask ("_outcome", ...).
+    Gymnasium mask ("_outcome", ...). `numeric_infos=True` leaves out "outcome" (and its mask),
+    for libraries that make a tensor of every info value (torchrl's `GymWrapper`).
 
     ## Tracks and seeding
     By default every episode draws a new random track (as the thesis does). `reset(seed=s)`
@@ -72,7 +73,7 @@ class MicroRacerVectorEnv(VectorEnv):
     gymnasium.make_vec("league/MicroRacer-v0", num_envs=8, vectorization_mode="vector_entry_point",
                        **options)  # every option of league/MicroRacer-v0
     league.vector_env(num_envs=8, autoreset_mode=AutoresetMode.NEXT_STEP, track_pool=None,
-                      render_mode=None, **options)
+                      render_mode=None, numeric_infos=False, **options)
     ```
     """
 
@@ -80,7 +81,7 @@ class MicroRacerVectorEnv(VectorEnv):
 
     def __init__(self, num_envs: int = 8, render_mode: str | None = None,
                  autoreset_mode: AutoresetMode | str = AutoresetMode.NEXT_STEP, track_pool: int | None = None,
-                 **options):
+                 numeric_infos: bool = False, **options):
         if not isinstance(num_envs, (int, np.integer)) or num_envs < 1:
             raise ValueError(f"num_envs must be an integer >= 1, got {num_envs!r}")
         if render_mode is not None and render_mode not in self.metadata["render_modes"]:
@@ -97,6 +98,8 @@ class MicroRacerVectorEnv(VectorEnv):
         self.observation_space = batch_space(self.single_observation_space, self.num_envs)
         self.action_space = batch_space(self.single_action_space, self.num_envs)
         self.track_pool = track_pool
+        self.numeric_infos = numeric_infos
+        self.info_keys = INFO_KEYS[1:] if numeric_infos else INFO_KEYS  # INFO_KEYS[0] is "outcome"
         self.cars = new_cars(self.num_envs, self.options)
         self.tracks: list[Track | None] = [None] * self.num_envs
         self._rngs: list[np.random.Generator | None] = [None] * self.num_envs
@@ -156,7 +159,7 @@ class MicroRacerVectorEnv(VectorEnv):
             self._needs_reset = np.where(moving, done, self._needs_reset)
         infos = self._infos(truncated & ~restart)
         if final is not None:
-            _add_final(infos, *final, done)
+            _add_final(infos, *final, done, self.info_keys)
         return cars.obs.copy(), rewards, terminated, truncated, infos
 
     def _start_episode(self, i: int, options: dict | None = None) -> None:
@@ -184,9 +187,10 @@ class MicroRacerVectorEnv(VectorEnv):
         codes = cars.outcome.astype(np.int64)
         if truncated.any():
             codes[truncated] = RUNNING
-        infos = {"outcome": OUTCOME_NAMES[codes], "outcome_code": codes, "progress": cars.progress_all(),
-                 "time": cars.steps_taken * cars.tstep, "distance": cars.distance.copy(), "speed": cars.speed.copy()}
-        infos.update({f"_{key}": self._mask for key in INFO_KEYS})
+        infos = {} if self.numeric_infos else {"outcome": OUTCOME_NAMES[codes]}
+        infos.update(outcome_code=codes, progress=cars.progress_all(), time=cars.steps_taken * cars.tstep,
+                     distance=cars.distance.copy(), speed=cars.speed.copy())
+        infos.update({f"_{key}": self._mask for key in self.info_keys})
         return infos
 
     def render(self):
@@ -199,12 +203,12 @@ class MicroRacerVectorEnv(VectorEnv):
         return render.render_frame(self.tracks[0], cars.x[:1], cars.y[:1], cars.heading[:1], [np.array(self._trail)])
 
 
-def _add_final(infos: dict, final_infos: dict, final_obs: np.ndarray, done: np.ndarray) -> None:
+def _add_final(infos: dict, final_infos: dict, final_obs: np.ndarray, done: np.ndarray, keys: tuple) -> None:
     """Same-step autoreset: the done sub-envs' last observations and infos, as SyncVectorEnv gives them."""
     infos["final_obs"] = np.full(len(done), None, dtype=object)
     for i in np.flatnonzero(done):
         infos["final_obs"][i] = final_obs[i]
-    infos["final_info"] = {key: final_infos[key] for key in INFO_KEYS} | {f"_{key}": done for key in INFO_KEYS}
+    infos["final_info"] = {key: final_infos[key] for key in keys} | {f"_{key}": done for key in keys}
     infos["_final_obs"] = infos["_final_info"] = done
 
 

@@ -225,3 +225,23 @@ def _paint(mask, starts, ends, half):
 
 def _round_half_away(v):
     return np.where(v >= 0, np.trunc(v + 0.5), np.trunc(v - 0.5)).astype(np.int64)
+
+
+# -- the thesis' Racer (tracks.py of github.com/asperti/MicroRacer) ------------------------
+# Its attributes are plain ones, all writable. __init__ sets these (reset reads the track's,
+# step the physics'), reset sets the next ones and step sets max_turnrad.
+THESIS_INIT_ATTRIBUTES = {"curves": 20, "tstep": 0.04, "max_acc": 0.1, "max_turn": math.pi / 6, "track_width": 0.04,
+                          "obstacles_number": 6, "obstacles": True, "chicanes": True, "turn_limit": True,
+                          "low_speed_termination": True}
+THESIS_RESET_ATTRIBUTES = ("cs", "csin", "csout", "map", "obs_pos", "cartheta", "carx", "cary", "carvx", "carvy",
+                           "done", "completation", "sinit_v")
+THESIS_STEP_ATTRIBUTES = ("max_turnrad",)
+
+
+def thesis_obs_pos(ends):
+    """The original's obs_pos of obstacles given as (k, 2 ends, xy), the end at the obstacle's
+    angle first: its `np.stack([x_1, x_2, y_1, y_2], axis=1)`; `[]` without obstacles."""
+    if not len(ends):
+        return []
+    (x_1, y_1), (x_2, y_2) = ends[:, 0].T, ends[:, 1].T
+    return np.stack([x_1, x_2, y_1, y_2], axis=1)

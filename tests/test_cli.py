@@ -67,6 +67,27 @@ def test_evaluate_a_bad_file_is_one_clear_line(tmp_path):
     assert_clean_error(league_cli("evaluate", tmp_path / "missing.onnx"), "no such agent file")
 
 
+def test_python_dash_m_league_exits_with_the_commands_status(tmp_path):
+    result = subprocess.run([sys.executable, "-m", "league", "evaluate", str(tmp_path / "missing.onnx")],
+                            capture_output=True, text=True, timeout=120)
+    assert result.returncode == 2 and "no such agent file" in result.stderr
+
+
+def test_output_into_a_pipe_whose_reader_quit_ends_quietly():
+    """`league ... | head`: once the reader has quit, the command stops without a word, with the
+    status SIGPIPE would give (141)."""
+    for args in (["evaluate", "heuristic", "--episodes", "2", "--per-episode", "--no-progress"], ["--help"]):
+        command = subprocess.Popen([sys.executable, "-m", "league", *args], stdout=subprocess.PIPE,
+                                   stderr=subprocess.PIPE, text=True)
+        command.stdout.close()  # the reader quits before the first line
+        errors = command.stderr.read()
+        expected = 0 if args == ["--help"] else 141  # argparse's help ends quietly too, with its own status
+        assert (command.wait(timeout=120), errors) == (expected, ""), args
+    head = subprocess.run(["sh", "-c", f"'{sys.executable}' -m league evaluate heuristic --episodes 3 --per-episode "
+                                       "--no-progress | head -1"], capture_output=True, text=True, timeout=120)
+    assert head.stdout.startswith("episode") and head.stdout.count("\n") == 1 and head.stderr == ""
+
+
 def test_a_command_whose_extra_is_missing_says_which_extra_to_install():
     """`league leaderboard` without the client extra (platformdirs hidden here): one line naming the
     extra and the pip command, not an 'unexpected' error."""

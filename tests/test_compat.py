@@ -3,9 +3,13 @@ import numpy as np
 import pytest
 from PIL import Image
 
+from gymnasium.utils import seeding
+
 import league
 from league import compat, evaluation
 from league.agents import heuristic_actions, heuristic_agent
+
+from . import reference
 
 
 def thesis_actor(states):
@@ -46,8 +50,96 @@ def test_racer_has_the_thesis_attributes():
     state, reward, done = racer.step([0.5, 0.2])
     assert np.arctan2(racer.cary, racer.carx) == pytest.approx(racer.cartheta)
     assert np.hypot(racer.carvx, racer.carvy) == pytest.approx(state[4])
-    with pytest.raises(AttributeError):
-        racer.tstep = 0.01  # an option is set when the Racer is made: Racer(..., tstep=0.01)
+
+
+def test_the_attributes_are_the_originals_and_writable_as_there():
+    racer = compat.Racer(seed=2)
+    assert {name: getattr(racer, name) for name in reference.THESIS_INIT_ATTRIBUTES} == pytest.approx(
+        reference.THESIS_INIT_ATTRIBUTES)
+    racer.reset()
+    racer.step([0.1, 0.0])
+    other = compat.Racer(seed=3)
+    other.reset()
+    written = {"curves": 12, "tstep": 0.03, "max_acc": 0.2, "max_turn": 0.4, "track_width": 0.05,
+               "obstacles_number": 3, "obstacles": False, "chicanes": False, "turn_limit": False,
+               "low_speed_termination": False, "cs": other.cs, "csin": other.csin, "csout": other.csout,
+               "map": other.map, "obs_pos": other.obs_pos, "cartheta": -0.1, "carx": 0.9, "cary": -0.1,
+               "carvx": 0.1, "carvy": -0.2, "done": True, "completation": 2, "sinit_v": 0.3, "max_turnrad": 0.1}
+    names = [*reference.THESIS_INIT_ATTRIBUTES, *reference.THESIS_RESET_ATTRIBUTES, *reference.THESIS_STEP_ATTRIBUTES]
+    assert sorted(written) == sorted(names)
+    for name, value in written.items():
+        setattr(racer, name, value)
+    for name, value in written.items():
+        assert getattr(racer, name) is value or getattr(racer, name) == pytest.approx(value), name
+    with pytest.raises(ValueError, match="curves must be an integer in"):
+        racer.curves = 2  # checked as the Racer's own arguments
+
+
+def test_obs_pos_has_the_originals_layout_and_empty_value():
+    racer = compat.Racer(seed=7)
+    racer.reset()
+    track, _, _ = reference.track_dict(seeding.np_random(7)[0])  # the track of reset(seed=7)
+    expected = reference.thesis_obs_pos(np.array(track["obstacles"]))
+    assert racer.obs_pos.shape == (6, 4) and np.allclose(racer.obs_pos, expected)
+    racer = compat.Racer(False, seed=7)
+    racer.reset()
+    assert racer.obs_pos == [] == reference.thesis_obs_pos(np.zeros((0, 2, 2)))
+
+
+def test_written_options_shape_the_next_track_and_physics_act_from_the_next_step():
+    racer = compat.Racer(seed=8)
+    racer.reset()
+    racer.reset((racer.cs, racer.map, racer.obs_pos, 0.3))  # at speed 0.3
+    racer.tstep, racer.max_acc, racer.max_turn, racer.turn_limit = 0.02, 0.5, 0.2, False
+    heading, x, y = np.arctan2(racer.carvy, racer.carvx), racer.carx, racer.cary
+    state, reward, _ = racer.step([1.0, 1.0])
+    speed = 0.3 + 0.5 * 0.02
+    assert state[4] == pytest.approx(speed) and reward == pytest.approx(speed * 0.02)
+    assert np.arctan2(racer.carvy, racer.carvx) == pytest.approx(heading - 0.2) and racer.max_turnrad == 0.2
+    assert (racer.carx, racer.cary) == pytest.approx((x + speed * 0.02 * np.cos(heading - 0.2),
+                                                      y + speed * 0.02 * np.sin(heading - 0.2)))
+    racer.turn_limit = True
+    racer.step([0.0, 0.0])
+    assert racer.max_turnrad == pytest.approx(min(0.2, 1.741 * 0.02 / speed))
+    racer.low_speed_termination = False  # braking to a stop is no longer "too slow" (4)
+    drive_until_done(racer, [-1.0, 0.0])
+    assert racer.completation == 3  # standing still is no progress: wrong direction
+    racer.curves, racer.chicanes, racer.obstacles_number, racer.track_width = 12, False, 2, 0.05
+    racer.reset()
+    assert len(racer.track.control_points) == 12 and len(racer.obs_pos) == 2 and racer.track.width == 0.05
+    racer.obstacles = False
+    racer.reset()
+    assert racer.obs_pos == []
+
+
+def test_written_car_state_is_where_the_next_step_starts():
+    leader, follower = compat.Racer(seed=9), compat.Racer(seed=10)
+    state = leader.reset()
+    follower.reset((leader.cs, leader.map, leader.obs_pos, leader.sinit_v))
+    for _ in range(5):
+        state, *_ = leader.step(thesis_actor(state[None])[0])
+    for name in ("carx", "cary", "carvx", "carvy", "cartheta"):
+        setattr(follower, name, getattr(leader, name))
+    action = thesis_actor(state[None])[0]
+    a, b = leader.step(action), follower.step(action)
+    np.testing.assert_allclose(a[0], b[0], rtol=1e-6)
+    assert a[1] == pytest.approx(b[1]) and (leader.carx, leader.cary) == pytest.approx((follower.carx, follower.cary))
+
+
+def test_a_written_map_is_where_the_car_drives_until_the_next_reset():
+    racer = compat.Racer(seed=11)
+    racer.reset()
+    racer.step([0.0, 0.0])
+    walled = racer.map.copy()
+    i, j = int(racer.carx * 500) + 650, int(racer.cary * 500) + 650
+    walled[i - 30:i + 31, j - 30:j + 31] = False  # the car's surroundings are off the map
+    walled[i, j] = True
+    racer.map = walled
+    assert racer.map is walled
+    state, reward, done = racer.step([0.0, 0.0])
+    assert done and reward == -3 and racer.completation == 2
+    racer.reset()
+    assert racer.map is racer.track.valid
 
 
 def test_max_turnrad_is_the_turn_bound_of_the_last_step():

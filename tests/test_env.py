@@ -38,9 +38,14 @@ def rollout(seed, steps=300, **options):
 
 
 def test_same_seed_same_rollout_in_two_processes():
-    code = "import json, tests.test_env as t; print(json.dumps(t.rollout(42, 1500)))"
+    code = "import json, tests.test_env as t; print(json.dumps(t.rollout(42, 1500), default=t.number))"
     other = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True).stdout
-    assert json.loads(other) == json.loads(json.dumps(rollout(42, 1500)))
+    assert json.loads(other) == json.loads(json.dumps(rollout(42, 1500), default=number))
+
+
+def number(value: np.generic):
+    """A numpy scalar of an info as JSON sees it."""
+    return value.item()
 
 
 def test_different_seeds_differ():
@@ -173,7 +178,18 @@ def test_info_fields():
     obs, reward, *_, info = env.step(reference.heuristic(obs))
     assert info["time"] == pytest.approx(0.04) and info["distance"] == pytest.approx(reward)
     assert 0 < info["progress"] < 0.01
-    json.dumps(info)  # plain Python types
+    # numpy scalars, as torchrl's info reader needs (it reads their dtype)
+    assert type(info["outcome_code"]) is np.int64 and type(info["outcome"]) is str
+    assert all(type(info[key]) is np.float64 for key in ("progress", "time", "distance", "speed"))
+
+
+def test_numeric_infos_leave_the_outcome_name_out():
+    env = gym.make("league/MicroRacer-v0", numeric_infos=True)
+    obs, info = env.reset(seed=0)
+    assert set(info) == {"outcome_code", "progress", "time", "distance", "speed"}
+    obs, *_, info = env.step(reference.heuristic(obs))
+    assert set(info) == {"outcome_code", "progress", "time", "distance", "speed"}
+    assert all(value.dtype.kind in "if" for value in info.values())
 
 
 def test_info_has_the_same_keys_and_types_at_every_step_and_the_code_names_the_outcome():

@@ -1,8 +1,9 @@
 import pickle
+from types import SimpleNamespace
 
 import numpy as np
 import pytest
-from pettingzoo.test import api_test, parallel_api_test, parallel_seed_test, render_test, state_test
+from pettingzoo.test import api_test, max_cycles_test, parallel_api_test, parallel_seed_test, render_test, state_test
 
 import league
 
@@ -23,6 +24,26 @@ def test_pettingzoo_parallel_seed(options):
 
 def test_aec_form():
     api_test(league.env(n_cars=2), num_cycles=100)
+
+
+def seeded(make, seed: int):
+    """`make(**kwargs)` with its env's tracks and its action spaces' samples drawn from `seed`."""
+    def seeded_make(**kwargs):
+        env = make(**kwargs)
+        env.reset(seed=seed)  # the test's own reset() draws the next track from this stream
+        for i, agent in enumerate(env.possible_agents):
+            env.action_space(agent).seed(seed + i)
+        return env
+    return seeded_make
+
+
+def test_pettingzoo_max_cycles_is_the_episode_limit():
+    # PettingZoo's test drives random actions and wants most cars alive after max_cycles=4
+    # steps; a random car can leave the road that soon, so its envs are seeded.
+    max_cycles_test(SimpleNamespace(parallel_env=seeded(league.parallel_env, 3), env=seeded(league.env, 3)))
+    assert league.parallel_env(max_cycles=7).options.max_episode_steps == 7
+    with pytest.raises(TypeError, match="max_cycles .* or max_episode_steps, not both"):
+        league.parallel_env(max_cycles=7, max_episode_steps=7)
 
 
 def test_pettingzoo_state():
@@ -80,7 +101,7 @@ def test_infos_have_the_same_keys_and_types_from_reset_to_the_end():
 def test_numeric_infos_leave_the_outcome_name_out():
     penv = league.parallel_env(n_cars=2, numeric_infos=True)
     _, infos = penv.reset(seed=0)
-    assert "outcome" not in infos["car_0"] and all(isinstance(v, (int, float)) for v in infos["car_0"].values())
+    assert "outcome" not in infos["car_0"] and all(isinstance(v, np.number) for v in infos["car_0"].values())
 
 
 def drive(penv, seed, perturb=0.0):

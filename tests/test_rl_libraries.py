@@ -9,9 +9,11 @@ from pathlib import Path
 import gymnasium as gym
 import imageio_ffmpeg
 import numpy as np
+import torch
 from gymnasium.wrappers import AddRenderObservation, RecordVideo
 
 import league
+from league.agents import heuristic_actions
 
 EXAMPLES = Path(__file__).resolve().parents[1] / "examples"
 
@@ -76,6 +78,61 @@ def test_example_cleanrl_ppo_on_the_vector_env(monkeypatch, tmp_path, capsys):
 
 
 def test_example_torchrl_rollouts(monkeypatch, capsys):
-    run_example("torchrl_rollouts.py", "--steps", "200", monkeypatch=monkeypatch)
+    # one worker process: each imports the example's own imports (torch, torchrl) again, as spawn does
+    run_example("torchrl_rollouts.py", "--steps", "200", "--envs", "1", monkeypatch=monkeypatch)
     out = capsys.readouterr().out
     assert "GymEnv: " in out and "PettingZooWrapper: " in out and "state (" in out
+
+
+def heuristic_module(key="observation"):
+    """SPEC's driver as torchrl's policy (it keeps the cars on the road)."""
+    from tensordict.nn import TensorDictModule
+
+    def drive(observation: torch.Tensor) -> torch.Tensor:
+        flat = observation.reshape(-1, observation.shape[-1]).numpy()
+        return torch.as_tensor(heuristic_actions(flat)).reshape(*observation.shape[:-1], 2)
+
+    return TensorDictModule(drive, in_keys=[key], out_keys=["action"])
+
+
+def test_torchrl_vectorized_gym_env_steps_as_the_native_vector_env():
+    from torchrl.envs.libs.gym import GymEnv
+
+    # "league:": its worker processes start fresh (spawn); Gymnasium imports league there before making the env
+    env = GymEnv("league:league/MicroRacer-v0", num_envs=3, numeric_infos=True, max_episode_steps=10)
+    env.set_seed(5)  # resets sub-env i with seed 5 + i; the rollout's reset starts their next episodes
+    rollout = env.rollout(25, heuristic_module(), break_when_any_done=False)  # through the time limit
+    env.close()
+    assert rollout.batch_size == (3, 25)
+    native = league.vector_env(num_envs=3, max_episode_steps=10)
+    native.reset(seed=5)
+    obs, _ = native.reset()
+    np.testing.assert_array_equal(rollout["observation"][:, 0].numpy(), obs)
+    for t in range(10):
+        obs, reward, terminated, truncated, infos = native.step(rollout["action"][:, t].numpy())
+        np.testing.assert_array_equal(rollout["next", "reward"][:, t, 0].numpy(), reward.astype(np.float32))
+        np.testing.assert_array_equal(rollout["next", "truncated"][:, t, 0].numpy(), truncated)
+        if t < 9:  # at the end, torchrl's "next" holds its placeholder (zeros): it resets at once
+            np.testing.assert_array_equal(rollout["next", "observation"][:, t].numpy(), obs)
+            for key in ("outcome_code", "progress", "time", "distance", "speed"):
+                np.testing.assert_array_equal(rollout["next", key][:, t].numpy(), infos[key])
+    assert truncated.all()
+    assert (rollout["time"][:, 10] == 0).all() and (rollout["next", "time"][:, 10] > 0).all()  # new episodes
+
+
+def test_torchrl_default_info_dict_reader_reads_the_infos():
+    from torchrl.envs import default_info_dict_reader
+    from torchrl.envs.libs.gym import GymEnv
+
+    env = GymEnv("league/MicroRacer-v0")
+    env.set_info_dict_reader(default_info_dict_reader(["outcome_code", "progress", "speed"]))
+    env.set_seed(0)
+    rollout = env.rollout(20, heuristic_module())
+    single = league.MicroRacerEnv()
+    single.reset(seed=0)
+    single.reset()
+    for t in range(20):
+        info = single.step(rollout["action"][t].numpy())[-1]
+        assert [rollout["next", key][t].item() for key in ("outcome_code", "progress", "speed")] == [
+            info["outcome_code"], info["progress"], info["speed"]]
+    assert rollout["next", "outcome_code"].dtype == torch.int64 and rollout["next", "progress"].dtype == torch.float64

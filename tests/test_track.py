@@ -15,6 +15,7 @@ from league.track import (
     cell_of,
     first_fitting,
     generate_track,
+    grid_of_map,
     obstacle_half_size,
 )
 
@@ -207,6 +208,17 @@ def test_tracks_are_bit_for_bit_those_of_the_scipy_reference(options):
         assert track.to_dict() == expected
         obstacles = np.array(expected["obstacles"]).reshape(-1, 2, 2)
         np.testing.assert_array_equal(track.grid, reference.grid(inner, outer, obstacles, expected["width"]))
+
+
+def test_the_grid_of_a_tracks_own_map_is_its_grid():
+    for seed in range(3):
+        track = generate_track(np.random.default_rng(seed))
+        np.testing.assert_array_equal(grid_of_map(track.valid, track.grid & lidar.ROAD_BIT), track.grid)
+    edge = np.ones((GRID, GRID), dtype=bool)  # past the edge no cell is valid: the edge cells are not free
+    grid = grid_of_map(edge, edge)
+    assert not (grid[0] & lidar.FREE_BIT).any() and (grid[1:-1, 1:-1] & lidar.FREE_BIT).all()
+    with pytest.raises(ValueError, match="shape"):
+        grid_of_map(np.ones((10, 10), dtype=bool), edge)
 
 
 def test_splines_evaluate_as_scipy_does_everywhere():

@@ -151,6 +151,25 @@ def test_next_step_autoreset_matches_make_vec_sync_and_infos_are_arrays():
     assert set(infos["outcome"]) <= set(league.constants.OUTCOMES)
 
 
+def test_numeric_infos_leave_the_outcome_name_out_as_sync_vector_env_does():
+    kwargs = {"num_envs": 3, "max_episode_steps": 40, "numeric_infos": True}
+    sync = gym.make_vec("league/MicroRacer-v0", vectorization_mode="sync",
+                        vector_kwargs={"autoreset_mode": AutoresetMode.SAME_STEP}, **kwargs)
+    native = league.vector_env(autoreset_mode=AutoresetMode.SAME_STEP, **kwargs)
+    obs, infos = native.reset(seed=2)
+    assert set(infos) == set(sync.reset(seed=2)[1]) and "outcome" not in infos and "_outcome" not in infos
+    finals = 0
+    for _ in range(90):  # two truncations at least: final infos
+        step, sync_step = native.step(drive(obs)), sync.step(drive(obs))
+        infos, sync_infos = step[4], sync_step[4]
+        assert set(infos) == set(sync_infos) and set(infos.get("final_info", {})) == set(sync_infos.get("final_info", {}))
+        for key in INFO_KEYS[1:]:
+            np.testing.assert_array_equal(infos[key], sync_infos[key])
+        finals += "final_info" in infos
+        obs = step[0]
+    assert finals >= 2
+
+
 def test_spaces_and_batches_follow_gymnasium():
     venv = league.vector_env(num_envs=5, observation="lidar")
     assert venv.single_observation_space == league.MicroRacerEnv(observation="lidar").observation_space

@@ -17,6 +17,7 @@ import pytest
 
 from league.agents import load_agent
 from league.client import EXIT_AUTH, EXIT_OK, EXIT_REFUSED, EXIT_REJECTED, EXIT_UNREACHABLE
+from league.server.api.deps import UNKNOWN_TOKEN
 from league.evaluation import metrics_run
 
 from .conftest import (
@@ -48,10 +49,13 @@ def server(tmp_path_factory):
 def league(*args: str, config, **env: str) -> subprocess.CompletedProcess:
     """`league ARGS` as a student runs it: its own config directory, no LEAGUE_* server settings
     but the ones given."""
-    base = {k: v for k, v in os.environ.items() if not k.startswith("LEAGUE_")}
-    return subprocess.run([sys.executable, "-m", "league.cli", *args], cwd=config,
-                          env={**base, "XDG_CONFIG_HOME": str(config), "PYTHONPATH": str(REPO), **env},
+    return subprocess.run([sys.executable, "-m", "league.cli", *args], cwd=config, env=student_env(config, **env),
                           capture_output=True, text=True, timeout=300)
+
+
+def student_env(config, **env: str) -> dict:
+    base = {k: v for k, v in os.environ.items() if not k.startswith("LEAGUE_")}
+    return {**base, "XDG_CONFIG_HOME": str(config), "PYTHONPATH": str(REPO), **env}
 
 
 def student_token(server, name: str) -> str:
@@ -98,6 +102,17 @@ def test_check_rejects_exactly_what_the_server_rejects(server, models, tmp_path)
     assert all_good.stdout.count("the server would accept it") == 3
 
 
+@pytest.mark.skipif(os.geteuid() != 0, reason="the sandbox's notes on root's isolation: as root only")
+def test_check_as_root_says_its_verdict_only_and_a_timing_once(models, tmp_path):
+    """As root the sandbox notes how it isolates (for operators): not on a student's terminal. A
+    model over the budget gets its figures once (a budget of 1 us: every model is over it)."""
+    checked = league("check", str(models["heuristic_onnx"]), config=tmp_path, LEAGUE_STEP_DEADLINE_MS="0.001",
+                     LEAGUE_FIRST_CALL_ALLOWANCE_MS="60000")
+    assert (checked.returncode, checked.stderr) == (EXIT_REJECTED, "")
+    assert re.fullmatch(rf"{models['heuristic_onnx'].name}: the server would reject it: the model is too slow: "
+                        r"it uses [\d.]+ ms of CPU per observation, the limit is 0.001 ms\n", checked.stdout)
+
+
 def test_a_student_logs_in_submits_waits_and_races_from_the_terminal(server, models, tmp_path):
     name = unique("terminal")
     token = student_token(server, name)
@@ -111,7 +126,7 @@ def test_a_student_logs_in_submits_waits_and_races_from_the_terminal(server, mod
     submitted = league("submit", str(models["onnx"]), "--name", "my actor", "--wait", config=tmp_path)
     assert submitted.returncode == EXIT_OK, submitted.stderr
     assert "the server would accept it" in submitted.stderr  # checked first
-    assert "submission" in submitted.stderr and ": done" in submitted.stderr  # the progress bar's last stage
+    assert re.search(r"submission \d+: done .* stage 6/6", submitted.stderr)  # the bar counts stages, and says so
     local = metrics_run(load_agent(models["onnx"]), episodes=EPISODES, seed=SEED)
     lines = submitted.stdout.splitlines()
     assert re.fullmatch(r"submission \d+ is ready", lines[0])
@@ -123,6 +138,10 @@ def test_a_student_logs_in_submits_waits_and_races_from_the_terminal(server, mod
     rows = list(csv.DictReader(io.StringIO(listing.stdout)))
     assert [(r["agent"], r["status"], r["completed"]) for r in rows] == [
         ("my actor", "done", f"{local.completed}/{EPISODES}")]
+    piped = subprocess.Popen([sys.executable, "-m", "league", "submissions"], cwd=tmp_path, env=student_env(tmp_path),
+                             stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    piped.stdout.close()  # `league submissions | head` once head has quit
+    assert (piped.stderr.read(), piped.wait(timeout=120)) == ("", 141)
 
     baseline = baseline_submission(server)
     raced = league("race-server", rows[0]["id"], str(baseline["id"]), "--seed", "5",
@@ -138,9 +157,12 @@ def test_instructors_get_the_grades_from_the_terminal(server, tmp_path):
     name = unique("graded")
     student_token(server, name)
     with server.client(server.instructor_token) as instructor:
-        championship = instructor.post("/api/championships", json={"name": unique("cup")}).json()["id"]
+        cup = unique("cup")
+        championship = instructor.post("/api/championships", json={"name": cup}).json()["id"]
     env = {"LEAGUE_SERVER": server.url, "LEAGUE_TOKEN": server.instructor_token}
     standings = league("standings", str(championship), "--csv", config=tmp_path, **env)
+    by_name = league("standings", cup.upper(), "--csv", config=tmp_path, **env)  # students know its name
+    assert by_name.returncode == EXIT_OK and by_name.stdout == standings.stdout, by_name.stderr
     grades = league("leaderboard", "--csv", config=tmp_path, **env)
     assert standings.returncode == grades.returncode == EXIT_OK, (standings.stderr, grades.stderr)
     no_round = [row for row in csv.DictReader(io.StringIO(standings.stdout)) if row["student"] == name]
@@ -152,9 +174,31 @@ def test_instructors_get_the_grades_from_the_terminal(server, tmp_path):
     assert refused.stderr == "league: error: the server refused: only instructors may do this\n"
 
 
+def test_standings_by_name_for_anyone_and_names_that_name_none_or_several(server, tmp_path):
+    cup = unique("spring cup")
+    with server.client(server.instructor_token) as instructor:
+        first = instructor.post("/api/championships", json={"name": cup}).json()["id"]
+        table = league("standings", cup, "--server", server.url, config=tmp_path)  # public, no token
+        assert table.returncode == EXIT_OK, table.stderr
+        assert table.stdout.split() == ["rank", "student", "agent", "id", "points", "wins", "heats", "rating"]
+        unknown = league("standings", "no such cup", "--server", server.url, config=tmp_path)
+        assert unknown.returncode == 2 and f"no championship named 'no such cup'; the championships: " in unknown.stderr
+        assert f"{first} ({cup})" in unknown.stderr  # what there is to ask for
+        second = instructor.post("/api/championships", json={"name": cup}).json()["id"]
+    twice = league("standings", cup, "--server", server.url, config=tmp_path)
+    assert twice.returncode == 2
+    assert twice.stderr == f"league: error: 2 championships are named {cup!r}: give the id of one of {first}, {second}\n"
+
+
 def test_a_bad_token_a_spent_quota_and_a_server_down_say_so(server, models, tmp_path):
-    bad = league("submissions", "--server", server.url, "--token", "lg_wrong", config=tmp_path)
-    assert (bad.returncode, bad.stderr) == (EXIT_AUTH, "league: error: the server refused: invalid token\n")
+    old = student_token(server, name := unique("renewed"))
+    with server.client(server.instructor_token) as instructor:
+        user = next(u for u in instructor.get("/api/users").json() if u["name"] == name)
+        assert instructor.post(f"/api/users/{user['id']}/token").status_code == 200  # a new token replaces it
+    bad = league("submissions", "--server", server.url, "--token", old, config=tmp_path)
+    assert (bad.returncode, bad.stderr) == (EXIT_AUTH, f"league: error: the server refused the token: "
+                                            f"{UNKNOWN_TOKEN}; once you have a new one: league login --server "
+                                            f"{server.url}\n")
 
     env = {"LEAGUE_SERVER": server.url, "LEAGUE_TOKEN": student_token(server, unique("busy"))}
     for _ in range(int(TEST_SETTINGS["LEAGUE_QUOTA_PER_DAY"])):

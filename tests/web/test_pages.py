@@ -105,7 +105,8 @@ def test_wrong_token_is_refused_with_the_servers_message(web):
 
     message = web.page.locator("#login-message")
     message.wait_for()
-    assert message.inner_text() == "This token was not accepted: invalid token."
+    assert message.inner_text() == ("This token was not accepted: unknown token (replaced by a new one, or mistyped): "
+                                    "ask your instructor for your current token.")
     assert web.page.url.endswith("/login")
     assert web.page.evaluate("localStorage.getItem('league.token')") is None
 

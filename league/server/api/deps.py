@@ -49,6 +49,9 @@ QueueDep = Annotated[JobQueue, Depends(get_queue)]
 StoreDep = Annotated[BlobStore, Depends(get_store)]
 
 
+UNKNOWN_TOKEN = "unknown token (replaced by a new one, or mistyped): ask your instructor for your current token"
+
+
 def unauthorized(detail: str) -> HTTPException:
     return HTTPException(status.HTTP_401_UNAUTHORIZED, detail, headers={"WWW-Authenticate": "Bearer"})
 
@@ -58,8 +61,8 @@ def get_current_user(session: SessionDep,
     if credentials is None:
         raise unauthorized("missing token: send the header Authorization: Bearer TOKEN")
     user = crud.user_by_token(session, token=credentials.credentials)
-    if user is None:
-        raise unauthorized("invalid token")
+    if user is None:  # no user has it (any more): a new token replaces the old one
+        raise unauthorized(UNKNOWN_TOKEN)
     if not user.active:
         raise unauthorized("this account was revoked")
     # End the lookup's transaction: its connection goes back to the pool. A route that opens a

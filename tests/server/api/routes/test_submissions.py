@@ -15,6 +15,7 @@ from datetime import datetime, timedelta
 import pytest
 
 from league.evaluation import league_versions
+from league.server.api.deps import UNKNOWN_TOKEN
 from league.server.db.models import REJECTED
 
 from ...conftest import BACKENDS, create_student, episodes, submission, upload, wait_settled
@@ -183,7 +184,7 @@ def test_missing_and_wrong_tokens_are_refused(app_league, models):
         assert response.json() == {"detail": "missing token: send the header Authorization: Bearer TOKEN"}
     with app_league.client("lg_not-a-real-token") as stranger:
         assert stranger.get("/api/submissions").status_code == 401
-        assert stranger.get("/api/submissions").json() == {"detail": "invalid token"}
+        assert stranger.get("/api/submissions").json() == {"detail": UNKNOWN_TOKEN}
 
 
 def test_students_see_only_their_own_submissions(league_server, models):

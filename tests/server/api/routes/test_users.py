@@ -104,7 +104,9 @@ def test_revoked_student_is_locked_out_and_a_new_token_restores_them(app_league)
     with app_league.client(renewed["token"]) as student:
         assert student.get("/api/users/me").json()["active"] is True
     with app_league.client(created["token"]) as old:
-        assert old.get("/api/users/me").status_code == 401
+        replaced = old.get("/api/users/me")
+    assert replaced.status_code == 401 and replaced.json() == {  # it says why, and whom to ask
+        "detail": "unknown token (replaced by a new one, or mistyped): ask your instructor for your current token"}
 
 
 def test_student_calling_instructor_endpoints_is_forbidden(app_league):
