@@ -1,7 +1,7 @@
 // The course's evaluation settings, every submission of the course, and re-running evaluations.
 
 import { api } from "../api.js";
-import { $, badge, element, onClick, onSubmit, say } from "../dom.js";
+import { $, badge, element, onClick, onSubmit, replaceKeepingFocus, say } from "../dom.js";
 import { count, number } from "../format.js";
 import { Poller } from "../poller.js";
 import { EnvOptionsFields, describeOptions } from "./env-options.js";
@@ -31,7 +31,7 @@ export async function setUpEvaluations() {
 
   async function refreshSubmissions() {
     const submissions = await api("/api/submissions?all=true");
-    $("all-submissions").tBodies[0].replaceChildren(...submissions.map((s) => submissionRow(s, submissionsPoller)));
+    replaceKeepingFocus($("all-submissions").tBodies[0], ...submissions.map((s) => submissionRow(s, submissionsPoller)));
     const busy = submissions.some((s) => ["pending", "validating"].includes(s.status) ||
       (s.status === "ready" && !["done", "failed"].includes(s.evaluation?.status)));
     submissionsPoller.interval = busy ? FAST_POLL_MS : SLOW_POLL_MS;
@@ -80,7 +80,7 @@ function submissionRow(s, poller) {
   const actions = element("span", { className: "row" });
   if (s.status === "ready") {
     const rerun = element("button", { className: "secondary small", text: "Re-run",
-      attrs: { type: "button", "aria-label": `Re-run the evaluation of ${s.name} (${s.owner})` } });
+      attrs: { type: "button", "aria-label": `Re-run the evaluation of ${s.name} (${s.owner})`, "data-focus-key": `rerun-${s.id}` } });
     rerun.addEventListener("click", async () => {
       try {
         await api("/api/evaluations/rerun", { method: "POST", json: { submission_id: s.id } });
