@@ -94,10 +94,16 @@ function submissionRow(s, poller) {
   }
   return element("tr", { attrs: { "data-id": s.id } },
     element("td", { className: "num", text: s.id }), element("td", { text: s.owner }),
-    element("td", { text: s.name, attrs: { title: s.error || s.filename } }),
-    element("td", {}, badge(s.status)),
-    element("td", {}, evaluation ? badge(evaluation.status) : element("span", { className: "muted", text: "–" })),
+    element("td", { text: s.name, attrs: { title: s.filename } }),
+    element("td", {}, badge(s.status), reason(s.error)),
+    element("td", {}, evaluation ? badge(evaluation.status) : element("span", { className: "muted", text: "–" }),
+      reason(evaluation?.status === "failed" ? evaluation.error : null)),
     element("td", { className: "num", text: done ? `${evaluation.completed}/${evaluation.episodes_total}` : "–" }),
     element("td", { className: "num", text: done ? number(evaluation.mean_return) : "–" }),
     element("td", {}, actions));
+}
+
+/** Why a submission was rejected or an evaluation failed, in the table itself (not only on hover). */
+function reason(text) {
+  return text ? element("span", { className: "reason", text }) : null;
 }
