@@ -1,7 +1,8 @@
-"""How different two colours look: CIEDE2000 (Sharma, Wu and Dalal, "The CIEDE2000 color-difference
+"""How different two colours look, and how they contrast. CIEDE2000 (Sharma, Wu and Dalal, "The CIEDE2000 color-difference
 formula", 2005) between sRGB colours, also as seen with protanopia or deuteranopia (Machado, Oliveira
 and Fernandes, "A physiologically-based model for simulation of color vision deficiency", 2009,
-severity 1: the two common red-green deficiencies)."""
+severity 1: the two common red-green deficiencies); WCAG 2's contrast ratio of relative luminances
+(what its contrast criteria 1.4.3 and 1.4.11 measure)."""
 from __future__ import annotations
 
 import numpy as np
@@ -57,3 +58,14 @@ def ciede2000(lab1, lab2) -> float:
            * np.sin(np.radians(60 * np.exp(-(((h_mean - 275) / 25) ** 2)))))
     terms = ((l2 - l1) / s_l, (c2 - c1) / s_c, d_hue / s_h)
     return float(np.sqrt(terms[0] ** 2 + terms[1] ** 2 + terms[2] ** 2 + r_t * terms[1] * terms[2]))
+
+
+def luminance(rgb) -> np.ndarray:
+    """WCAG 2 relative luminance of sRGB colours (0-255; the last axis is R, G, B)."""
+    return linear(rgb) @ np.array([0.2126, 0.7152, 0.0722])
+
+
+def contrast(rgb1, rgb2) -> np.ndarray:
+    """WCAG 2 contrast ratio (1 to 21) between colours, pixel by pixel for images."""
+    l1, l2 = luminance(rgb1), luminance(rgb2)
+    return (np.maximum(l1, l2) + 0.05) / (np.minimum(l1, l2) + 0.05)

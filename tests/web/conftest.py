@@ -10,13 +10,14 @@ from __future__ import annotations
 import base64
 import os
 import shutil
+import uuid
 from pathlib import Path
 from urllib.parse import urlsplit
 
 import httpx
 import pytest
 
-from ..server.conftest import REPO, fresh_backend, make_server, settled, wait_for
+from ..server.conftest import REPO, add_user_in_new_course, fresh_backend, make_server, settled, wait_for
 
 CHROMIUM = os.environ.get("LEAGUE_TEST_CHROMIUM", "/usr/bin/chromium")
 CHROMIUM_ARGS = ["--no-sandbox", "--disable-gpu", "--disable-background-networking", "--disable-component-update",
@@ -30,6 +31,32 @@ def require_browser() -> None:
     pytest.importorskip("playwright.sync_api", reason="browser tests need `pip install playwright`")
     if not Path(CHROMIUM).exists():
         pytest.skip(f"browser tests need Chromium at {CHROMIUM} (apt-get install chromium)", allow_module_level=True)
+
+
+# --------------------------------------------------------------------------- helpers
+
+
+def unique(name: str) -> str:
+    return f"{name}-{uuid.uuid4().hex[:6]}"
+
+
+def student_token(server, name: str) -> str:
+    """A new student of the shared course (its instructor creates them); returns their token."""
+    with server.client(server.instructor_token) as instructor:
+        response = instructor.post("/api/users", json={"name": name})
+    assert response.status_code == 201, response.text
+    return response.json()["token"]
+
+
+def instructor_of_a_new_course(server) -> str:
+    """An instructor of a course of their own: their students, settings and re-runs change nothing
+    another test sees (re-running the shared course's evaluations kept the worker busy for later tests)."""
+    return add_user_in_new_course(server, unique("prof"), unique("course"), role="instructor")
+
+
+def viewer_step(web) -> int:
+    """The step the race viewer shows."""
+    return int(web.page.get_attribute("#viewer", "data-step"))
 
 
 # --------------------------------------------------------------------------- server and browser

@@ -1,8 +1,9 @@
-"""The colour-difference measure the palette tests rely on (tests/web/colours.py), against the
-CIEDE2000 test data of Sharma, Wu and Dalal (2005, Table 1)."""
+"""The colour measures the palette and accessibility tests rely on (tests/web/colours.py): CIEDE2000
+against the test data of Sharma, Wu and Dalal (2005, Table 1), WCAG 2's contrast ratio against
+known pairs."""
 import pytest
 
-from .colours import ciede2000
+from .colours import ciede2000, contrast
 
 
 @pytest.mark.parametrize("lab1, lab2, expected", [
@@ -15,3 +16,14 @@ from .colours import ciede2000
 ])
 def test_ciede2000_matches_the_published_pairs(lab1, lab2, expected):
     assert ciede2000(lab1, lab2) == pytest.approx(expected, abs=5e-5)
+
+
+@pytest.mark.parametrize("color1, color2, expected", [
+    ((255, 255, 255), (0, 0, 0), 21.0),
+    ((0x76, 0x76, 0x76), (255, 255, 255), 4.54),  # the lightest grey for body text on white (WebAIM)
+    ((0x77, 0x77, 0x77), (255, 255, 255), 4.48),
+    ((0xB9, 0xB9, 0xB9), (0xB9, 0xB9, 0xB9), 1.0),
+])
+def test_contrast_matches_wcag(color1, color2, expected):
+    assert contrast(color1, color2) == pytest.approx(expected, abs=0.005)
+    assert contrast(color2, color1) == pytest.approx(expected, abs=0.005)

@@ -11,7 +11,6 @@ import itertools
 import json
 import math
 import re
-import uuid
 from pathlib import Path
 
 import pytest
@@ -19,9 +18,9 @@ from playwright.sync_api import expect
 
 from league import render
 
-from ..server.conftest import add_user_in_new_course, upload, wait_for, wait_settled
+from ..server.conftest import upload, wait_for, wait_settled
 from .colours import DEFICIENCIES, delta_e, hex_rgb
-from .conftest import require_browser
+from .conftest import instructor_of_a_new_course, require_browser, student_token, unique, viewer_step
 
 require_browser()
 
@@ -59,17 +58,6 @@ new MutationObserver(() => {
 """
 
 
-def unique(name: str) -> str:
-    return f"{name}-{uuid.uuid4().hex[:6]}"
-
-
-def student_token(server, name: str) -> str:
-    with server.client(server.instructor_token) as instructor:
-        response = instructor.post("/api/users", json={"name": name})
-    assert response.status_code == 201, response.text
-    return response.json()["token"]
-
-
 def canvas_pixels(web, selector: str, colors=()) -> dict:
     return web.page.evaluate(CANVAS_PIXELS, [selector, [list(c) for c in colors]])
 
@@ -89,10 +77,6 @@ def colors_on_track(server, race_url: str, step: int, apart: float = 0.05) -> li
     where = {i: (car["x"][step], car["y"][step]) for i, car in enumerate(cars) if len(car["x"]) > step + 1}
     covered = {i for i in where for j in where if j > i and math.dist(where[i], where[j]) < apart}
     return [color for i, color in enumerate(CAR_COLORS) if i in where and i not in covered]
-
-
-def viewer_step(web) -> int:
-    return int(web.page.get_attribute("#viewer", "data-step"))
 
 
 # --------------------------------------------------------------------------- login
@@ -173,10 +157,12 @@ def test_student_uploads_an_agent_and_sees_it_ready_with_its_chart(web, web_serv
     seen = web.page.evaluate("window.seenStatuses")[str(submission_id)]
     assert seen[0] == "pending" and seen[-1] == "ready", seen
     assert seen == [s for s in ("pending", "validating", "ready") if s in seen], seen  # in order, no reload
-    assert web.page.inner_text("#upload-message") == "driver_0.25.onnx passed validation: it is ready and being evaluated."
 
     api = wait_settled(web_server.client(token), submission_id)
     evaluation = api["evaluation"]
+    expect(web.page.locator("#upload-message")).to_have_text(  # said once the page's poll sees it too
+        f"driver_0.25.onnx is evaluated: {evaluation['completed']} of {evaluation['episodes_total']} laps completed, "
+        f"mean return {evaluation['mean_return']:.2f}.")
     summary = web.page.inner_text("#evaluation-summary")
     assert summary.startswith(f"Completed {evaluation['completed']} of {evaluation['episodes_total']} laps")
     assert f"mean return {evaluation['mean_return']:.2f}" in summary
@@ -335,12 +321,6 @@ def test_replay_viewer_refuses_a_file_that_is_not_a_replay(web, tmp_path):
 # --------------------------------------------------------------------------- instructor console
 
 
-def instructor_of_a_new_course(server) -> str:
-    """An instructor of a course of their own: their students, settings and re-runs change nothing
-    another test sees (re-running the shared course's evaluations kept the worker busy for later tests)."""
-    return add_user_in_new_course(server, unique("prof"), unique("course"), role="instructor")
-
-
 def test_instructor_creates_students_changes_settings_and_reruns(web, web_server, tmp_path):
     token = instructor_of_a_new_course(web_server)
     with web_server.client(token) as instructor:
@@ -376,7 +356,7 @@ def test_instructor_creates_students_changes_settings_and_reruns(web, web_server
     web.page.set_input_files("#roster-file", str(roster))
     web.page.click("#roster-form button[type=submit]")
     web.page.wait_for_function("() => document.querySelector('#students-message').textContent.includes('Created 2 students')")
-    assert web.page.locator("#token-table tbody tr").count() == 2
+    assert web.page.locator("#token-table tbody tr").count() == 3  # carol's stays until dismissed
     assert {first, second} <= set(web.page.locator("#users tbody td:first-child").all_inner_texts())
 
     # the same roster again with a late enrolment: the existing names are skipped, and said so

@@ -42,3 +42,32 @@ export function onClick(button, handler) {
   button.addEventListener("click", handler);
   button.disabled = false;
 }
+
+/**
+ * Move the keyboard focus to the result of an action (a heading, a new row, a message): what a
+ * screen reader reads next, and where Tab goes on from. Elements that are not controls get
+ * tabindex="-1": focusable by script, not a tab stop.
+ */
+export function focusOn(target) {
+  if (!target) return;
+  if (!target.matches("a[href], button, input, select, textarea, summary, [tabindex]")) target.tabIndex = -1;
+  target.focus();
+}
+
+/**
+ * Replace a container's content (a polled list, a re-drawn table) without losing the keyboard
+ * focus: the element that had it passes it to its successor, the new element with the same
+ * `data-focus-key`, or if there is none (a "Make active" button once it is), to the one its
+ * `data-focus-next` names. Without this, every refresh would send a keyboard user to the top.
+ */
+export function replaceKeepingFocus(container, ...children) {
+  const focused = container.contains(document.activeElement) ? document.activeElement.dataset : {};
+  container.replaceChildren(...children);
+  for (const key of [focused.focusKey, focused.focusNext]) {
+    const successor = key && container.querySelector(`[data-focus-key="${CSS.escape(key)}"]`);
+    if (successor) {
+      successor.focus({ preventScroll: true });
+      return;
+    }
+  }
+}

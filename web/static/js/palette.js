@@ -2,15 +2,29 @@
 // distinct colours), which the server writes into every page, so that a car looks here as in
 // `league race --save race.gif`. Cars also differ by marker shape: the two cars of a shape (car i
 // and car i + 5) keep colours apart for people with a red-green colour-vision deficiency too.
+// Each marker also carries its car's number (the legend's), in black or white, whichever stands out
+// more on its colour: the colours alone are not enough (several are as light as the road).
 // Outcomes and the speed line use the Okabe–Ito palette, as the pages' CSS does.
 
 const CAR_COLORS = document.body.dataset.carColors.split(" ");
 const CAR_SHAPES = ["circle", "square", "triangle", "diamond", "pentagon"];
 
-/** Car `index`'s colour and shape; past the tenth car the shapes shift, so 50 cars have 50 pairs. */
+/**
+ * Car `index`'s colour, shape, number (`label`) and the colour of that number; past the tenth car
+ * the shapes shift, so 50 cars have 50 pairs.
+ */
 export function carStyle(index) {
   const lap = Math.floor(index / CAR_COLORS.length);
-  return { color: CAR_COLORS[index % CAR_COLORS.length], shape: CAR_SHAPES[(index + lap) % CAR_SHAPES.length] };
+  const color = CAR_COLORS[index % CAR_COLORS.length];
+  return { color, shape: CAR_SHAPES[(index + lap) % CAR_SHAPES.length], label: String(index + 1), labelColor: textColorOn(color) };
+}
+
+/** Black or white, whichever contrasts more with `color` (WCAG 2 relative luminance). */
+function textColorOn(color) {
+  const [r, g, b] = [1, 3, 5].map((k) => parseInt(color.slice(k, k + 2), 16) / 255)
+    .map((c) => (c <= 0.04045 ? c / 12.92 : ((c + 0.055) / 1.055) ** 2.4));
+  const luminance = 0.2126 * r + 0.7152 * g + 0.0722 * b;
+  return (luminance + 0.05) / 0.05 >= 1.05 / (luminance + 0.05) ? "#000000" : "#ffffff";
 }
 
 export const OUTCOME_COLORS = {
@@ -41,19 +55,24 @@ export function traceShape(ctx, shape, x, y, r) {
   ctx.closePath();
 }
 
-/** A small SVG of a car's marker, for legends (the same shape and colour as on the canvas). */
+/** A small SVG of a car's marker, for legends (the same shape, colour and number as on the canvas). */
 export function markerIcon(index) {
-  const { color, shape } = carStyle(index);
+  const { color, shape, label, labelColor } = carStyle(index);
   const svg = document.createElementNS("http://www.w3.org/2000/svg", "svg");
-  svg.setAttribute("viewBox", "-10 -10 20 20");
+  svg.setAttribute("viewBox", "-11 -11 22 22");
   svg.setAttribute("aria-hidden", "true");
   svg.setAttribute("class", "marker-icon");
   const path = document.createElementNS("http://www.w3.org/2000/svg", "path");
-  path.setAttribute("d", shapePath(shape, 7));
+  path.setAttribute("d", shapePath(shape, 9));
   path.setAttribute("fill", color);
   path.setAttribute("stroke", "#000");
   path.setAttribute("stroke-width", "1.5");
-  svg.append(path);
+  const number = document.createElementNS("http://www.w3.org/2000/svg", "text");
+  Object.entries({ x: 0, y: 0.5, fill: labelColor, "font-size": label.length > 1 ? 7.5 : 9, "font-weight": 700,
+    "text-anchor": "middle", "dominant-baseline": "central", "font-family": "system-ui, sans-serif" })
+    .forEach(([name, value]) => number.setAttribute(name, value));
+  number.textContent = label;
+  svg.append(path, number);
   return svg;
 }
 

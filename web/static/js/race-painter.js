@@ -3,14 +3,17 @@
 
 import { carStyle, traceShape } from "./palette.js";
 
-const OFF_ROAD = "#eef3e6"; // pale green, as in the toolkit's pictures
-const ROAD = "#b9b9b9";
+export const OFF_ROAD = "#eef3e6"; // pale green, as in the toolkit's pictures
+export const ROAD = "#b9b9b9";
+// A marker's edge: black (10:1 on the road, 18:1 off it) inside a white halo (for dark obstacles).
+export const MARKER_EDGE = "#000000";
+const MARKER_HALO = "#ffffff";
 const BORDER = "#5d646b";
 const OBSTACLE = "#1e1e1e";
 const MARGIN = 0.04; // world units around the track
 const MAX_HEIGHT_FRACTION = 0.78; // of the window's height
-const MARKER_RADIUS = 6; // CSS px
-const HEADING_TICK = 13; // CSS px
+export const MARKER_RADIUS = 9; // CSS px: room for a two-digit number
+const HEADING_TICK = 17; // CSS px, from the marker's centre
 
 export class RacePainter {
   constructor(canvas, geometry, replay) {
@@ -144,7 +147,10 @@ export class RacePainter {
     ctx.lineJoin = "round";
     ctx.lineCap = "round";
     for (let i = 0; i < this.replay.carCount; i++) this.drawTrail(ctx, i, step);
-    for (let i = 0; i < this.replay.carCount; i++) this.drawMarker(ctx, i, step);
+    for (let i = 0; i < this.replay.carCount; i++) {
+      const { x, y, heading } = this.replay.position(i, step);
+      paintMarker(ctx, i, ...this.toPixels(x, y), heading);
+    }
   }
 
   drawTrail(ctx, i, step) {
@@ -165,24 +171,32 @@ export class RacePainter {
     ctx.stroke();
   }
 
-  drawMarker(ctx, i, step) {
-    const { x, y, heading } = this.replay.position(i, step);
-    const [px, py] = this.toPixels(x, y);
-    const { color, shape } = carStyle(i);
-    ctx.strokeStyle = "#000000";
-    ctx.lineWidth = 2;
-    ctx.beginPath();
-    ctx.moveTo(px, py);
-    ctx.lineTo(px + HEADING_TICK * Math.cos(heading), py - HEADING_TICK * Math.sin(heading));
-    ctx.stroke();
-    traceShape(ctx, shape, px, py, MARKER_RADIUS);
-    ctx.fillStyle = color;
-    ctx.fill();
-    ctx.lineWidth = 1.5;
-    ctx.stroke();
-  }
-
   destroy() {
     this.observer.disconnect();
   }
+}
+
+/** Car `index`'s marker centred on (px, py) CSS px: a tick for its heading, its shape in its colour, its number. */
+export function paintMarker(ctx, index, px, py, heading) {
+  const { color, shape, label, labelColor } = carStyle(index);
+  ctx.strokeStyle = MARKER_EDGE;
+  ctx.lineWidth = 2;
+  ctx.beginPath();
+  ctx.moveTo(px, py);
+  ctx.lineTo(px + HEADING_TICK * Math.cos(heading), py - HEADING_TICK * Math.sin(heading));
+  ctx.stroke();
+  traceShape(ctx, shape, px, py, MARKER_RADIUS);
+  ctx.strokeStyle = MARKER_HALO;
+  ctx.lineWidth = 4;
+  ctx.stroke();
+  ctx.fillStyle = color;
+  ctx.fill();
+  ctx.strokeStyle = MARKER_EDGE;
+  ctx.lineWidth = 2;
+  ctx.stroke();
+  ctx.fillStyle = labelColor;
+  ctx.font = `700 ${label.length > 1 ? 9 : 11}px system-ui, sans-serif`;
+  ctx.textAlign = "center";
+  ctx.textBaseline = "middle";
+  ctx.fillText(label, px, py + 0.5);
 }

@@ -1,7 +1,10 @@
-// Championships: create one, run a round and watch its heats finish, open the races' replays.
+// Championships: create one, run a round and watch its heats finish (said in the status box, which
+// screen readers read out politely), open the races' replays. After creating a championship the
+// focus goes to its card's heading, after running a round to the round's line.
 
 import { api } from "../api.js";
-import { $, badge, element, onSubmit, say } from "../dom.js";
+import { $, badge, element, focusOn, onSubmit, replaceKeepingFocus, say } from "../dom.js";
+import { count } from "../format.js";
 import { Poller } from "../poller.js";
 import { EnvOptionsFields, describeOptions } from "./env-options.js";
 
@@ -17,6 +20,7 @@ export async function setUpChampionships() {
       $("new-championship").open = false;
       say($("championships-message"), `Created the championship “${created.name}”.`, "success");
       await refreshChampionships();
+      focusOn(document.querySelector(`[data-focus-key="championship-${created.id}"]`));
     } catch (error) {
       say($("championships-message"), `Not created: ${error.message}`, "error");
     }
@@ -45,7 +49,7 @@ async function refreshChampionships() {
     return;
   }
   const details = await Promise.all(championships.map((c) => api(`/api/championships/${c.id}`, { auth: false })));
-  $("championships").replaceChildren(...details.sort((a, b) => b.id - a.id).map(championshipCard));
+  replaceKeepingFocus($("championships"), ...details.sort((a, b) => b.id - a.id).map(championshipCard));
   for (const championship of details) {
     for (const round of championship.rounds || []) {
       if (round.status === "pending" || round.status === "running") watchRound(championship.id, round.number);
@@ -55,14 +59,15 @@ async function refreshChampionships() {
 
 function championshipCard(championship) {
   const rounds = championship.rounds || [];
-  const run = element("button", { text: `Run round ${rounds.length + 1}`, attrs: { type: "button" } });
+  const run = element("button", { text: `Run round ${rounds.length + 1}`, attrs: { type: "button", "data-focus-key": `run-${championship.id}` } });
   run.addEventListener("click", () => runRound(championship, run));
   const facts = [`${championship.heat_size} cars per heat`, `points ${(championship.points || []).join("-")}`,
     championship.include_baselines ? "baselines take part" : "students only", describeOptions(championship.env_options),
     championship.seed !== null && championship.seed !== undefined ? `seed ${championship.seed}` : null].filter(Boolean);
   return element("article", { className: "panel", attrs: { "data-championship": championship.id, "aria-label": championship.name } },
-    element("div", { className: "row" }, element("h3", { text: championship.name }), run,
-      element("a", { text: "Standings", attrs: { href: `/?championship=${championship.id}` } })),
+    element("div", { className: "row" },
+      element("h3", { text: championship.name, attrs: { tabindex: "-1", "data-focus-key": `championship-${championship.id}` } }), run,
+      element("a", { text: "Standings", attrs: { href: `/?championship=${championship.id}`, "data-focus-key": `standings-${championship.id}` } })),
     element("p", { className: "small muted", text: facts.join(" · ") }),
     element("ol", { className: "rounds", attrs: { "aria-label": `Rounds of ${championship.name}` } },
       ...(rounds.length ? rounds.map((round) => roundItem(championship.id, round))
@@ -70,7 +75,7 @@ function championshipCard(championship) {
 }
 
 function roundItem(championshipId, round) {
-  const item = element("li", { attrs: { "data-round": round.number } });
+  const item = element("li", { attrs: { "data-round": round.number, tabindex: "-1", "data-focus-key": `round-${championshipId}-${round.number}` } });
   fillRound(item, round);
   return item;
 }
@@ -79,8 +84,9 @@ function fillRound(item, round) {
   const total = round.heats_total || 0;
   const progress = element("progress", { attrs: { max: Math.max(total, 1), value: round.heats_done || 0,
     "aria-label": `Round ${round.number}: ${round.heats_done} of ${total} heats done` } });
-  const links = (round.race_ids || []).map((raceId, i) => element("a", { text: `Heat ${i + 1}`, attrs: { href: `/races/${raceId}` } }));
-  item.replaceChildren(element("div", { className: "row" }, element("strong", { text: `Round ${round.number}` }), badge(round.status),
+  const links = (round.race_ids || []).map((raceId, i) => element("a", { text: `Heat ${i + 1}`,
+    attrs: { href: `/races/${raceId}`, "data-focus-key": `race-${raceId}` } }));
+  replaceKeepingFocus(item, element("div", { className: "row" }, element("strong", { text: `Round ${round.number}` }), badge(round.status),
     element("span", { text: `${round.heats_done ?? 0}/${total} heats done` }), ...links.flatMap((link) => [link])), progress);
 }
 
@@ -88,23 +94,34 @@ async function runRound(championship, button) {
   button.disabled = true;
   try {
     const round = await api(`/api/championships/${championship.id}/rounds`, { method: "POST" });
-    say($("championships-message"), `Round ${round.number} of ${championship.name} started.`, "success");
+    say($("championships-message"), `Round ${round.number} of ${championship.name} started: ` +
+      `${count(round.heats_total, "heat")} to race.`, "success");
+    watchRound(championship.id, round.number, championship.name); // before the refresh watches it unnamed
     await refreshChampionships();
-    watchRound(championship.id, round.number);
+    focusOn(document.querySelector(`[data-focus-key="round-${championship.id}-${round.number}"]`));
   } catch (error) {
     say($("championships-message"), `The round did not start: ${error.message}`, "error");
     button.disabled = false;
+    button.focus(); // it lost the focus while disabled
   }
 }
 
-/** Poll a running round until it is done (or failed), updating its line of the card. */
-function watchRound(championshipId, number) {
+/**
+ * Poll a running round until it is done (or failed), updating its line of the card. A round this
+ * page started (`name` given) has its progress and its end said in the status box.
+ */
+function watchRound(championshipId, number, name = null) {
   const key = `${championshipId}/${number}`;
   if (watched.has(key)) return;
+  let said = 0; // heats done when last said
   const poller = new Poller(async () => {
     const round = await api(`/api/championships/${championshipId}/rounds/${number}`, { auth: false });
     const item = document.querySelector(`[data-championship="${championshipId}"] [data-round="${number}"]`);
     if (item) fillRound(item, round);
+    if (name && (round.heats_done !== said || round.status === "done" || round.status === "failed")) {
+      said = round.heats_done;
+      sayProgress(name, round);
+    }
     if (round.status === "done" || round.status === "failed") {
       watched.delete(key);
       await refreshChampionships();
@@ -114,4 +131,15 @@ function watchRound(championshipId, number) {
   }, ROUND_POLL_MS);
   watched.set(key, poller);
   poller.poll();
+}
+
+function sayProgress(name, round) {
+  const heats = `${round.heats_done} of ${count(round.heats_total, "heat")} done`;
+  if (round.status === "done") {
+    say($("championships-message"), `Round ${round.number} of ${name} is over: ${heats}; the standings are updated.`, "success");
+  } else if (round.status === "failed") {
+    say($("championships-message"), `Round ${round.number} of ${name} failed: ${heats}. The Jobs table says why.`, "error");
+  } else {
+    say($("championships-message"), `Round ${round.number} of ${name}: ${heats}.`, "info");
+  }
 }

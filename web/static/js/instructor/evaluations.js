@@ -1,7 +1,7 @@
 // The course's evaluation settings, every submission of the course, and re-running evaluations.
 
 import { api } from "../api.js";
-import { $, badge, element, onClick, onSubmit, say } from "../dom.js";
+import { $, badge, element, onClick, onSubmit, replaceKeepingFocus, say } from "../dom.js";
 import { count, number } from "../format.js";
 import { Poller } from "../poller.js";
 import { EnvOptionsFields, describeOptions } from "./env-options.js";
@@ -35,7 +35,7 @@ export async function setUpEvaluations() {
 
   async function refreshSubmissions() {
     const submissions = await api("/api/submissions?all=true");
-    $("all-submissions").tBodies[0].replaceChildren(...submissions.map((s) => submissionRow(s, submissionsPoller)));
+    replaceKeepingFocus($("all-submissions").tBodies[0], ...submissions.map((s) => submissionRow(s, submissionsPoller)));
     const busy = submissions.some((s) => ["pending", "validating"].includes(s.status) ||
       (s.status === "ready" && !["done", "failed"].includes(s.evaluation?.status)));
     submissionsPoller.interval = busy ? FAST_POLL_MS : SLOW_POLL_MS;
@@ -84,7 +84,7 @@ function submissionRow(s, poller) {
   const actions = element("span", { className: "row" });
   if (s.status === "ready") {
     const rerun = element("button", { className: "secondary small", text: "Re-run",
-      attrs: { type: "button", "aria-label": `Re-run the evaluation of ${s.name} (${s.owner})` } });
+      attrs: { type: "button", "aria-label": `Re-run the evaluation of ${s.name} (${s.owner})`, "data-focus-key": `rerun-${s.id}` } });
     rerun.addEventListener("click", async () => {
       try {
         await api("/api/evaluations/rerun", { method: "POST", json: { submission_id: s.id } });
@@ -98,11 +98,17 @@ function submissionRow(s, poller) {
   }
   return element("tr", { attrs: { "data-id": s.id } },
     element("td", { className: "num", text: s.id }), element("td", { text: s.owner }),
-    element("td", { text: s.name, attrs: { title: s.error || s.filename } }),
-    element("td", {}, badge(s.status)),
+    element("td", { text: s.name, attrs: { title: s.filename } }),
+    element("td", {}, badge(s.status), reason(s.error)),
     element("td", {}, ...(evaluation ? [badge(evaluation.status), evaluation.stale ? badge("stale") : null]
-      : [element("span", { className: "muted", text: "–" })])),
+      : [element("span", { className: "muted", text: "–" })]),
+      reason(evaluation?.status === "failed" ? evaluation.error : null)),
     element("td", { className: "num", text: done ? `${evaluation.completed}/${evaluation.episodes_total}` : "–" }),
     element("td", { className: "num", text: done ? number(evaluation.mean_return) : "–" }),
     element("td", {}, actions));
+}
+
+/** Why a submission was rejected or an evaluation failed, in the table itself (not only on hover). */
+function reason(text) {
+  return text ? element("span", { className: "reason", text }) : null;
 }

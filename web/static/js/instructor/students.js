@@ -1,11 +1,18 @@
-// Students: create one or a CSV roster (their tokens are shown once), revoke, issue a new token.
+// Students: create one or a CSV roster (their tokens are shown once, kept until dismissed), revoke
+// (after a confirmation), issue a new token.
 
 import { api } from "../api.js";
-import { $, badge, element, onSubmit, say } from "../dom.js";
+import { $, badge, element, focusOn, onClick, onSubmit, replaceKeepingFocus, say } from "../dom.js";
 import { count, dateTime } from "../format.js";
 
 
+let tokens = []; // [{id, name, token}], newest first: shown until the instructor dismisses them
+
 export function setUpStudents(me) {
+  onClick($("tokens-dismiss"), () => {
+    showTokens([], { dismiss: true });
+    focusOn($("student-name"));
+  });
   onSubmit($("student-form"), async () => {
     const name = $("student-name").value.trim();
     if (!name) {
@@ -45,11 +52,14 @@ export function setUpStudents(me) {
   return refreshUsers(me);
 }
 
-function showTokens(users) {
-  $("tokens").hidden = false;
-  $("token-table").tBodies[0].replaceChildren(...users.map((user) => element("tr", {},
+/** Add new tokens above those shown (a user's new token replaces their earlier one), or dismiss them all. */
+function showTokens(users, { dismiss = false, revoked = null } = {}) {
+  const replaced = new Set([...users.map((user) => user.id), revoked]);
+  tokens = dismiss ? [] : [...users, ...tokens.filter((shown) => !replaced.has(shown.id))];
+  $("tokens").hidden = !tokens.length;
+  $("token-table").tBodies[0].replaceChildren(...tokens.map((user) => element("tr", {},
     element("td", { text: user.name }), element("td", {}, element("span", { className: "token", text: user.token })))));
-  const csv = ["name,token", ...users.map((user) => `${csvCell(user.name)},${csvCell(user.token)}`)].join("\n");
+  const csv = ["name,token", ...tokens.map((user) => `${csvCell(user.name)},${csvCell(user.token)}`)].join("\n");
   const link = $("tokens-download");
   if (link.href.startsWith("blob:")) URL.revokeObjectURL(link.href);
   link.href = URL.createObjectURL(new Blob([csv + "\n"], { type: "text/csv" }));
@@ -69,18 +79,21 @@ function csvCell(text) {
 
 async function refreshUsers(me) {
   const users = await api("/api/users");
-  $("users").tBodies[0].replaceChildren(...users.map((user) => {
+  replaceKeepingFocus($("users").tBodies[0], ...users.map((user) => {
     const actions = element("span", { className: "row" });
     if (user.id !== me.id && user.role === "student") {
+      const tokenKey = `token-${user.id}`;
       if (user.active) actions.append(actionButton(`Revoke`, `Revoke ${user.name}'s account`, "danger", async () => {
         await api(`/api/users/${user.id}/revoke`, { method: "POST" });
+        showTokens([], { revoked: user.id });
         say($("students-message"), `${user.name}'s token no longer works.`, "success");
-      }, me));
-      actions.append(actionButton(user.active ? "New token" : "Restore with a new token", `New token for ${user.name}`, "secondary", async () => {
+      }, me, { key: `revoke-${user.id}`, next: tokenKey, ask: () => askToRevoke(user) }));
+      const newToken = user.active ? "New token" : "Restore with a new token";
+      actions.append(actionButton(newToken, `${newToken} for ${user.name}`, "secondary", async () => {
         const created = await api(`/api/users/${user.id}/token`, { method: "POST" });
         showTokens([created]);
         say($("students-message"), `New token for ${user.name} below (the old one no longer works).`, "success");
-      }, me));
+      }, me, { key: tokenKey }));
     }
     return element("tr", {}, element("td", { text: user.name }), element("td", { text: user.role }),
       element("td", { text: dateTime(user.created_at) }),
@@ -88,17 +101,37 @@ async function refreshUsers(me) {
   }));
 }
 
-function actionButton(text, label, style, action, me) {
-  const button = element("button", { className: `small ${style}`, text, attrs: { type: "button", "aria-label": label } });
+/** A user's action; `ask` may ask first. Once done, the focus goes to the button keyed `next` in the redrawn row. */
+function actionButton(text, label, style, action, me, { key, next = key, ask = async () => true }) {
+  const button = element("button", { className: `small ${style}`, text, attrs: { type: "button", "aria-label": label, "data-focus-key": key } });
   button.addEventListener("click", async () => {
-    button.disabled = true;
+    if (!(await ask())) {
+      button.focus();
+      return;
+    }
+    button.disabled = true; // which takes its focus: given back below
     try {
       await action();
       await refreshUsers(me);
+      focusOn($("users").querySelector(`[data-focus-key="${next}"]`));
     } catch (error) {
       say($("students-message"), error.message, "error");
       button.disabled = false;
+      button.focus();
     }
   });
   return button;
+}
+
+/** Revoking logs the student out at once: a dialog asks first, its Cancel button focused. */
+function askToRevoke(user) {
+  const dialog = $("revoke-dialog");
+  $("revoke-title").textContent = `Revoke ${user.name}'s account?`;
+  $("revoke-summary").textContent = `${user.name}'s token stops working at once: they are logged out and can no longer ` +
+    "upload or race. Their submissions and results stay. “Restore with a new token” gives them a new one.";
+  dialog.returnValue = "";
+  dialog.showModal();
+  return new Promise((resolve) => {
+    dialog.addEventListener("close", () => resolve(dialog.returnValue === "revoke"), { once: true });
+  });
 }

@@ -1,7 +1,7 @@
 // The instructor console (/instructor): students, evaluation settings, championships, jobs.
 
 import { api } from "../api.js";
-import { $, badge, element, onClick, say } from "../dom.js";
+import { $, badge, element, onClick, replaceKeepingFocus, say } from "../dom.js";
 import { dateTime } from "../format.js";
 import { setUpChampionships } from "../instructor/championships.js";
 import { setUpEvaluations } from "../instructor/evaluations.js";
@@ -13,13 +13,13 @@ const JOBS_POLL_MS = 5000;
 
 /** What a job works on: a race (linked to its replay) or a submission. */
 function jobSubject(job) {
-  if (job.race_id) return element("a", { text: `race #${job.race_id}`, attrs: { href: `/races/${job.race_id}` } });
+  if (job.race_id) return element("a", { text: `race #${job.race_id}`, attrs: { href: `/races/${job.race_id}`, "data-focus-key": `job-${job.id}` } });
   return job.kind + (job.submission_id ? ` #${job.submission_id}` : "");
 }
 
 async function refreshJobs() {
   const jobs = await api("/api/jobs?limit=20");
-  $("jobs").tBodies[0].replaceChildren(...jobs.map((job) => element("tr", {},
+  replaceKeepingFocus($("jobs").tBodies[0], ...jobs.map((job) => element("tr", {},
     element("td", { className: "num", text: job.id }),
     element("td", {}, jobSubject(job)),
     element("td", {}, badge(job.status)), element("td", { className: "num", text: job.attempts }),

@@ -2,7 +2,7 @@
 // refreshed every 15 s. Public: the token, when there is one, only highlights the user's rows.
 
 import { api, download } from "../api.js";
-import { $, badge, element, onClick, say } from "../dom.js";
+import { $, badge, element, onClick, replaceKeepingFocus, say } from "../dom.js";
 import { dateTime, number, ordinal, percent } from "../format.js";
 import { Pager } from "../pager.js";
 import { Poller } from "../poller.js";
@@ -125,11 +125,11 @@ async function refreshRounds() {
     $("rounds").replaceChildren(element("li", { className: "muted", text: "No rounds yet." }));
     return;
   }
-  $("rounds").replaceChildren(...[...rounds].reverse().map((round) => {
+  replaceKeepingFocus($("rounds"), ...[...rounds].reverse().map((round) => {
     const item = element("li", {}, element("strong", { text: `Round ${round.number}` }), " ", badge(round.status),
       ` heats ${round.heats_done}/${round.heats_total}`);
     (round.race_ids || []).forEach((raceId, i) => {
-      item.append(" · ", element("a", { text: `Heat ${i + 1} replay`, attrs: { href: `/races/${raceId}` } }));
+      item.append(" · ", element("a", { text: `Heat ${i + 1} replay`, attrs: { href: `/races/${raceId}`, "data-focus-key": `race-${raceId}` } }));
     });
     return item;
   }));
@@ -159,8 +159,8 @@ async function refreshRaces() {
     $("races").replaceChildren(element("li", { className: "muted", text: "No races yet." }));
     return;
   }
-  $("races").replaceChildren(...items.map((race) => element("li", {},
-    element("a", { text: `Race ${race.id}`, attrs: { href: `/races/${race.id}` } }), " ", badge(race.status), " ",
+  replaceKeepingFocus($("races"), ...items.map((race) => element("li", {},
+    element("a", { text: `Race ${race.id}`, attrs: { href: `/races/${race.id}`, "data-focus-key": `race-${race.id}` } }), " ", badge(race.status), " ",
     element("span", { className: "muted", text: raceDescription(race) }))));
 }
 

@@ -191,6 +191,7 @@ onClick($("copy-link"), async () => {
 document.addEventListener("keydown", (event) => {
   if (!viewer || event.altKey || event.ctrlKey || event.metaKey) return;
   const target = event.target;
+  if (target.closest(".table-wrap")) return; // a table that scrolls sideways: the arrows scroll it
   const typing = target.matches("input[type=text], input[type=password], textarea, select");
   const onControl = target.matches("button, a, summary, input[type=range], input[type=file]");
   const { player, replay } = viewer;

@@ -2,7 +2,7 @@
 // failed, see its evaluation chart, pick the championship's active submission, start a friendly race.
 
 import { api } from "../api.js";
-import { $, badge, element, onSubmit, say } from "../dom.js";
+import { $, badge, element, focusOn, onSubmit, replaceKeepingFocus, say } from "../dom.js";
 import { showEpisodeChart } from "../episode-chart.js";
 import { count, dateTime, number, outcomeText } from "../format.js";
 import { Poller } from "../poller.js";
@@ -19,7 +19,8 @@ let submissions = [];
 let selectedId = Number(new URLSearchParams(location.search).get("id")) || null;
 let shownEvaluation = null; // "id:status" of the evaluation whose chart is drawn
 let chosenFile = null;
-let lastUpload = null; // {id, filename}: its outcome replaces the "uploaded" message
+let lastUpload = null; // {id, filename, validated}: its outcomes replace the "uploaded" message
+let focusDetailOf = null; // the submission whose details take the focus once shown (after an upload or a pick)
 let quotaKey = null; // the submissions' ids and statuses when the quota was last read
 
 /** Validated and, when ready, evaluated (or the evaluation failed): nothing more will change. */
@@ -71,11 +72,11 @@ function renderList() {
     body.replaceChildren(element("tr", {}, element("td", { className: "muted", text: "No submissions yet: upload your first agent above.", attrs: { colspan: 7 } })));
     return;
   }
-  body.replaceChildren(...submissions.map((s) => {
+  replaceKeepingFocus(body, ...submissions.map((s) => {
     const evaluation = s.evaluation;
     const done = evaluation?.status === "done";
     const open = element("button", { className: "secondary small", text: s.name,
-      attrs: { type: "button", "aria-label": `Show ${s.name}`, "aria-controls": "detail" } });
+      attrs: { type: "button", "aria-label": `Show ${s.name}`, "aria-controls": "detail", "data-focus-key": `show-${s.id}` } });
     open.addEventListener("click", () => select(s.id));
     const row = element("tr", { attrs: { "data-id": s.id, "data-status": s.status } },
       element("td", {}, open),
@@ -105,12 +106,13 @@ function championshipCell(s) {
   if (s.active) cell.append(badge("active"));
   else if (s.status === "ready") {
     const use = element("button", { className: "secondary small", text: "Make active",
-      attrs: { type: "button", "aria-label": `Race ${s.name} in championships` } });
+      attrs: { type: "button", "aria-label": `Make active: ${s.name} races in championships`,
+               "data-focus-key": `active-${s.id}`, "data-focus-next": `show-${s.id}` } }); // gone once it is
     use.addEventListener("click", () => update(s, { active: true }));
     cell.append(use);
   }
   if ("public" in s && s.status === "ready") {
-    const box = element("input", { attrs: { type: "checkbox", checked: s.public } });
+    const box = element("input", { attrs: { type: "checkbox", checked: s.public, "data-focus-key": `public-${s.id}` } });
     box.addEventListener("change", () => update(s, { public: box.checked }));
     cell.append(element("label", { className: "checks small" }, box, "public opponent"));
   }
@@ -132,8 +134,9 @@ function select(id) {
   const url = new URL(location.href);
   url.searchParams.set("id", id);
   history.replaceState(null, "", url);
+  focusDetailOf = id;
   renderList();
-  refreshDetail().then(() => $("detail").scrollIntoView({ block: "start" }));
+  refreshDetail();
 }
 
 // --------------------------------------------------------------------------- one submission
@@ -146,6 +149,10 @@ async function refreshDetail() {
     s.obs_dim ? `observation size ${s.obs_dim}` : null, `uploaded ${dateTime(s.created_at)}`].filter(Boolean).join(" · ");
   say($("detail-error"), s.error ? `${s.status === "rejected" ? "Rejected" : "Failed"}: ${s.error}` : "", "error");
   showLog("validation-log", s.log);
+  if (focusDetailOf === s.id) {
+    focusDetailOf = null;
+    focusOn($("detail-title"));
+  }
   await renderEvaluation(s);
 }
 
@@ -213,11 +220,24 @@ async function allEpisodes(link, total) {
 
 // --------------------------------------------------------------------------- upload
 
+/** Say (in the upload's status box, read out politely) how the last upload's validation, then its evaluation, ended. */
 function reportUpload() {
   const s = lastUpload && submissions.find((item) => item.id === lastUpload.id);
   if (!s || !["ready", "rejected", "failed"].includes(s.status)) return;
-  if (s.status === "ready") say($("upload-message"), `${lastUpload.filename} passed validation: it is ready and being evaluated.`, "success");
-  else say($("upload-message"), `${lastUpload.filename} was ${s.status}: ${s.error}`, "error");
+  const { filename } = lastUpload;
+  if (s.status !== "ready") {
+    say($("upload-message"), `${filename} was ${s.status}: ${s.error}`, "error");
+    lastUpload = null;
+  } else if (!lastUpload.validated) {
+    say($("upload-message"), `${filename} passed validation: it is ready and being evaluated.`, "success");
+    lastUpload.validated = true;
+  }
+  const evaluation = s.evaluation;
+  if (s.status !== "ready" || !["done", "failed"].includes(evaluation?.status)) return;
+  say($("upload-message"), evaluation.status === "done"
+    ? `${filename} is evaluated: ${evaluation.completed} of ${count(evaluation.episodes_total, "lap")} completed, ` +
+      `mean return ${number(evaluation.mean_return)}.`
+    : `${filename} passed validation, but its evaluation failed: ${evaluation.error}`, evaluation.status === "done" ? "success" : "error");
   lastUpload = null;
 }
 
@@ -247,7 +267,8 @@ onSubmit($("upload-form"), async () => {
     const created = await api("/api/submissions", { method: "POST", form });
     say(message, `Uploaded ${chosenFile.name}: it is ${created.status}; it will be validated, then evaluated.`, "success");
     selectedId = created.id;
-    lastUpload = { id: created.id, filename: chosenFile.name };
+    focusDetailOf = created.id;
+    lastUpload = { id: created.id, filename: chosenFile.name, validated: false };
     shownEvaluation = null;
     chosenFile = null;
     $("upload-form").reset();
@@ -255,9 +276,10 @@ onSubmit($("upload-form"), async () => {
     await poller.poll();
   } catch (error) {
     say(message, `Upload refused: ${error.message}`, "error");
-  } finally {
-    $("upload-button").disabled = false;
   }
+  $("upload-button").disabled = false;
+  // uploaded, the new submission's details take the focus; refused, the button gets back the focus it lost while disabled
+  if (focusDetailOf === null && document.activeElement === document.body) $("upload-button").focus();
 });
 
 // --------------------------------------------------------------------------- friendly race
