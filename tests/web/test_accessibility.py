@@ -18,6 +18,8 @@ import pytest
 from PIL import Image  # matplotlib's
 from playwright.sync_api import expect
 
+from league.server.api.deps import UNKNOWN_TOKEN
+
 from ..server.conftest import upload, wait_for, wait_settled
 from .colours import contrast, hex_rgb
 from .conftest import instructor_of_a_new_course, require_browser, student_token, unique, viewer_step
@@ -338,7 +340,7 @@ def test_login_by_keyboard(web, web_server):
     focused(web, "#token")
     web.page.keyboard.type("not-my-token")
     web.page.keyboard.press("Enter")
-    wait_announced(web, "assertive", "This token was not accepted: invalid token.")
+    wait_announced(web, "assertive", f"This token was not accepted: {UNKNOWN_TOKEN}.")
     focused(web, "#token")  # with the wrong token selected: typing replaces it
     web.page.keyboard.type(token)
     web.page.keyboard.press("Enter")
