@@ -1,5 +1,6 @@
 """CSV that spreadsheets open as data, never as formulas (`csv_text`): every CSV the league writes
-(the server's grade sheets, `league submissions --csv`) goes through it.
+(the server's grade sheets, `league submissions --csv`, the tokens of `league users import`) goes
+through it.
 
 A spreadsheet runs a cell that starts with = + - or @ as a formula, and where cells begin depends
 on how it splits lines: on commas, but Excel in much of Europe splits on semicolons, and import

@@ -18,12 +18,12 @@ from league.server.api.cache import ResponseCache
 from league.server.api.limits import KB, BodyLimits, Limit
 from league.server.api.main import api_router
 from league.server.api.routes.pages import MAX_TRACK_BYTES, mount_web
-from league.server.api.routes.users import MAX_ROSTER_BYTES
 from league.server.bootstrap import bootstrap
 from league.server.config import Settings
 from league.server.db.session import make_engine, make_sessionmaker, migrate
 from league.server.jobs.queue import JobQueue, build_queue
 from league.server.jobs.worker import sweep_store
+from league.server.roster import MAX_ROSTER_BYTES
 from league.server.sandbox.process import ForkServer, sandbox_isolation
 from league.server.storage import BlobStore
 

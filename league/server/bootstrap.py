@@ -54,7 +54,7 @@ def bootstrap(settings: Settings, sessions: sessionmaker[Session], queue: JobQue
     files = baseline_files(settings.resolved_baselines_dir)
     try:
         job_ids = _register(sessions, store, files, settings.max_job_attempts)
-    except (IntegrityError, crud.InvalidName):  # another process registered them first
+    except (IntegrityError, crud.InvalidAccount):  # another process registered them first
         return []
     for job_id in job_ids:
         queue.enqueue(job_id)

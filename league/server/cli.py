@@ -43,11 +43,23 @@ def add_commands(subparsers) -> None:
     worker.set_defaults(run=run_worker)
 
     users = subparsers.add_parser("users", help="manage accounts")
-    commands = users.add_subparsers(dest="users_command", required=True, metavar="{add,list,revoke}")
+    commands = users.add_subparsers(dest="users_command", required=True, metavar="{add,import,list,revoke}")
     add = commands.add_parser("add", help="add an account and print its API token")
     add.add_argument("name")
     add.add_argument("--role", choices=[INSTRUCTOR, STUDENT], default=STUDENT, help="default: student")
+    add.add_argument("--email", help="the student's email address (optional)")
+    add.add_argument("--student-id", help="the school's id of the student, unique in the course (optional)")
     add.set_defaults(run=run_users_add)
+    roster = commands.add_parser(
+        "import", help="create the students of a roster (CSV) and print their tokens as CSV",
+        description="Create the students of a roster as spreadsheets export it: comma-, semicolon- or "
+                    "tab-separated, with a header naming the columns (name, or first name and last name; email; "
+                    "student id; in common spellings) or one name a line. Students enrolled already are skipped "
+                    "(matched by student id or email, else by name); each bad line is reported with its number "
+                    "and the others are created. Writes name,email,student_id,token of the new students to "
+                    "standard output (tokens are shown once: redirect it to a file); exits 1 if a line had an error.")
+    roster.add_argument("file", help="the roster, e.g. roster.csv (UTF-8, as Excel's 'CSV UTF-8' saves it)")
+    roster.set_defaults(run=run_users_import)
     listing = commands.add_parser("list", help="list the accounts")
     listing.set_defaults(run=run_users_list)
     revoke = commands.add_parser("revoke", help="revoke an account (its token stops working)")
@@ -153,14 +165,43 @@ def run_users_add(args: argparse.Namespace) -> int:
 
     with _sessions().begin() as session:
         try:
-            user, token = crud.create_user(session, name=args.name, role=args.role,
-                                           course=crud.first_course(session))
-        except crud.InvalidName as error:
+            user, token = crud.create_user(session, name=args.name, role=args.role, course=crud.first_course(session),
+                                           email=args.email, student_id=args.student_id)
+        except crud.InvalidAccount as error:
             print(f"league: error: {error}", file=sys.stderr)
             return 1
         print(token)
     print(f"created {args.role} {user.name!r} (id {user.id}); the token above is shown once", file=sys.stderr)
     return 0
+
+
+def run_users_import(args: argparse.Namespace) -> int:
+    from league.server.db import crud
+    from league.server.roster import MAX_ROSTER_BYTES, RosterError, import_roster, read_roster
+    from league.spreadsheet import csv_text
+
+    try:
+        with open(args.file, "rb") as file:
+            roster = read_roster(file.read(MAX_ROSTER_BYTES + 1))
+    except (OSError, RosterError) as error:
+        print(f"league: error: {args.file}: {error}", file=sys.stderr)
+        return 1
+    with _sessions().begin() as session:
+        report = import_roster(session, course=crud.first_course(session), created_by=None, roster=roster)
+        tokens = csv_text(["name", "email", "student_id", "token"],
+                          ([user.name, user.email, user.student_id, token] for user, token in report.created))
+    sys.stdout.write(tokens)  # once committed
+    for problem in report.skipped:
+        print(f"line {problem.line}: skipped {problem.name}: {problem.reason}", file=sys.stderr)
+    for problem in report.errors:
+        print(f"line {problem.line}: error: {problem.reason}", file=sys.stderr)
+    print(f"created {_count(len(report.created), 'student')}, skipped {_count(len(report.skipped), 'line')}, "
+          f"{_count(len(report.errors), 'line')} with errors; the tokens above are shown once", file=sys.stderr)
+    return 1 if report.errors else 0
+
+
+def _count(n: int, noun: str) -> str:
+    return f"{n} {noun}" + ("" if n == 1 else "s")
 
 
 def run_users_list(args: argparse.Namespace) -> int:

@@ -16,6 +16,8 @@ class UserOut(BaseModel):
     name: str
     role: str
     course_id: int | None
+    email: str | None
+    student_id: str | None = Field(description="the school's id of the student (unique in the course), or null")
     created_at: datetime
     active: bool
 
@@ -35,13 +37,30 @@ class UserCreated(UserOut):
     token: str = Field(description="the API token: shown once, store it (Authorization: Bearer TOKEN)")
 
 
+class RosterLine(BaseModel):
+    line: int = Field(description="the line's number in the file (a header is line 1)")
+    name: str | None = Field(description="the name the line gives, as far as it could be read")
+    reason: str
+
+
+class RosterFormat(BaseModel):
+    delimiter: Literal["comma", "semicolon", "tab"]
+    columns: dict[str, str] = Field(description="field (full, name, first, last, email, student_id) -> the "
+                                                "header's spelling; empty when the file has one name a line")
+
+
 class RosterCreated(BaseModel):
+    format: RosterFormat = Field(description="how the file was read")
     created: list[UserCreated]
-    skipped: list[str] = Field(description="names already taken (by students created before, or other users)")
+    skipped: list[RosterLine] = Field(description="students enrolled already (matched by student id or email when "
+                                                  "the line gives them, else by name) or named twice in the file")
+    errors: list[RosterLine] = Field(description="lines not created and why; the other lines were")
 
 
 class UserCreate(BaseModel):
-    name: str = Field(min_length=1, max_length=100)
+    name: str = Field(min_length=1, max_length=200)
+    email: str | None = Field(default=None, max_length=300)
+    student_id: str | None = Field(default=None, max_length=200)
     role: Literal["student"] = "student"
 
 

@@ -1,6 +1,8 @@
 """`league users ...` and the server commands in the toolkit's `league` CLI."""
 from __future__ import annotations
 
+import csv
+import io
 import os
 import subprocess
 import sys
@@ -49,6 +51,33 @@ def test_users_add_prints_a_token_once_and_names_are_unique(tmp_path):
     listing = league(tmp_path, "users", "list").stdout
     assert "prof" in listing and "revoked" in listing
     assert [line.split()[1:3] for line in listing.splitlines() if " ann " in line] == [["ann", "student"]]
+
+
+def test_users_import_creates_a_rosters_students_and_prints_their_tokens(tmp_path):
+    """`league users import` reads rosters as the API does: the good lines' tokens as CSV on stdout,
+    each other line with its number on stderr, exit 1 while a line has an error."""
+    roster = tmp_path / "roster.csv"
+    roster.write_bytes("\ufeffVorname;Nachname;E-Mail;Matrikelnummer\r\nNiaj;O'Brien;niaj@uni.de;0042\r\n"
+                       "Zoë;Müller;zoe@uni;0043\r\n".encode())
+    first = league(tmp_path, "users", "import", str(roster))
+    assert first.returncode == 1, first.stderr
+    assert first.stdout.splitlines()[0] == "name,email,student_id,token"
+    assert first.stdout.splitlines()[1].startswith('"Niaj O\'Brien","niaj@uni.de","0042","lg_')  # league.spreadsheet's
+    created = list(csv.reader(io.StringIO(first.stdout)))[1:]
+    assert [row[:3] for row in created] == [["Niaj O'Brien", "niaj@uni.de", "0042"]] and created[0][3].startswith("lg_")
+    assert first.stderr.splitlines() == [
+        "line 3: error: the email 'zoe@uni' is not an address: The part after the @-sign is not valid. "
+        "It should have a period.",
+        "created 1 student, skipped 0 lines, 1 line with errors; the tokens above are shown once"]
+
+    roster.write_bytes("Vorname;Nachname;E-Mail;Matrikelnummer\nNiaj;O'Brien;;0042\nZoë;Müller;zoe@uni.de;0043\n".encode())
+    second = league(tmp_path, "users", "import", str(roster))
+    assert second.returncode == 0, second.stderr
+    assert [row[:3] for row in csv.reader(io.StringIO(second.stdout))] == [
+        ["name", "email", "student_id"], ["Zoë Müller", "zoe@uni.de", "0043"]]
+    assert second.stderr.splitlines()[0] == "line 2: skipped Niaj O'Brien: already a student (same student id)"
+    missing = league(tmp_path, "users", "import", str(tmp_path / "nothing.csv"))
+    assert missing.returncode == 1 and "nothing.csv: [Errno 2] No such file or directory" in missing.stderr
 
 
 def test_a_worker_runs_its_threads_on_the_cpus_it_is_given(tmp_path):

@@ -8,6 +8,7 @@ from alembic import command
 from alembic.autogenerate import compare_metadata
 from alembic.migration import MigrationContext
 from sqlalchemy import MetaData, inspect, text
+from sqlalchemy.exc import IntegrityError
 
 from league.server.db.models import Base
 from league.server.db.session import alembic_config, make_engine, migrate
@@ -136,3 +137,41 @@ def test_0007_keys_existing_results_so_that_the_board_keeps_what_0006_ranked(kin
     assert (bob_agent["status"], bob_agent["stale"]) == ("failed", False)  # its newest of the course's settings
     assert race["versions"] == versions
     assert [(job["submission_id"], job["priority"]) for job in queued] == [(6, 0)]
+
+
+# --------------------------------------------------------------------------- 0008: users gain email and student_id
+
+
+def test_users_gain_email_and_student_id_with_their_data_kept(backend):
+    """0008 on a database of the previous schema (0007) that holds users: every row kept, both fields
+    empty; a student id is then unique within its course, and many students may have none."""
+    _, (database_url, _, _) = backend
+    engine = make_engine(database_url)
+    config = alembic_config(database_url)
+    with engine.connect() as connection:
+        config.attributes["connection"] = connection
+        command.upgrade(config, "0007")
+        connection.commit()
+    created = datetime(2026, 11, 1)
+    with engine.begin() as connection:
+        connection.execute(text("INSERT INTO courses (id, name, eval_seed, eval_episodes, eval_env_options, "
+                                "created_at, updated_at) VALUES (:id, :name, 0, 3, '{}', :now, :now)"),
+                           [{"id": 1, "name": "default", "now": created}, {"id": 2, "name": "other", "now": created}])
+        connection.execute(text("INSERT INTO users (id, name, role, course_id, token_hash, created_at) "
+                                "VALUES (:id, :name, :role, :course, :hash, :now)"),
+                           [{"id": 1, "name": "prof", "role": "instructor", "course": 1, "hash": "a" * 64, "now": created},
+                            {"id": 2, "name": "Ada", "role": "student", "course": 1, "hash": "b" * 64, "now": created},
+                            {"id": 3, "name": "Bea", "role": "student", "course": 2, "hash": None, "now": created}])
+    migrate(engine)
+    with engine.begin() as connection:
+        rows = connection.execute(text("SELECT id, name, role, course_id, token_hash, email, student_id "
+                                       "FROM users ORDER BY id")).all()
+        connection.execute(text("UPDATE users SET student_id = 's1' WHERE id IN (2, 3)"))  # two courses: allowed
+        connection.execute(text("UPDATE users SET email = 'ada@uni.edu' WHERE id = 2"))
+    with pytest.raises(IntegrityError), engine.begin() as connection:
+        connection.execute(text("INSERT INTO users (name, role, course_id, student_id, created_at) "
+                                "VALUES ('Cal', 'student', 1, 's1', :now)"), {"now": created})
+    engine.dispose()
+    assert [tuple(row) for row in rows] == [(1, "prof", "instructor", 1, "a" * 64, None, None),
+                                            (2, "Ada", "student", 1, "b" * 64, None, None),
+                                            (3, "Bea", "student", 2, None, None, None)]

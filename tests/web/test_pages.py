@@ -349,32 +349,49 @@ def test_instructor_creates_students_changes_settings_and_reruns(web, web_server
     assert web_server.client(token_shown).get("/api/users/me").json()["name"] == name
     assert web.page.url.endswith("/instructor")  # the script handled the form, not the browser
 
-    # a roster
+    # a roster as Excel saves it in much of Europe: semicolons, a BOM, CRLF
     roster = tmp_path / "roster.csv"
     first, second = unique("dan"), unique("eve")
-    roster.write_text(f"name\n{first}\n{second}\n")
+    roster.write_bytes(f"\ufeffName;E-Mail\r\n{first};{first}@uni.de\r\n{second};{second}@uni.de\r\n".encode())
     web.page.set_input_files("#roster-file", str(roster))
     web.page.click("#roster-form button[type=submit]")
     web.page.wait_for_function("() => document.querySelector('#students-message').textContent.includes('Created 2 students')")
+    assert web.page.inner_text("#students-message") == \
+        "Created 2 students from roster.csv (semicolon-separated, columns Name, E-Mail)."
     assert web.page.locator("#token-table tbody tr").count() == 3  # carol's stays until dismissed
     assert {first, second} <= set(web.page.locator("#users tbody td:first-child").all_inner_texts())
+    assert f"{first}@uni.de" in web.page.locator("#users tbody td:nth-child(2)").all_inner_texts()
+    assert web.page.is_hidden("#roster-report")
 
-    # the same roster again with a late enrolment: the existing names are skipped, and said so
+    # the same roster again with a late enrolment and a bad line: the good line is created, the
+    # enrolled students skipped, the bad line listed with its number
     late = unique("fay")
-    roster.write_text(f"name\n{first}\n{second}\n{late}\n")
+    roster.write_bytes(f"Name;E-Mail\n{first};{first}@uni.de\n{second};{second}@uni.de\n{late};{late}@uni.de\n"
+                       f"=cmd|' /C calc'!A0;\n".encode())
     web.page.set_input_files("#roster-file", str(roster))
     web.page.click("#roster-form button[type=submit]")
     web.page.wait_for_function("() => document.querySelector('#students-message').textContent.includes('Created 1 student ')")
-    assert web.page.inner_text("#students-message") == \
-        f"Created 1 student from roster.csv. Skipped 2 names already taken: {first}, {second}."
+    assert web.page.inner_text("#students-message") == (
+        "Created 1 student from roster.csv (semicolon-separated, columns Name, E-Mail). Skipped 2 lines naming "
+        "students already enrolled. 1 line with errors not created: fix them and upload the roster again.")
+    assert web.page.locator("#students-message.error").count() == 1
     assert web.page.locator("#token-table tbody tr").all_inner_texts()[0].startswith(late)
+    assert [row.split("\t") for row in web.page.locator("#roster-lines tbody tr").all_inner_texts()] == [
+        ["2", first, "skipped", "already a student (same email)"],
+        ["3", second, "skipped", "already a student (same email)"],
+        ["5", "=cmd|' /C calc'!A0", "error", "the name \"=cmd|' /C calc'!A0\" holds '=': names are letters, digits, "
+                                           "spaces, apostrophes, hyphens and . , _ @ +"]]
 
-    # a roster naming a student twice: the server's reason
-    roster.write_text(f"name\n{first}x\n{first}x\n")
-    web.page.set_input_files("#roster-file", str(roster))
+    # a workbook instead of a CSV file: what to do
+    workbook = tmp_path / "roster.xlsx"
+    workbook.write_bytes(b"PK\x03\x04" + bytes(60))
+    web.page.set_input_files("#roster-file", str(workbook))
     web.page.click("#roster-form button[type=submit]")
-    web.page.wait_for_selector("#students-message.error")
-    assert web.page.inner_text("#students-message") == "The roster was not created: the roster names a student twice"
+    web.page.wait_for_function("() => document.querySelector('#students-message').textContent.includes('not read')")
+    assert web.page.inner_text("#students-message") == (
+        "The roster was not read: this is a spreadsheet workbook (.xlsx or .ods), not a CSV file: save it as "
+        "CSV UTF-8 (Excel: File > Save As > CSV UTF-8) and upload that")
+    assert web.page.is_hidden("#roster-report")
 
     # evaluation settings
     web.page.fill("#eval-episodes", "2")

@@ -1,7 +1,6 @@
 """Database functions (keyword-only arguments). They add and flush; callers commit."""
 from __future__ import annotations
 
-import re
 from dataclasses import dataclass
 from datetime import datetime, timedelta
 from typing import Any
@@ -11,6 +10,7 @@ from sqlalchemy.dialects.postgresql import insert as postgresql_insert
 from sqlalchemy.dialects.sqlite import insert as sqlite_insert
 from sqlalchemy.orm import Session
 
+from league.server.accounts import clean_email, clean_name, clean_student_id
 from league.server.db.models import (
     BASELINE, DONE, EVALUATE, FAILED, NORMAL, QUEUED, RACE, READY, REJECTED, RUNNING, STUDENT, VALIDATE, Blob,
     Championship, ChampionshipRound, Course, EpisodeResult, Evaluation, Job, Race, Submission, User, utcnow,
@@ -20,17 +20,16 @@ from league.server.security import hash_token, new_token
 DEFAULT_COURSE = "default"
 BASELINES_USER = "baselines"
 QUOTA_WINDOW = timedelta(hours=24)
-NAME_PATTERN = re.compile(r"^[\w.@+-][\w .@+-]{0,99}$")
 NOT_COUNTED = (REJECTED, FAILED)  # a student's quota is not eaten by uploads the league refused or lost
 NOT_KEPT = (REJECTED,)  # a rejected upload's bytes are deleted (it can never race or be evaluated)
 
 
-class InvalidName(ValueError):
-    """An invalid or taken user name (message shown to the caller)."""
+class InvalidAccount(ValueError):
+    """An invalid or taken name, email or student id (message shown to the caller)."""
 
 
-class NameTaken(InvalidName):
-    """A user name already in use."""
+class AccountTaken(InvalidAccount):
+    """A name (unique in the league), or an email or student id (unique in a course), already in use."""
 
 
 # --------------------------------------------------------------------------- courses
@@ -61,23 +60,51 @@ def set_evaluation_settings(session: Session, *, course: Course, seed: int, epis
 
 
 def check_user_name(session: Session, *, name: str) -> str:
-    name = name.strip()
-    if not NAME_PATTERN.match(name):
-        raise InvalidName(f"invalid user name {name!r}: 1-100 letters, digits, spaces or . @ + - _")
+    """The name cleaned (accounts.clean_name), if no account holds it yet."""
+    try:
+        name = clean_name(name)
+    except ValueError as error:
+        raise InvalidAccount(str(error)) from None
     if session.scalar(select(User.id).where(User.name == name)) is not None:
-        raise NameTaken(f"user name {name!r} is already taken")
+        raise AccountTaken(f"user name {name!r} is already taken")
     return name
 
 
-def create_user(session: Session, *, name: str, role: str, course: Course | None,
-                created_by: User | None = None, with_token: bool = True) -> tuple[User, str | None]:
+def check_identifiers(session: Session, *, course: Course | None, email: str | None,
+                      student_id: str | None) -> tuple[str | None, str | None]:
+    """The email and student id cleaned, if no other account of the course holds them."""
+    try:
+        email, student_id = clean_email(email or ""), clean_student_id(student_id or "")
+    except ValueError as error:
+        raise InvalidAccount(str(error)) from None
+    course_id = course.id if course else None
+    for label, column, value in (("email", User.email, email), ("student id", User.student_id, student_id)):
+        holder = value and session.scalar(select(User.name).where(User.course_id == course_id, column == value))
+        if holder:
+            raise AccountTaken(f"the {label} {value!r} is already {holder!r}'s")
+    return email, student_id
+
+
+def create_user(session: Session, *, name: str, role: str, course: Course | None, created_by: User | None = None,
+                with_token: bool = True, email: str | None = None,
+                student_id: str | None = None) -> tuple[User, str | None]:
     """Add a user; return it with its token (shown once, stored hashed)."""
     name = check_user_name(session, name=name)
+    email, student_id = check_identifiers(session, course=course, email=email, student_id=student_id)
+    user, token = add_user(session, name=name, role=role, course=course, created_by=created_by, with_token=with_token,
+                           email=email, student_id=student_id)
+    session.flush()
+    return user, token
+
+
+def add_user(session: Session, *, name: str, role: str, course: Course | None, created_by: User | None,
+             with_token: bool, email: str | None, student_id: str | None) -> tuple[User, str | None]:
+    """Add a user whose values the caller has cleaned and found free (a roster checks them all at once);
+    no flush: a roster adds its students in one round trip."""
     token = new_token() if with_token else None
-    user = User(name=name, role=role, course_id=course.id if course else None,
+    user = User(name=name, role=role, course_id=course.id if course else None, email=email, student_id=student_id,
                 token_hash=hash_token(token) if token else None, created_by_id=created_by.id if created_by else None)
     session.add(user)
-    session.flush()
     return user, token
 
 

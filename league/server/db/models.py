@@ -75,11 +75,16 @@ class User(Base):
     """An instructor, a student, or the `baselines` account that owns the bundled agents (no token)."""
 
     __tablename__ = "users"
+    # NULLs differ on both backends: many students without an id, none sharing one
+    __table_args__ = (Index("uq_users_course_student_id", "course_id", "student_id", unique=True),)
 
     id: Mapped[int] = mapped_column(primary_key=True)
     name: Mapped[str] = mapped_column(String(100), unique=True)
     role: Mapped[str] = mapped_column(String(20))
     course_id: Mapped[int | None] = mapped_column(ForeignKey("courses.id"))
+    # how gradebook exports (Canvas, Moodle) identify the student; from the roster, optional
+    email: Mapped[str | None] = mapped_column(String(254), default=None)
+    student_id: Mapped[str | None] = mapped_column(String(64), default=None)
     token_hash: Mapped[str | None] = mapped_column(String(64), unique=True)  # sha256 hex of the bearer token
     created_at: Mapped[datetime] = mapped_column(default=utcnow)
     created_by_id: Mapped[int | None] = mapped_column(ForeignKey("users.id"))

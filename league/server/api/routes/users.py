@@ -1,20 +1,20 @@
-"""Accounts: who am I; instructors create students (one, or a CSV roster) and revoke them."""
+"""Accounts: who am I; instructors create students (one, or a roster: league/server/roster.py) and revoke them."""
 from __future__ import annotations
-
-import csv
-import io
 
 from fastapi import APIRouter, HTTPException, Request, status
 from fastapi.concurrency import run_in_threadpool
+from sqlalchemy.exc import IntegrityError
 from starlette.datastructures import UploadFile  # what a parsed form holds
 
 from league.server.api.deps import CurrentUser, Id, InstructorUser, SessionDep, SettingsDep
 from league.server.db import crud
 from league.server.db.models import STUDENT, User
-from league.server.schemas import QuotaOut, RosterCreated, UserCreate, UserCreated, UserMe, UserOut
+from league.server.roster import DELIMITERS, MAX_ROSTER_BYTES, RosterError, import_roster, read_roster
+from league.server.schemas import (
+    QuotaOut, RosterCreated, RosterFormat, RosterLine, UserCreate, UserCreated, UserMe, UserOut,
+)
 
 router = APIRouter(prefix="/users", tags=["users"])
-MAX_ROSTER_BYTES = 1024 * 1024
 
 
 def user_out(user: User) -> UserOut:
@@ -47,67 +47,60 @@ def create_student(body: UserCreate, session: SessionDep, instructor: Instructor
     """Create a student in the instructor's course; the response holds their token (shown once)."""
     try:
         user, token = crud.create_user(session, name=body.name, role=STUDENT, course=instructor.course,
-                                       created_by=instructor)
-    except crud.InvalidName as error:
+                                       created_by=instructor, email=body.email, student_id=body.student_id)
+    except crud.AccountTaken as error:
         raise HTTPException(status.HTTP_409_CONFLICT, str(error)) from error
+    except crud.InvalidAccount as error:
+        raise HTTPException(status.HTTP_422_UNPROCESSABLE_CONTENT, str(error)) from error
     session.commit()
     return created_out(user, token)
 
 
 ROSTER_FORM = {"requestBody": {"required": True, "content": {"multipart/form-data": {"schema": {
     "type": "object", "required": ["file"], "properties": {
-        "file": {"type": "string", "format": "binary", "description": "CSV with a `name` column (or one name a line)"}
+        "file": {"type": "string", "format": "binary",
+                 "description": "CSV (comma, semicolon or tab) with a header naming `name` (or first and last "
+                                "name), `email`, `student id`; or one name a line"}
     }}}}}}
 
 
 @router.post("/roster", response_model=RosterCreated, status_code=status.HTTP_201_CREATED, openapi_extra=ROSTER_FORM)
 async def create_roster(request: Request, instructor: InstructorUser) -> RosterCreated:
-    """Create the students of a CSV roster; names already taken are skipped and listed (late
-    enrolments: upload the whole roster again). The response holds the new tokens (shown once).
-    The body is read only once the instructor's token is accepted."""
+    """Create the students of a roster as spreadsheets export it. Lines are independent: the good ones
+    are created, every bad one is listed in `errors` with its line number, and students enrolled
+    already are skipped (upload the whole roster again for late enrolments, or once its errors are
+    fixed). The response holds the new tokens (shown once). The body is read only once the
+    instructor's token is accepted."""
     async with request.form(max_files=1, max_fields=0) as form:
         file = form.get("file")
         if not isinstance(file, UploadFile):
             raise HTTPException(status.HTTP_422_UNPROCESSABLE_CONTENT, "send the roster as the multipart field `file`")
         data = await file.read(MAX_ROSTER_BYTES + 1)
-    return await run_in_threadpool(create_students, request.app.state.sessions, instructor.id, roster_names(data))
-
-
-def create_students(sessions, instructor_id: int, names: list[str]) -> RosterCreated:
-    """Every new student of the list, or none if a name is invalid (the 409 names what was wrong)."""
-    with sessions() as session:
-        instructor = session.get(User, instructor_id)
-        created, skipped, problems = [], [], []
-        for name in names:
-            try:
-                created.append(crud.create_user(session, name=name, role=STUDENT, course=instructor.course,
-                                                created_by=instructor))
-            except crud.NameTaken:
-                skipped.append(name.strip())
-            except crud.InvalidName as error:
-                problems.append(str(error))
-        if problems:
-            session.rollback()
-            raise HTTPException(status.HTTP_409_CONFLICT, "no student was created: " + "; ".join(problems[:20]))
-        session.commit()
-        return RosterCreated(created=[created_out(user, token) for user, token in created], skipped=skipped)
-
-
-def roster_names(data: bytes) -> list[str]:
     if len(data) > MAX_ROSTER_BYTES:
         raise HTTPException(status.HTTP_413_CONTENT_TOO_LARGE, "roster too large (1 MB at most)")
+    return await run_in_threadpool(create_students, request.app.state.sessions, instructor.id, data)
+
+
+def create_students(sessions, instructor_id: int, data: bytes) -> RosterCreated:
+    """The roster read and imported in one transaction (422: a file that cannot be read at all)."""
     try:
-        rows = [row for row in csv.reader(io.StringIO(data.decode("utf-8-sig"))) if any(c.strip() for c in row)]
-    except (UnicodeDecodeError, csv.Error) as error:
-        raise HTTPException(status.HTTP_422_UNPROCESSABLE_CONTENT, f"not a UTF-8 CSV file: {error}") from error
-    header = [cell.strip().lower() for cell in rows[0]] if rows else []
-    column = header.index("name") if "name" in header else 0
-    names = [row[column].strip() for row in rows[1 if "name" in header else 0:] if len(row) > column]
-    if not names:
-        raise HTTPException(status.HTTP_422_UNPROCESSABLE_CONTENT, "the roster holds no names")
-    if len(set(names)) != len(names):
-        raise HTTPException(status.HTTP_409_CONFLICT, "the roster names a student twice")
-    return names
+        roster = read_roster(data)
+    except RosterError as error:
+        raise HTTPException(status.HTTP_422_UNPROCESSABLE_CONTENT, str(error)) from error
+    with sessions() as session:
+        crud.lock_user(session, user_id=instructor_id)  # one roster at a time (SQLite: the write lock first)
+        instructor = session.get(User, instructor_id)
+        try:
+            report = import_roster(session, course=instructor.course, created_by=instructor, roster=roster)
+            session.commit()
+        except IntegrityError as error:  # another instructor's roster named the same students meanwhile
+            raise HTTPException(status.HTTP_409_CONFLICT, "another roster was imported at the same time: upload this "
+                                "one again (its students created since are skipped)") from error
+    return RosterCreated(
+        format=RosterFormat(delimiter=DELIMITERS[roster.delimiter], columns=roster.columns),
+        created=[created_out(user, token) for user, token in report.created],
+        skipped=[RosterLine(**vars(problem)) for problem in report.skipped],
+        errors=[RosterLine(**vars(problem)) for problem in report.errors])
 
 
 def course_student(session: SessionDep, instructor: User, user_id: int) -> User:

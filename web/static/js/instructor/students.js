@@ -1,12 +1,12 @@
-// Students: create one or a CSV roster (their tokens are shown once, kept until dismissed), revoke
-// (after a confirmation), issue a new token.
+// Students: create one or a roster (their tokens are shown once, kept until dismissed; the roster's
+// lines not created listed), revoke (after a confirmation), issue a new token.
 
 import { api } from "../api.js";
 import { $, badge, element, focusOn, onClick, onSubmit, replaceKeepingFocus, say } from "../dom.js";
 import { count, dateTime } from "../format.js";
 
 
-let tokens = []; // [{id, name, token}], newest first: shown until the instructor dismisses them
+let tokens = []; // [{id, name, email, student_id, token}], newest first: shown until the instructor dismisses them
 
 export function setUpStudents(me) {
   onClick($("tokens-dismiss"), () => {
@@ -39,17 +39,37 @@ export function setUpStudents(me) {
     const form = new FormData();
     form.append("file", file, file.name);
     try {
-      const { created, skipped } = await api("/api/users/roster", { method: "POST", form });
+      const report = await api("/api/users/roster", { method: "POST", form });
       $("roster-form").reset();
-      if (created.length) showTokens(created);
+      if (report.created.length) showTokens(report.created);
+      showRosterLines(report);
       await refreshUsers(me);
-      const already = skipped.length ? ` Skipped ${count(skipped.length, "name")} already taken: ${skipped.join(", ")}.` : "";
-      say($("students-message"), `Created ${count(created.length, "student")} from ${file.name}.${already}`, "success");
+      say($("students-message"), rosterSummary(report, file.name), report.errors.length ? "error" : "success");
     } catch (error) {
-      say($("students-message"), `The roster was not created: ${error.message}`, "error");
+      $("roster-report").hidden = true;
+      say($("students-message"), `The roster was not read: ${error.message}`, "error");
     }
   });
   return refreshUsers(me);
+}
+
+// Lines are independent: the server creates the good ones and lists the others with their numbers.
+function rosterSummary({ format, created, skipped, errors }, filename) {
+  const columns = Object.values(format.columns);
+  const read = columns.length ? `${format.delimiter}-separated, columns ${columns.join(", ")}` : "one name a line";
+  const parts = [`Created ${count(created.length, "student")} from ${filename} (${read}).`];
+  if (skipped.length) parts.push(`Skipped ${count(skipped.length, "line")} naming students already enrolled.`);
+  if (errors.length) parts.push(`${count(errors.length, "line")} with errors not created: fix them and upload the roster again.`);
+  return parts.join(" ");
+}
+
+function showRosterLines({ skipped, errors }) {
+  const lines = [...errors.map((line) => ({ ...line, error: true })), ...skipped].sort((a, b) => a.line - b.line);
+  $("roster-report").hidden = !lines.length;
+  $("roster-lines").tBodies[0].replaceChildren(...lines.map((line) => element("tr", {},
+    element("td", { text: String(line.line) }), element("td", { text: line.name ?? "–" }),
+    element("td", {}, line.error ? badge("rejected", "error") : badge("pending", "skipped")),
+    element("td", { text: line.reason }))));
 }
 
 /** Add new tokens above those shown (a user's new token replaces their earlier one), or dismiss them all. */
@@ -59,7 +79,8 @@ function showTokens(users, { dismiss = false, revoked = null } = {}) {
   $("tokens").hidden = !tokens.length;
   $("token-table").tBodies[0].replaceChildren(...tokens.map((user) => element("tr", {},
     element("td", { text: user.name }), element("td", {}, element("span", { className: "token", text: user.token })))));
-  const csv = ["name,token", ...tokens.map((user) => `${csvCell(user.name)},${csvCell(user.token)}`)].join("\n");
+  const csv = ["name,email,student_id,token", ...tokens.map((user) =>
+    [user.name, user.email ?? "", user.student_id ?? "", user.token].map(csvCell).join(","))].join("\n");
   const link = $("tokens-download");
   if (link.href.startsWith("blob:")) URL.revokeObjectURL(link.href);
   link.href = URL.createObjectURL(new Blob([csv + "\n"], { type: "text/csv" }));
@@ -95,7 +116,8 @@ async function refreshUsers(me) {
         say($("students-message"), `New token for ${user.name} below (the old one no longer works).`, "success");
       }, me, { key: tokenKey }));
     }
-    return element("tr", {}, element("td", { text: user.name }), element("td", { text: user.role }),
+    return element("tr", {}, element("td", { text: user.name }), element("td", { text: user.email ?? "–" }),
+      element("td", { text: user.student_id ?? "–" }), element("td", { text: user.role }),
       element("td", { text: dateTime(user.created_at) }),
       element("td", {}, user.active ? badge("ready", "active") : badge("rejected", "revoked")), element("td", {}, actions));
   }));
