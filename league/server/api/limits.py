@@ -78,16 +78,17 @@ class _Guarded:
             return {"type": "http.disconnect"}
         if self.body_done:
             return await self._receive()
-        now = asyncio.get_running_loop().time()
-        self.first_read_at = self.first_read_at or now
+        clock = asyncio.get_running_loop().time
+        waiting_since = clock()
+        self.first_read_at = self.first_read_at or waiting_since
         # past the first timeout, the body so far must have come at min_rate
-        allowed = self.first_read_at + self.timeout_s + self.received / self.min_rate - now
+        allowed = self.first_read_at + self.timeout_s + self.received / self.min_rate - waiting_since
         try:
             message = await asyncio.wait_for(self._receive(), max(0.0, min(self.timeout_s, allowed)))
         except asyncio.TimeoutError:
-            if allowed < self.timeout_s:
-                return await self.refuse(408, f"the request body arrived slower than {self.min_rate / KB:g} KB/s")
-            return await self.refuse(408, f"the request body stopped arriving for {self.timeout_s:g} s")
+            if clock() - waiting_since >= self.timeout_s:  # said by what happened, not by which bound was nearer
+                return await self.refuse(408, f"the request body stopped arriving for {self.timeout_s:g} s")
+            return await self.refuse(408, f"the request body arrived slower than {self.min_rate / KB:g} KB/s")
         if message["type"] == "http.request":
             self.received += len(message.get("body", b""))
             if self.received > self.limit.size:
