@@ -116,8 +116,10 @@ async function refreshUsers(me) {
         say($("students-message"), `New token for ${user.name} below (the old one no longer works).`, "success");
       }, me, { key: tokenKey }));
     }
-    return element("tr", {}, element("td", { text: user.name }), element("td", { text: user.email ?? "–" }),
-      element("td", { text: user.student_id ?? "–" }), element("td", { text: user.role }),
+    const identifiers = [user.email, user.student_id].filter(Boolean).join(" · ");  // under the name: the table fits its card
+    return element("tr", {}, element("td", {}, user.name,
+      identifiers ? element("span", { className: "subline muted", text: identifiers }) : null),
+      element("td", { text: user.role }),
       element("td", { text: dateTime(user.created_at) }),
       element("td", {}, user.active ? badge("ready", "active") : badge("rejected", "revoked")), element("td", {}, actions));
   }));
