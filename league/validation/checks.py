@@ -1,4 +1,5 @@
-"""Static checks of untrusted model files, run inside the sandbox before a model is loaded.
+"""Static checks of untrusted model files, run before a model is loaded: in the server's sandbox
+(league/server/sandbox/child.py) and by `league check` (league.validation.local), the same code.
 
 A policy is an MLP or a CNN: the allow-lists hold what those need (as exported by
 torch.onnx / torch.jit) and nothing that touches files, processes, threads or randomness.
@@ -11,6 +12,8 @@ import ast
 import zipfile
 from pathlib import Path
 from typing import Any, Iterator
+
+from league.constants import PICKLE_MARK
 
 ONNX_DOMAINS = ("", "ai.onnx")
 ONNX_OPS = frozenset("""
@@ -45,7 +48,8 @@ format warn item is_floating_point new_zeros new_ones masked_fill where_ erf ler
 # Methods that run while a TorchScript file is loaded (the unpickler calls __setstate__; its pair
 # makes no sense alone): refused outright, wherever they are defined.
 LOAD_TIME_METHODS = frozenset({"__setstate__", "__getstate__"})
-PICKLE_MARK = b"\x80"  # first byte of every pickle of protocol >= 2
+# How to get one file: torch writes weights beside the model by default; `league submit` packs them
+SELF_CONTAINED = "torch.onnx.export(..., external_data=False), or `league submit`, which packs them in"
 MAX_CODE_FILE = 4 * 1024 * 1024  # bytes of TorchScript source per file (zip bombs are not read)
 
 
@@ -97,15 +101,29 @@ def _onnx_graphs(graph: Any) -> Iterator[Any]:
                 yield from _onnx_graphs(subgraph)
 
 
-def _check_onnx_tensors(graph: Any) -> None:
+def onnx_tensors(model: Any) -> Iterator[Any]:
+    """Every tensor of the model: initializers and node attributes, of its graph and subgraphs."""
+    for graph in _onnx_graphs(model.graph):
+        yield from _graph_tensors(graph)
+
+
+def _graph_tensors(graph: Any) -> list[Any]:
     tensors = list(graph.initializer) + [s.values for s in graph.sparse_initializer]
     for node in graph.node:
         for attribute in node.attribute:
             tensors += ([attribute.t] if attribute.HasField("t") else []) + list(attribute.tensors)
-    for tensor in tensors:
-        if tensor.data_location == 1 or len(tensor.external_data):  # TensorProto.EXTERNAL
+    return tensors
+
+
+def refers_to_external_data(tensor: Any) -> bool:
+    return tensor.data_location == 1 or len(tensor.external_data) > 0  # TensorProto.EXTERNAL
+
+
+def _check_onnx_tensors(graph: Any) -> None:
+    for tensor in _graph_tensors(graph):
+        if refers_to_external_data(tensor):
             raise ModelRejected(f"tensor {tensor.name!r} refers to external data: upload one self-contained "
-                                "file (export without external data)")
+                                f"file ({SELF_CONTAINED})")
 
 
 def _check_onnx_node(node: Any) -> None:
