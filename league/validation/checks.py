@@ -16,6 +16,9 @@ from typing import Any, Iterator
 from league.constants import PICKLE_MARK
 
 ONNX_DOMAINS = ("", "ai.onnx")
+# Operator sets a model may declare: the ONNX standard's own. tf2onnx and Keras declare ai.onnx.ml
+# (the standard's classical-ML operators) in every model; its operators are still refused, node by node.
+ONNX_IMPORTS = (*ONNX_DOMAINS, "ai.onnx.ml")
 ONNX_OPS = frozenset("""
 Abs Acos Add And ArgMax ArgMin Asin Atan AveragePool BatchNormalization Cast CastLike Ceil Celu Clip Concat
 Constant ConstantOfShape Conv Cos Div Dropout Elu Equal Erf Exp Expand Flatten Floor Gather GatherElements Gelu
@@ -84,7 +87,7 @@ def check_onnx(path: Path) -> None:
 
 def _check_onnx_imports(model: Any) -> None:
     for opset in model.opset_import:
-        if opset.domain not in ONNX_DOMAINS:
+        if opset.domain not in ONNX_IMPORTS:
             raise ModelRejected(f"non-standard operator domain {opset.domain!r}: only the standard ONNX operators "
                                 "are allowed")
     if len(model.functions):

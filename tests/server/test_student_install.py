@@ -197,3 +197,75 @@ def _closed_port() -> int:
     from .conftest import free_port
 
     return free_port()
+
+
+# --------------------------------------------------------------------------- Keras and TensorFlow
+
+TENSORFLOW = ("tensorflow-cpu==2.21.0", "tf2onnx==1.17.0")  # pinned: a new release changes the test when we choose
+TENSORFLOW_VENV = Path("/tmp/league-tensorflow-venv")  # never /tmp/league-venv: TensorFlow pins numpy and protobuf
+# The thesis' DDPG actor (its section 2.4.1): two towers of two 32-unit relu layers, each ending in one
+# tanh unit (acceleration, direction), concatenated; exported both ways the guide shows.
+KERAS_ACTOR = """
+import sys
+import keras
+import numpy as np
+from keras import layers
+
+keras.utils.set_random_seed(0)
+inputs = layers.Input(shape=(5,))
+towers = []
+for _ in range(2):
+    out = layers.Dense(32, activation="relu")(inputs)
+    out = layers.Dense(32, activation="relu")(out)
+    towers.append(layers.Dense(1, activation="tanh")(out))
+actor = keras.Model(inputs, layers.concatenate(towers), name="actor")
+probe = np.random.default_rng(0).uniform(-1, 1, (16, 5)).astype(np.float32)
+np.save("keras_actions.npy", actor.predict(probe, verbose=0))  # (a model is called once before its export)
+actor.export("keras_actor.onnx", format="onnx")  # Keras 3's own route
+actor.export("actor_savedmodel")  # a TensorFlow SavedModel, as the thesis' scripts save their actors
+"""
+
+
+@pytest.fixture(scope="module")
+def tensorflow_python() -> Path:
+    """A venv with tensorflow-cpu and tf2onnx (made once, kept between runs as the pins say)."""
+    import sys
+
+    base_python = Path(sys.base_prefix) / "bin" / "python3"
+    marker = TENSORFLOW_VENV / "league-requirements.txt"
+    if not marker.exists() or marker.read_text() != "\n".join(TENSORFLOW):
+        subprocess.run([str(base_python), "-m", "venv", "--clear", str(TENSORFLOW_VENV)], check=True)
+        subprocess.run([str(TENSORFLOW_VENV / "bin" / "pip"), "install", "-q", *TENSORFLOW], check=True, timeout=1500)
+        marker.write_text("\n".join(TENSORFLOW))
+    return TENSORFLOW_VENV / "bin" / "python"
+
+
+@pytest.mark.slow
+@pytest.mark.long
+def test_the_thesis_keras_actor_goes_to_onnx_both_ways_and_is_evaluated_as_league_evaluate_does(
+        server, tensorflow_python, tmp_path):
+    import numpy as np
+
+    from league.agents import load_agent
+
+    quiet = {**os.environ, "TF_CPP_MIN_LOG_LEVEL": "3", "CUDA_VISIBLE_DEVICES": ""}
+    subprocess.run([str(tensorflow_python), "-c", KERAS_ACTOR], cwd=tmp_path, env=quiet, check=True,
+                   capture_output=True, timeout=600)
+    subprocess.run([str(tensorflow_python), "-m", "tf2onnx.convert", "--saved-model", "actor_savedmodel",
+                    "--output", "tf2onnx_actor.onnx"], cwd=tmp_path, env=quiet, check=True, capture_output=True,
+                   timeout=600)
+    probe = np.random.default_rng(0).uniform(-1, 1, (16, 5)).astype(np.float32)
+    for name in ("keras_actor.onnx", "tf2onnx_actor.onnx"):
+        path = tmp_path / name
+        np.testing.assert_allclose(load_agent(path)(probe), np.load(tmp_path / "keras_actions.npy"), atol=1e-5)
+        checked = league("check", str(path), "--server", server.url, config=tmp_path)
+        assert checked.returncode == EXIT_OK, checked.stdout + checked.stderr
+        token = student_token(server, unique("keras"))
+        submitted = league("submit", str(path), "--wait", "--no-progress", "--server", server.url, "--token", token,
+                           config=tmp_path)
+        assert submitted.returncode == EXIT_OK, submitted.stdout + submitted.stderr
+        evaluated = league("evaluate", str(path), "--episodes", EPISODES, "--seed", SEED, "--no-progress",
+                           config=tmp_path)
+        assert submitted.stdout.splitlines()[2:] == evaluated_table(evaluated)
+    refused = league("check", str(tmp_path / "actor_savedmodel"), config=tmp_path)
+    assert "is a folder (a TensorFlow SavedModel), not a model file: convert it to ONNX first" in refused.stdout
