@@ -162,9 +162,11 @@ def check_limits(api: Api | None, *, offline_ok: bool = False) -> tuple[SandboxL
                 raise
             print(f"{error}; checking against the league's default limits", file=sys.stderr)
         else:
-            return SandboxLimits(memory_mb=served["sandbox_memory_mb"], step_deadline_s=served["step_deadline_ms"] / 1000,
-                                 first_call_allowance_s=served["first_call_allowance_ms"] / 1000,
-                                 run_cpu_s=served["run_cpu_s"], load_cpu_s=served["load_cpu_s"]), served["max_upload_bytes"]
+            limits = SandboxLimits(memory_mb=served["sandbox_memory_mb"],
+                                   step_deadline_s=served["step_deadline_ms"] / 1000,
+                                   first_call_allowance_s=served["first_call_allowance_ms"] / 1000,
+                                   run_cpu_s=served["run_cpu_s"], load_cpu_s=served["load_cpu_s"])
+            return limits, served["max_upload_bytes"]
     return SandboxLimits(), int(MAX_UPLOAD_MB * MB)
 
 

@@ -80,12 +80,15 @@ def verdict(records: list[dict], returncode: int | None, log: str, limits: Sandb
     last = records[-1] if records else {"phase": "starting"}
     if last["phase"] == "done":
         return ValidationReport(last["ok"], last["obs_dim"], last["error"], log, last["cpu_ms_per_observation"])
+    doing = {"starting": "starting", "loading": "loading", "call": "calling"}[last["phase"]]
     if returncode is None and last["phase"] == "call":
-        reason = f"the model stopped answering without using the CPU (no answer after {last['wall_s']:g} s)"
+        reason = f"the model stopped answering without using the CPU (no answer after {wall_backstop(limits):g} s)"
     elif returncode is None or returncode in CPU_STOPS:
         reason = last["over"] if last["phase"] == "call" else load_over(limits)
+    elif returncode < 0:
+        reason = f"the model's process crashed ({signal.Signals(-returncode).name}) while {doing} it; see --log"
     else:
-        reason = f"the check's process ended with code {returncode} while {last['phase']} the model; see --log"
+        reason = f"the model's process exited with code {returncode} while {doing} it; see --log"
     return ValidationReport(False, None, reason, log)
 
 
@@ -132,7 +135,7 @@ def timed_validation(model_file: Path, limits: SandboxLimits, say) -> dict:
         budget = allowance.for_call(rows)
         if budget <= 0:
             return refused(allowance.call_over(rows))
-        say(phase="call", over=allowance.call_over(rows), wall_s=WALL_BACKSTOP * budget + WALL_MARGIN_S)
+        say(phase="call", over=allowance.call_over(rows))
         limit_cpu(budget)
         agent(obs)  # a model that fails fails the check (main)
         used = time.thread_time() - before
