@@ -17,6 +17,7 @@ import os
 import pwd
 import shlex
 import subprocess
+import sys
 import warnings
 from pathlib import Path
 
@@ -27,7 +28,7 @@ from league.client import EXIT_OK, EXIT_USAGE
 
 from .conftest import TEST_SETTINGS, fresh_backend, make_server
 from .ordinary import SYSTEM_PYTHON, ordinary_user, require_root_tools, shared_directory
-from .test_client import league, student_token, unique
+from .test_client import league, student_env, student_token, unique
 
 EPISODES, SEED = TEST_SETTINGS["LEAGUE_EVAL_EPISODES"], TEST_SETTINGS["LEAGUE_EVAL_SEED"]
 PIP_CACHE = Path("/tmp/league-student-pip-cache")  # the ordinary user's downloads, kept between runs
@@ -75,24 +76,36 @@ def evaluated_table(result: subprocess.CompletedProcess) -> list[str]:
     return result.stdout.splitlines()[1:]
 
 
-@pytest.mark.parametrize("how", ["onnx", "onnx-legacy", "jit-script", "jit-trace"])
-def test_every_common_export_is_checked_submitted_and_evaluated_as_league_evaluate_does(server, how, tmp_path):
-    path = export(how, tmp_path)
-    if how == "onnx":  # torch's default: the weights in a file beside the model
-        assert (tmp_path / "policy.onnx.data").is_file()
-    checked = league("check", str(path), "--server", server.url, config=tmp_path)
-    assert checked.returncode == EXIT_OK, checked.stdout + checked.stderr
-    assert checked.stdout.startswith(f"{path.name}: the server would accept it: observation size 5")
-    assert ("its weights in policy.onnx.data are packed in" in checked.stdout) == (how == "onnx")
+EXPORTS = ["onnx", "onnx-legacy", "jit-script", "jit-trace"]
 
-    token = student_token(server, unique(how))
-    submitted = league("submit", str(path), "--wait", "--no-progress", "--server", server.url, "--token", token,
-                       config=tmp_path)
-    assert submitted.returncode == EXIT_OK, submitted.stdout + submitted.stderr
-    evaluated = league("evaluate", str(path), "--episodes", EPISODES, "--seed", SEED, "--no-progress",
-                       config=tmp_path)
-    assert submitted.stdout.splitlines()[0].endswith(" is ready")
-    assert submitted.stdout.splitlines()[2:] == evaluated_table(evaluated)
+
+@pytest.mark.long
+def test_every_common_export_is_checked_submitted_and_evaluated_as_league_evaluate_does(server, tmp_path):
+    """Each export checked (one `league check` of them all), then submitted and waited for (all at once,
+    one student each) and evaluated here: the server's figures are `league evaluate`'s."""
+    paths = {}
+    for how in EXPORTS:
+        (tmp_path / how).mkdir()
+        paths[how] = export(how, tmp_path / how)
+    assert (tmp_path / "onnx" / "policy.onnx.data").is_file()  # torch's default: the weights beside the model
+    checked = league("check", *map(str, paths.values()), "--server", server.url, config=tmp_path)
+    assert checked.returncode == EXIT_OK, checked.stdout + checked.stderr
+    lines = checked.stdout.splitlines()
+    assert [line.split(":")[0] for line in lines] == [path.name for path in paths.values()]
+    assert all(": the server would accept it: observation size 5" in line for line in lines), lines
+    assert ["its weights in policy.onnx.data are packed in" in line for line in lines] == [True, False, False, False]
+
+    submits = {how: subprocess.Popen(
+        [sys.executable, "-m", "league.cli", "submit", str(path), "--wait", "--no-progress", "--server", server.url,
+         "--token", student_token(server, unique(how))], cwd=tmp_path, env=student_env(tmp_path),
+        stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True) for how, path in paths.items()}
+    for how, submit in submits.items():
+        stdout, stderr = submit.communicate(timeout=600)
+        assert submit.returncode == EXIT_OK, (how, stdout, stderr)
+        evaluated = league("evaluate", str(paths[how]), "--episodes", EPISODES, "--seed", SEED, "--no-progress",
+                           config=tmp_path)
+        assert stdout.splitlines()[0].endswith(" is ready"), (how, stdout)
+        assert stdout.splitlines()[2:] == evaluated_table(evaluated), how
 
 
 # --------------------------------------------------------------------------- the student's own venv
@@ -203,10 +216,9 @@ def _closed_port() -> int:
 
 TENSORFLOW = ("tensorflow-cpu==2.21.0", "tf2onnx==1.17.0")  # pinned: a new release changes the test when we choose
 TENSORFLOW_VENV = Path("/tmp/league-tensorflow-venv")  # never /tmp/league-venv: TensorFlow pins numpy and protobuf
-# The thesis' DDPG actor (its section 2.4.1): two towers of two 32-unit relu layers, each ending in one
+# The thesis' DDPG actor (its section 4.1, "Implemented methods"): two towers of two 32-unit relu layers, each ending in one
 # tanh unit (acceleration, direction), concatenated; exported both ways the guide shows.
 KERAS_ACTOR = """
-import sys
 import keras
 import numpy as np
 from keras import layers
@@ -229,8 +241,6 @@ actor.export("actor_savedmodel")  # a TensorFlow SavedModel, as the thesis' scri
 @pytest.fixture(scope="module")
 def tensorflow_python() -> Path:
     """A venv with tensorflow-cpu and tf2onnx (made once, kept between runs as the pins say)."""
-    import sys
-
     base_python = Path(sys.base_prefix) / "bin" / "python3"
     marker = TENSORFLOW_VENV / "league-requirements.txt"
     if not marker.exists() or marker.read_text() != "\n".join(TENSORFLOW):
