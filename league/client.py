@@ -231,10 +231,16 @@ def run_check(args: argparse.Namespace) -> int:
 
 
 def _optional_api(args: argparse.Namespace) -> Api | None:
-    """The configured server, if any (its limits); `league check` works without one."""
+    """The configured server, if any (its limits); `league check` works without one, and without
+    the client extra (then a server named on the command line or in LEAGUE_SERVER is not asked)."""
     try:
         return Api(connection(args, need_token=False))
     except ClientError:
+        return None
+    except ImportError as error:
+        if args.server or os.environ.get("LEAGUE_SERVER"):
+            print(f"the server's limits need the client extra ({error.name} is not installed): checking against "
+                  f"the league's default limits", file=sys.stderr)
         return None
 
 

@@ -184,6 +184,11 @@ def test_check_without_the_server_extra_alone_and_with_a_saved_server_that_is_do
     assert alone.stderr == "" and alone.stdout.startswith("policy.onnx: the server would accept it: observation "
                                                           "size 5")
 
+    hidden = ("import sys; sys.modules['httpx'] = sys.modules['platformdirs'] = None; from league.cli import main; "
+              "sys.exit(main(['check', 'policy.onnx']))")
+    onnx_extra_only = student.run("python", "-c", hidden)  # as if the client extra were not installed
+    assert onnx_extra_only.stdout.startswith("policy.onnx: the server would accept it") and not onnx_extra_only.stderr
+
     down = f"http://127.0.0.1:{_closed_port()}"
     saved = student.home / ".config" / "microracer-league" / "client.json"
     saved.parent.mkdir(parents=True, exist_ok=True)
