@@ -26,24 +26,12 @@ import pytest
 
 from league.client import EXIT_OK, EXIT_USAGE
 
-from .conftest import TEST_SETTINGS, fresh_backend, make_server
+from .conftest import TEST_SETTINGS
 from .ordinary import SYSTEM_PYTHON, ordinary_user, require_root_tools, shared_directory
-from .test_client import league, student_env, student_token, unique
+from .test_client import league, server, student_env, student_token, unique  # noqa: F401 (server: a fixture)
 
 EPISODES, SEED = TEST_SETTINGS["LEAGUE_EVAL_EPISODES"], TEST_SETTINGS["LEAGUE_EVAL_SEED"]
 PIP_CACHE = Path("/tmp/league-student-pip-cache")  # the ordinary user's downloads, kept between runs
-
-
-@pytest.fixture(scope="module")
-def server(tmp_path_factory):
-    tmp = tmp_path_factory.mktemp("first-hour")
-    with fresh_backend("sqlite", tmp) as urls:
-        league_server = make_server(tmp, urls)
-        league_server.start_api()
-        try:
-            yield league_server
-        finally:
-            league_server.stop_all()
 
 
 # --------------------------------------------------------------------------- exports
