@@ -1,7 +1,8 @@
 # The league server image: `league serve` (the API) and `league worker` both run from it.
 #   docker compose up --build --scale worker=3
-# torch from the default index brings CUDA libraries; point pip at a CPU-only wheel index to
-# slim the image (the league never uses a GPU).
+# torch (for TorchScript uploads) from PyTorch's CPU index: the default index's brings CUDA
+# libraries the league never uses. Installed from the source tree (-e): the server then hands
+# students the sdist of its code too (GET /api/package), for machines unlike its own.
 FROM python:3.11-slim
 
 ENV PYTHONDONTWRITEBYTECODE=1 PYTHONUNBUFFERED=1 PIP_NO_CACHE_DIR=1 \
@@ -13,7 +14,8 @@ RUN apt-get update && apt-get install -y --no-install-recommends build-essential
 
 WORKDIR /app
 COPY . /app
-RUN pip install ".[server,torch]" && mkdir -p /data  # the bundled baseline agents are package data
+RUN pip install torch --index-url https://download.pytorch.org/whl/cpu \
+    && pip install -e ".[server]" && mkdir -p /data  # the bundled baseline agents are package data
 
 # Runs as root so that each sandbox can enter its own network namespace and then drop to a
 # user id of its own (see league/server/sandbox/child.py); the API and workers never load a model.

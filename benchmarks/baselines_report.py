@@ -26,9 +26,8 @@ from pathlib import Path
 import numpy as np
 
 from league.agents import load_agent
-from league.baselines import ALGORITHMS
+from league.baselines import ALGORITHMS, export_run
 from league.baselines.common.evaluation import eval_key
-from league.baselines.common.export import export_run
 from league.baselines.common.logger import read_csv
 from league.baselines.common.plots import moving_average
 from league.evaluation import metrics_run

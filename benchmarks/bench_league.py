@@ -72,7 +72,8 @@ def outcomes(classification: list[dict]) -> str:
 def bench_heat(models: list[Path], repeats: int) -> float:
     from league.evaluation import race
     from league.server.jobs.race import race_in_sandboxes
-    from league.server.sandbox.agent import SandboxedAgent, SandboxLimits
+    from league.server.sandbox.agent import SandboxedAgent
+    from league.validation.limits import SandboxLimits
 
     names = [f"student{k:02d}" for k in range(len(models))]
     limits = SandboxLimits()
@@ -117,7 +118,8 @@ def race_heats_pinned(cpu: int, models: list[Path], runs: int, barrier, times) -
     """In a process of its own on `cpu`: race the heat once (imports, first sandboxes), then `runs`
     times, each starting with the other processes at the barrier; each race's seconds go to `times`."""
     from league.server.jobs.race import race_in_sandboxes
-    from league.server.sandbox.agent import SandboxedAgent, SandboxLimits
+    from league.server.sandbox.agent import SandboxedAgent
+    from league.validation.limits import SandboxLimits
 
     os.sched_setaffinity(0, {cpu})  # the sandboxes started here inherit it
     names, limits = [f"student{k:02d}" for k in range(len(models))], SandboxLimits()

@@ -47,7 +47,8 @@ def bench_evaluation(model: Path, episodes: int) -> float:
     """(a): returns the plain loop's seconds, the reference of (b)."""
     from league.evaluation import episode_seeds, metrics_run
     from league.physics import set_track_cache_size
-    from league.server.sandbox.agent import SandboxedAgent, SandboxLimits
+    from league.server.sandbox.agent import SandboxedAgent
+    from league.validation.limits import SandboxLimits
 
     def sandboxed():
         with SandboxedAgent(model, "onnx", SandboxLimits()) as agent:

@@ -29,8 +29,9 @@ OBS_DIMS = (COMPACT_DIM, LIDAR_DIM)
 HEURISTIC_TARGET_SPEED = 0.25  # world units per second
 HEURISTIC_ACC, HEURISTIC_BRAKE = 0.5, -0.2
 
-INSTALL_ONNX = 'pip install "microracer-league[onnx]"'
-INSTALL_TORCH = 'pip install "microracer-league[torch]"'
+INSTALL_ONNX = "pip install onnx onnxruntime onnxscript (the toolkit's onnx extra)"
+# PyTorch's CPU wheels (a plain `pip install torch` on Linux brings ~4 GB of CUDA libraries)
+INSTALL_TORCH = "pip install torch --index-url https://download.pytorch.org/whl/cpu"
 
 
 

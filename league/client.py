@@ -4,23 +4,29 @@
 A small client of the server's HTTP API (httpx). The server and token come from --server/--token,
 else LEAGUE_SERVER/LEAGUE_TOKEN, else what `league login` stored in the user's config directory
 (platformdirs; the file is readable by its owner only). `league check` runs the server's own
-validation (league.server.sandbox.validation: static checks, load, dry run in a sandbox, timed
-calls) on this machine, against the server's limits when one is configured.
+validation (league.validation: the static checks, the checked load and dry run, the timed calls,
+each within the server's CPU budgets) on this machine, against the configured server's limits,
+else (no server, or one that cannot be reached) the league's defaults. Never imports league.server.
 """
 from __future__ import annotations
 
 import argparse
 import json
-import logging
 import os
 import sys
+import tempfile
 import time
-from contextlib import contextmanager
 from dataclasses import dataclass, replace
 from pathlib import Path
+from typing import TYPE_CHECKING
 
-from league.spreadsheet import csv_text
 from league.cli import EXIT_CLOSED_PIPE
+from league.spreadsheet import csv_text
+
+if TYPE_CHECKING:
+    from league.validation.files import Upload
+    from league.validation.limits import SandboxLimits
+    from league.validation.report import ValidationReport
 
 # Exit codes a script can test (also in `league submit --help`).
 EXIT_OK, EXIT_REJECTED, EXIT_USAGE, EXIT_AUTH, EXIT_REFUSED, EXIT_UNREACHABLE, EXIT_TIMEOUT = 0, 1, 2, 3, 4, 5, 6
@@ -141,69 +147,68 @@ def _detail(response) -> str:
 # --------------------------------------------------------------------------- check
 
 
-def server_limits(api: Api | None):
-    """The sandbox limits uploads are validated with: the server's (GET /api/settings/limits), or
-    the defaults (and LEAGUE_* variables) of a server started here."""
-    from league.server.config import Settings
-    from league.server.sandbox.limits import SandboxLimits
+def check_limits(api: Api | None, *, offline_ok: bool = False) -> tuple[SandboxLimits, int]:
+    """The limits uploads are validated with and the largest upload in bytes: the configured
+    server's (GET /api/settings/limits), else the league's defaults. With `offline_ok`, a server
+    that cannot be reached is said on stderr and the defaults are used."""
+    from league.validation.files import MB
+    from league.validation.limits import MAX_UPLOAD_MB, SandboxLimits
 
-    settings, max_bytes = Settings(), None
     if api is not None:
-        served = api.get("/api/settings/limits")
-        max_bytes = served.pop("max_upload_bytes")
-        settings = settings.model_copy(update={key: value for key, value in served.items() if key in Settings.model_fields})
-    # a student's own machine may lack Landlock or seccomp: the check still runs, isolated as far as it can
-    return replace(SandboxLimits.from_settings(settings), require_isolation=False), max_bytes or settings.max_upload_bytes
+        try:
+            served = api.get("/api/settings/limits")
+        except ClientError as error:
+            if not offline_ok or error.exit_code != EXIT_UNREACHABLE:
+                raise
+            print(f"{error}; checking against the league's default limits", file=sys.stderr)
+        else:
+            limits = SandboxLimits(memory_mb=served["sandbox_memory_mb"],
+                                   step_deadline_s=served["step_deadline_ms"] / 1000,
+                                   first_call_allowance_s=served["first_call_allowance_ms"] / 1000,
+                                   run_cpu_s=served["run_cpu_s"], load_cpu_s=served["load_cpu_s"])
+            return limits, served["max_upload_bytes"]
+    return SandboxLimits(), int(MAX_UPLOAD_MB * MB)
 
 
-def check_files(paths: list[Path], api: Api | None = None):
-    """(path, report, limits) for each of `paths`, in order: the server's validation
-    (league.server.sandbox.validation.validate_model) run here, with the limits fetched once."""
-    try:
-        from league.server.sandbox.validation import ValidationReport, validate_model
-        from league.server.storage import model_kind_of
-    except ImportError as error:
-        raise ClientError(f"league check runs the server's own checks: pip install 'microracer-league[server]' "
-                          f"({error})", EXIT_USAGE) from error
-    limits, max_bytes = server_limits(api)
+def check_files(paths: list[Path], limits: SandboxLimits, max_bytes: int):
+    """(path, upload, report) for each of `paths`, in order: what would be uploaded (None if the file
+    is refused before that) and the server's verdict on it (league.validation.local, run here)."""
+    from league.validation.checks import ModelRejected
+    from league.validation.files import read_upload
+    from league.validation.report import ValidationReport
+
     for path in paths:
-        if not path.is_file():
+        if not path.exists():
             raise ClientError(f"no such file: {path}", EXIT_USAGE)
-        kind, size = model_kind_of(path.name), path.stat().st_size
-        refusal = ("the file is empty" if size == 0 else
-                   f"unsupported file type {path.suffix or '(none)'!r}: upload an .onnx or a TorchScript .pt file"
-                   if kind is None else
-                   f"file too large: the limit is {max_bytes / 2**20:g} MB" if size > max_bytes else None)
-        if refusal:
-            yield path, ValidationReport(False, None, refusal, ""), limits
+        try:
+            upload = read_upload(path, max_bytes)
+        except ModelRejected as refusal:
+            yield path, None, ValidationReport(False, None, refusal.reason, "")
             continue
-        with sandbox_notes_unsaid():
-            report = validate_model(path, kind, limits)
-        yield path, report, limits
+        yield path, upload, check_upload(upload, limits)
 
 
-@contextmanager
-def sandbox_notes_unsaid():
-    """Keep the sandbox's notes on this machine's isolation (for a server's operator: that as root
-    its sandboxes keep root's user id, say) off a student's terminal: the check runs isolated as
-    far as this machine allows, and its verdict does not depend on it."""
-    notes = logging.getLogger("league.server.sandbox")
-    propagate, notes.propagate = notes.propagate, False
-    quiet = logging.NullHandler()  # a handler: Python's last-resort one, which prints, stays out
-    notes.addHandler(quiet)
-    try:
-        yield
-    finally:
-        notes.removeHandler(quiet)
-        notes.propagate = propagate
+def check_upload(upload: Upload, limits: SandboxLimits) -> ValidationReport:
+    """The verdict on an upload, checked here as the file the server would get."""
+    from league.validation.local import check_model, missing_runtime
+
+    missing = missing_runtime(upload.kind)
+    if missing:
+        raise ClientError(missing, EXIT_USAGE)
+    with tempfile.TemporaryDirectory(prefix="league-upload-") as folder:
+        model = Path(folder) / upload.name
+        model.write_bytes(upload.data)
+        return check_model(model, limits)
 
 
-def check_report(path: Path, report, limits) -> str:
-    budget = f"limit {limits.step_deadline_s * 1000:g} ms"
-    if report.ok:
-        return (f"{path.name}: the server would accept it: observation size {report.obs_dim}, "
-                f"{report.cpu_ms_per_observation:.2f} ms of CPU per observation ({budget})")
-    return f"{path.name}: the server would reject it: {report.error}"  # a timing's figures are in it
+def check_report(path: Path, upload: Upload | None, report: ValidationReport, limits: SandboxLimits) -> str:
+    if not report.ok:
+        return f"{path.name}: the server would reject it: {report.error}"  # a timing's figures are in it
+    packed = (f"; its weights in {', '.join(upload.packed)} are packed in (`league submit` uploads one file)"
+              if upload.packed else "")
+    return (f"{path.name}: the server would accept it: observation size {report.obs_dim}, "
+            f"{report.cpu_ms_per_observation:.2f} ms of CPU per observation "
+            f"(limit {limits.step_deadline_s * 1000:g} ms){packed}")
 
 
 def run_check(args: argparse.Namespace) -> int:
@@ -211,8 +216,11 @@ def run_check(args: argparse.Namespace) -> int:
     api = _optional_api(args)
     accepted = True
     try:
-        for path, report, limits in check_files([Path(file) for file in args.files], api):
-            print(check_report(path, report, limits), flush=True)
+        limits, max_bytes = check_limits(api, offline_ok=True)
+        if args.step_deadline_ms is not None:
+            limits = replace(limits, step_deadline_s=args.step_deadline_ms / 1000)
+        for path, upload, report in check_files([Path(file) for file in args.files], limits, max_bytes):
+            print(check_report(path, upload, report, limits), flush=True)
             if args.log and report.log:
                 print(report.log, file=sys.stderr, flush=True)
             accepted = accepted and report.ok
@@ -223,10 +231,16 @@ def run_check(args: argparse.Namespace) -> int:
 
 
 def _optional_api(args: argparse.Namespace) -> Api | None:
-    """The configured server, if any (its limits); `league check` works without one."""
+    """The configured server, if any (its limits); `league check` works without one, and without
+    the client extra (then a server named on the command line or in LEAGUE_SERVER is not asked)."""
     try:
         return Api(connection(args, need_token=False))
     except ClientError:
+        return None
+    except ImportError as error:
+        if args.server or os.environ.get("LEAGUE_SERVER"):
+            print(f"the server's limits need the client extra ({error.name} is not installed): checking against "
+                  f"the league's default limits", file=sys.stderr)
         return None
 
 
@@ -252,16 +266,11 @@ def run_login(args: argparse.Namespace) -> int:
 def run_submit(args: argparse.Namespace) -> int:
     path = Path(args.file)
     with Api(connection(args)) as api:
-        if not args.no_check:
-            [(_, report, limits)] = check_files([path], api)
-            print(check_report(path, report, limits), file=sys.stderr)
-            if not report.ok:
-                return EXIT_REJECTED
-        elif not path.is_file():
-            raise ClientError(f"no such file: {path}", EXIT_USAGE)
-        with open(path, "rb") as handle:
-            data = {"name": args.name} if args.name else {}
-            created = api.call("POST", "/api/submissions", files={"file": (path.name, handle)}, data=data)
+        upload = checked_upload(api, path) if not args.no_check else as_is(path)
+        if upload is None:
+            return EXIT_REJECTED
+        data = {"name": args.name} if args.name else {}
+        created = api.call("POST", "/api/submissions", files={"file": (upload.name, upload.data)}, data=data)
         print(f"submission {created['id']}: {created['status']}", file=sys.stderr)
         if not args.wait:
             print(created["id"])
@@ -271,6 +280,27 @@ def run_submit(args: argparse.Namespace) -> int:
         if evaluation and evaluation["status"] == "done":  # the status answer links to its episodes
             evaluation["episodes"] = all_episodes(api, submission["links"]["episodes"])
     return report_submission(submission, args.json)
+
+
+def checked_upload(api: Api, path: Path) -> Upload | None:
+    """What `league submit` uploads once `league check` accepts it (its verdict on stderr), else None."""
+    limits, max_bytes = check_limits(api)
+    [(_, upload, report)] = check_files([path], limits, max_bytes)
+    print(check_report(path, upload, report, limits), file=sys.stderr)
+    return upload if report.ok else None
+
+
+def as_is(path: Path) -> Upload:
+    """The upload of `--no-check`: the file, its external data packed in when that works."""
+    from league.validation.checks import ModelRejected
+    from league.validation.files import Upload, model_kind_of, read_upload
+
+    if not path.is_file():
+        raise ClientError(f"no such file: {path}", EXIT_USAGE)
+    try:
+        return read_upload(path, max_bytes=path.stat().st_size + 2**40)
+    except ModelRejected:  # the server says why
+        return Upload(path.name, model_kind_of(path.name) or "", path.read_bytes())
 
 
 def all_episodes(api: Api, link: str) -> list[dict]:
@@ -458,16 +488,20 @@ def add_commands(subparsers) -> None:
     command("login", "check a token with a league server and save both for the next commands", run_login)
 
     check = command("check", "run the server's checks on model files here, before uploading them", run_check,
-                    "The server's own validation, on this machine: static checks (operators, external data, "
-                    "TorchScript rules), loading and a dry run in a sandbox, and the CPU time per observation "
-                    "against the server's limit (the configured server's limits, else the defaults). One line "
-                    "per file; the exit status is 0 only if the server would accept every file.")
+                    "The server's own validation, on this machine and without a server: static checks "
+                    "(operators, TorchScript rules), loading and a dry run under the memory cap, and the CPU "
+                    "time per observation against the limit: the configured server's limits, else (no server, "
+                    "or one that cannot be reached) the league's defaults. An ONNX file whose weights torch "
+                    "wrote beside it (external data) is checked as `league submit` uploads it: packed into one "
+                    "file. One line per file; the exit status is 0 only if the server would accept every file.")
     check.add_argument("files", nargs="+", metavar="FILE", help="ONNX (.onnx) or TorchScript (.pt) files")
-    check.add_argument("--log", action="store_true", help="also print what the sandbox printed")
+    check.add_argument("--log", action="store_true", help="also print what the model's runtime printed")
+    check.add_argument("--step-deadline-ms", type=float, metavar="MS",
+                       help="check against this CPU time per observation instead of the server's (your margin)")
 
     submit = command("submit", "upload a model to the league server", run_submit,
-                     "Check the file here (as `league check`), upload it, and with --wait follow its validation "
-                     "and evaluation and print the result.")
+                     "Check the file here (as `league check`), upload it (an ONNX file's external data packed "
+                     "in), and with --wait follow its validation and evaluation and print the result.")
     submit.add_argument("file", metavar="FILE", help="an ONNX (.onnx) or TorchScript (.pt) file")
     submit.add_argument("--name", help="the submission's name (default: the file name)")
     submit.add_argument("--wait", action="store_true", help="wait until it is validated and evaluated")

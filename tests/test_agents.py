@@ -322,7 +322,7 @@ def test_missing_file_names_what_to_give():
 
 def test_missing_onnxruntime_names_the_install_command(onnx_actor, monkeypatch):
     monkeypatch.setitem(sys.modules, "onnxruntime", None)  # makes `import onnxruntime` fail
-    with pytest.raises(AgentError, match=r'pip install "microracer-league\[onnx\]"'):
+    with pytest.raises(AgentError, match=r"needs the 'onnxruntime' package: pip install onnx onnxruntime onnxscript"):
         load_agent(onnx_actor)
 
 

@@ -16,7 +16,7 @@ import json
 import typing
 from pathlib import Path
 
-from league.baselines import ALGORITHMS, canonical_name, load_algorithm
+from league.baselines import ALGORITHMS, canonical_name, export_run, load_algorithm
 from league.baselines.common.args import TrainError, check_args
 
 RUN_OPTIONS = ("out", "resume", "no_progress")  # options of the command, not of the algorithm
@@ -124,8 +124,6 @@ def summary_text(folder: Path, summary: dict) -> str:
 
 
 def run_export(args: argparse.Namespace) -> int:
-    from league.baselines.common.export import export_run
-
     path = export_run(args.run_folder, args.format, args.out, args.which)
     print(f"{args.which} actor of {args.run_folder} exported to {path}")
     return 0

@@ -17,8 +17,9 @@ from league.agents import export_heuristic_onnx
 from league.server.config import Settings
 from league.server.db import crud
 from league.server.db.models import BASELINE, Course
-from league.server.storage import BlobStore, model_kind_of
+from league.server.storage import BlobStore
 from league.server.jobs.queue import JobQueue
+from league.validation.files import model_kind_of
 
 log = logging.getLogger("league.server.bootstrap")
 

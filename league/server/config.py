@@ -13,7 +13,10 @@ from typing import Any
 from pydantic import Field
 from pydantic_settings import BaseSettings, SettingsConfigDict
 
+from league.validation.limits import MAX_UPLOAD_MB, SandboxLimits
+
 MB = 1024 * 1024
+LIMITS = SandboxLimits()  # the league's defaults (the toolkit's: `league check` uses them without a server)
 BUNDLED_BASELINES = Path(__file__).resolve().parents[1] / "baselines" / "agents"  # package data: travels with it
 
 
@@ -35,7 +38,7 @@ class Settings(BaseSettings):
     bootstrap: bool = Field(True, description="register and evaluate the baselines on an empty database")
 
     # uploads and quotas
-    max_upload_mb: float = Field(10.0, description="largest model file accepted")
+    max_upload_mb: float = Field(MAX_UPLOAD_MB, description="largest model file accepted")
     request_body_timeout_s: float = Field(30.0, gt=0, description="a request body that stops arriving this long, or "
                                                                   "past it arrives slower than 8 KB/s, is refused "
                                                                   "(408): slow clients cannot hold the API")
@@ -65,23 +68,28 @@ class Settings(BaseSettings):
                                                                  "its successor is computed, up to this age")
 
     # sandbox limits
-    sandbox_memory_mb: int = Field(512, description="address space a model may use on top of its runtime")
+    sandbox_memory_mb: int = Field(LIMITS.memory_mb, description="address space a model may use on top of its "
+                                                                 "runtime")
     race_memory_mb: int = Field(2048, ge=64, description="what the cars of one race may use together, on top of "
                                                           "their runtimes (each gets its share, at most "
                                                           "sandbox_memory_mb)")
-    sandbox_cpu_seconds: int = Field(600, description="CPU time of one sandbox process")
-    step_deadline_ms: float = Field(20.0, description="CPU time of the model per observation of a call")
-    first_call_allowance_ms: float = Field(1000.0, description="banked extra CPU time for warm-up calls")
-    run_cpu_s: float = Field(60.0, description="CPU time of the model over one evaluation or race")
-    load_cpu_s: float = Field(30.0, description="CPU time to start the sandbox, load the model and dry-run it")
-    sandbox_uid_base: int = Field(0x5000_0000, ge=0, lt=2**31 - 2**22,
+    sandbox_cpu_seconds: int = Field(LIMITS.cpu_seconds, description="CPU time of one sandbox process")
+    step_deadline_ms: float = Field(LIMITS.step_deadline_s * 1000, description="CPU time of the model per "
+                                                                              "observation of a call")
+    first_call_allowance_ms: float = Field(LIMITS.first_call_allowance_s * 1000,
+                                           description="banked extra CPU time for warm-up calls")
+    run_cpu_s: float = Field(LIMITS.run_cpu_s, description="CPU time of the model over one evaluation or race")
+    load_cpu_s: float = Field(LIMITS.load_cpu_s, description="CPU time to start the sandbox, load the model and "
+                                                             "dry-run it")
+    sandbox_uid_base: int = Field(LIMITS.uid_base, ge=0, lt=2**31 - 2**22,
                                   description="a root worker runs each sandbox as user id sandbox_uid_base + its pid "
                                               "(no account needed); 0: as root without capabilities")
-    sandbox_require_isolation: bool = Field(True, description="run no uploaded model unless sandboxes get Landlock "
+    sandbox_require_isolation: bool = Field(LIMITS.require_isolation, description="run no uploaded model unless sandboxes get Landlock "
                                                               "and seccomp (the start-up log and /api/health say "
                                                               "what they get)")
-    sandbox_max_restarts: int = Field(3, description="sandbox crashes tolerated in one evaluation")
-    log_limit_kb: int = Field(16, description="sandbox output kept per run")
+    sandbox_max_restarts: int = Field(LIMITS.max_restarts, description="sandbox crashes tolerated in one "
+                                                                       "evaluation")
+    log_limit_kb: int = Field(LIMITS.log_limit // 1024, description="sandbox output kept per run")
 
     # evaluation defaults (of a new course; instructors change them through the API)
     eval_seed: int = 0
@@ -106,6 +114,15 @@ class Settings(BaseSettings):
     reaper_interval_s: float = 10.0
     requeue_queued_after_s: float = Field(600.0, description="re-send a job left queued this long (lost message)")
     max_job_attempts: int = 3
+
+    def sandbox_limits(self) -> SandboxLimits:
+        """What each sandbox may use, in the toolkit's units."""
+        return SandboxLimits(memory_mb=self.sandbox_memory_mb, cpu_seconds=self.sandbox_cpu_seconds,
+                             step_deadline_s=self.step_deadline_ms / 1000,
+                             first_call_allowance_s=self.first_call_allowance_ms / 1000,
+                             run_cpu_s=self.run_cpu_s, load_cpu_s=self.load_cpu_s,
+                             uid_base=self.sandbox_uid_base, require_isolation=self.sandbox_require_isolation,
+                             max_restarts=self.sandbox_max_restarts, log_limit=self.log_limit_kb * 1024)
 
     @property
     def max_upload_bytes(self) -> int:

@@ -349,3 +349,22 @@ class LeaderboardRow(BaseModel):
 
 class LeaderboardPage(Page):
     items: list[LeaderboardRow]
+
+
+class PackageFileOut(BaseModel):
+    filename: str
+    kind: str = Field(description="wheel: for machines like the server's (its Python and platform); sdist: any "
+                                  "other (pip builds the simulator's core: a C compiler is needed)")
+    sha256: str
+    size: int
+    url: str
+    install: str = Field(description="the command that installs the toolkit from this file")
+
+
+class PackageOut(BaseModel):
+    """The league's own package, the code this server runs."""
+
+    version: str
+    python: str = Field(description="the server's Python (a wheel installs on this version only)")
+    platform: str = Field(description="the server's platform (a wheel installs on this platform only)")
+    files: list[PackageFileOut]

@@ -12,15 +12,8 @@ import time
 from pathlib import Path
 from typing import BinaryIO
 
-from league.constants import MODEL_SUFFIXES
-
 CHUNK = 1024 * 1024
 SWEEP_GRACE_S = 600.0  # a file younger than this may be an upload whose row is not committed yet
-
-
-def model_kind_of(filename: str | None) -> str | None:
-    """"onnx" or "torchscript" from a file name (the sandbox checks the content), None if neither."""
-    return MODEL_SUFFIXES.get(Path(filename or "").suffix.lower())
 
 
 class FileTooLarge(Exception):

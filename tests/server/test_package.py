@@ -1,12 +1,15 @@
 """The league as a user installs it: a wheel in a fresh venv, `league serve` started in a folder that
-is not the checkout, and the baselines bundled with the package on its leaderboard."""
+is not the checkout, the baselines bundled with the package on its leaderboard, and that wheel's
+files handed out to students (GET /api/package)."""
 from __future__ import annotations
 
+import io
 import json
 import os
 import subprocess
 import sys
 import sysconfig
+import zipfile
 from pathlib import Path
 
 import httpx
@@ -49,6 +52,12 @@ def installed(tmp_path_factory) -> Path:
     return venv
 
 
+def package_files(wheel: bytes) -> dict[str, bytes]:
+    """The package's files in a wheel (not its dist-info, which the installer rewrites)."""
+    with zipfile.ZipFile(io.BytesIO(wheel)) as archive:
+        return {name: archive.read(name) for name in archive.namelist() if name.startswith("league/")}
+
+
 @pytest.mark.long
 def test_an_installed_server_started_elsewhere_registers_the_bundled_baselines(installed, tmp_path):
     elsewhere = tmp_path / "elsewhere"
@@ -76,8 +85,14 @@ def test_an_installed_server_started_elsewhere_registers_the_bundled_baselines(i
             return sorted(row["name"] for row in rows if row["owner"] == "baselines")
 
         assert wait_for(baselines_on_the_board, lambda names: names == BUNDLED, timeout=240, interval=1) == BUNDLED
+        served = httpx.get(f"{server.url}/api/package", timeout=120).json()["files"]
+        handed_out = httpx.get(served[0]["url"], timeout=60).content
     finally:
         server.stop(server.api)
+    # installed from a wheel, the server hands out that wheel: the same files, rebuilt from its installation
+    wheel = next((installed.parent / "dist").glob("microracer_league-*.whl"))
+    assert [(file["kind"], file["filename"]) for file in served] == [("wheel", wheel.name)]
+    assert package_files(handed_out) == package_files(wheel.read_bytes())
     assert len(BUNDLED) == 6 and all(json.loads((REPO / "league/baselines/agents" / f"{name}.json").read_text())
                                      for name in BUNDLED)  # each agent has its card
     assert not (elsewhere / "data" / "baselines").exists()

@@ -6,7 +6,7 @@ import io
 
 import pytest
 
-from league.server.storage import BlobStore, EmptyFile, FileTooLarge, model_kind_of
+from league.server.storage import BlobStore, EmptyFile, FileTooLarge
 
 
 @pytest.fixture
@@ -41,9 +41,3 @@ def test_fetched_bytes_are_checked_against_their_name(store):
     assert store.write_verified(digest, data).read_bytes() == data
     with pytest.raises(ValueError, match="do not match"):
         store.write_verified("0" * 64, data)
-
-
-@pytest.mark.parametrize("name, kind", [("a.onnx", "onnx"), ("A.PT", "torchscript"), ("b.pth", "torchscript"),
-                                        ("c.py", None), ("noext", None), (None, None)])
-def test_model_kind_from_the_file_name(name, kind):
-    assert model_kind_of(name) == kind

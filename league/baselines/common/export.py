@@ -1,7 +1,6 @@
 """The export of a deterministic actor to ONNX or TorchScript, checked against the torch actor."""
 from __future__ import annotations
 
-import json
 import os
 from pathlib import Path
 
@@ -10,28 +9,11 @@ import torch
 from torch import nn
 
 from league.agents import AgentError, export_onnx, export_torchscript, load_agent
-from league.baselines import load_algorithm
 from league.baselines.common.args import TrainError
-from league.baselines.common.run import load_state
 from league.env import MicroRacerEnv
 
 EXPORT_TOLERANCE = 1e-5  # exported actions must match the torch actor's within this
 FORMATS = {"onnx": ".onnx", "torchscript": ".pt"}
-
-
-def export_run(folder: str | os.PathLike, fmt: str, out: str | os.PathLike, which: str = "best") -> Path:
-    """Load a run's actor weights into a fresh deterministic actor and export it (checked)."""
-    folder = Path(folder)
-    config_path, weights = folder / "config.json", folder / f"policy_{which}.pt"
-    if not config_path.is_file():
-        raise TrainError(f"{folder} is not a training run (no config.json); train one with 'league train ALGO'")
-    if not weights.is_file():
-        raise TrainError(f"{folder} has no {weights.name} yet: the run has not finished (resume it with --resume)")
-    config = json.loads(config_path.read_text())
-    module = load_algorithm(config["algorithm"])
-    policy = module.make_policy(module.Args(**config["args"]))
-    policy.load_state_dict(load_state(weights))
-    return export_policy(policy, out, fmt, config["obs_dim"])
 
 
 def export_policy(policy: nn.Module, path: str | os.PathLike, fmt: str, obs_dim: int) -> Path:

@@ -14,7 +14,6 @@ from league.track import TrackGenerationError
 from league.server.db.models import DONE, FAILED, RUNNING, EpisodeResult, Evaluation, Job, utcnow
 from league.server.jobs.runner import JobRun
 from league.server.sandbox.agent import SandboxedAgent
-from league.server.sandbox.limits import SandboxLimits
 from league.server.sandbox.log import LogBuffer
 
 
@@ -36,7 +35,7 @@ class EvaluateSubmission:
         submission = run.submission()
         with run.context.sessions() as session:
             settings = session.get(Evaluation, run.job.evaluation_id).settings
-        limits = SandboxLimits.from_settings(run.context.settings)
+        limits = run.context.settings.sandbox_limits()
         log = LogBuffer(limits.log_limit)
         try:
             with SandboxedAgent(run.model_file(submission), submission.kind, limits,

@@ -22,8 +22,8 @@ from league.track import TrackGenerationError
 from league.server.db.models import DONE, FAILED, RUNNING, Job, Race, RaceReplay, Submission, utcnow
 from league.server.jobs.runner import JobCannotSucceed, JobRun
 from league.server.sandbox.agent import SandboxedAgent
-from league.server.sandbox.limits import SandboxLimits
 from league.server.sandbox.log import LogBuffer
+from league.validation.limits import SandboxLimits
 
 log = logging.getLogger("league.server.race")
 
@@ -61,7 +61,7 @@ class RunRace:
         with run.context.sessions() as session:
             race_row = session.get(Race, run.job.race_id)
             submissions = [session.get(Submission, e["submission_id"]) for e in race_row.entrants]
-        limits = car_limits(SandboxLimits.from_settings(run.context.settings), len(submissions),
+        limits = car_limits(run.context.settings.sandbox_limits(), len(submissions),
                             run.context.settings.race_memory_mb)
         logs = [LogBuffer(max(1024, limits.log_limit // len(submissions))) for _ in submissions]
         names = [car_name(entrant) for entrant in race_row.entrants]

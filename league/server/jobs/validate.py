@@ -7,8 +7,8 @@ from league.server.db import crud
 from league.server.db.models import FAILED, READY, REJECTED, VALIDATING, Job, Submission
 from league.server.jobs.runner import JobRun
 from league.server.results import queue_evaluation
-from league.server.sandbox.limits import SandboxLimits
-from league.server.sandbox.validation import ValidationReport, validate_model
+from league.server.sandbox.validation import validate_model
+from league.validation.report import ValidationReport
 
 
 class ValidateSubmission:
@@ -20,8 +20,7 @@ class ValidateSubmission:
 
     def run(self, run: JobRun) -> ValidationReport:
         submission = run.submission()
-        limits = SandboxLimits.from_settings(run.context.settings)
-        return validate_model(run.model_file(submission), submission.kind, limits)
+        return validate_model(run.model_file(submission), submission.kind, run.context.settings.sandbox_limits())
 
     def finish(self, session: Session, job: Job, report: ValidationReport) -> list[int]:
         submission = session.get(Submission, job.submission_id)

@@ -6,9 +6,11 @@
                    runs as, its environment and directory, the pipe protocol
     child.py       the child itself (run by path, as a script): isolates itself, loads the model,
                    answers observation batches
-    checks.py      static checks of a model file, run in the child before the model is loaded
     validation.py  validating an upload: checks, load and dry run in a sandbox, timed from outside
-    limits.py      what a sandbox may use; log.py what it printed, within a size limit
+    log.py         what a sandbox printed, within a size limit
+
+The static checks, the checked load, the CPU budgets and the limits' defaults are the toolkit's
+(league.validation), which `league check` runs on a student's machine without a sandbox.
 
 Isolation of the child, done by the child itself before it reads the model (child.confine):
 rlimits (CPU, files, address space), a new network namespace, a user id of its own when the worker

@@ -19,9 +19,10 @@ from typing import Callable
 import numpy as np
 
 from league.agents import Agent, AgentError, check_actions
-from league.server.sandbox.limits import SandboxLimits
 from league.server.sandbox.log import LogBuffer
 from league.server.sandbox.process import Budget, SandboxFailure, SandboxProcess
+from league.validation.limits import SandboxLimits
+from league.validation.timing import CpuAllowance, run_spent
 
 
 class SandboxedAgent(Agent):
@@ -35,8 +36,7 @@ class SandboxedAgent(Agent):
         self.log = log or LogBuffer(limits.log_limit)
         self.cancel = cancel or threading.Event()
         self.restarts, self.last_failure = 0, None
-        self.cpu_per_observation: list[float] = []  # of each call, in seconds
-        self.cpu_used = 0.0  # by the model's calls, over the run
+        self.allowance = CpuAllowance(limits)  # the CPU time of each call, over the run
         self._process: SandboxProcess | None = None
         ready = self._start()
         super().__init__(ready["obs_dim"], name)
@@ -49,7 +49,7 @@ class SandboxedAgent(Agent):
             self._process = None
             self.log.note(f"refused: {failure.reason}")
             raise AgentError(failure.reason) from failure
-        self.bank = self.limits.first_call_allowance_s
+        self.allowance.refill()  # a new process warms up again
         isolation = self._process.ready["isolation"]
         self.log.note(f"started: Landlock ABI {isolation['landlock']}, seccomp, network {isolation['network']}, "
                       f"runs as {isolation['user']}, memory cap +{self.limits.memory_mb} MB, "
@@ -73,37 +73,38 @@ class SandboxedAgent(Agent):
         if self.cancel.is_set():
             raise AgentError("the evaluation was cancelled")
         process = self._live_process()
-        run_left = self.limits.run_cpu_s - self.cpu_used
-        if run_left <= 0:
-            raise AgentError(self._run_spent())
+        if self.allowance.run_left() <= 0:
+            raise AgentError(run_spent(self.limits))
         rows = obs.shape[0]
-        budget = Budget.for_call(process.cpu_time, min(self.limits.step_deadline_s * rows + self.bank, run_left))
+        over = self.allowance.call_over(rows)  # the reason, should the call use up its budget
+        budget = Budget.for_call(process.cpu_time, self.allowance.for_call(rows))
         try:
             process.send_observations(obs)
         except SandboxFailure as failure:
-            self._account(budget, rows)
-            raise AgentError(self._failure_reason(failure, budget, run_left)) from failure
+            self.allowance.account(budget.used(), rows)
+            raise AgentError(self._failure_reason(failure, budget, over)) from failure
 
         def receive() -> np.ndarray:
             try:
                 return process.receive_actions(budget)
             except SandboxFailure as failure:
-                raise AgentError(self._failure_reason(failure, budget, run_left)) from failure
+                raise AgentError(self._failure_reason(failure, budget, over)) from failure
             finally:
-                self._account(budget, rows)
+                self.allowance.account(budget.used(), rows)
 
         return receive
 
-    def _account(self, budget: Budget, rows: int) -> None:
-        used = budget.used()
-        self.cpu_per_observation.append(used / rows)
-        self.cpu_used += used
-        self.bank = max(0.0, self.bank - max(0.0, used - self.limits.step_deadline_s * rows))
+    @property
+    def cpu_per_observation(self) -> list[float]:
+        """Seconds of CPU per observation of each call."""
+        return self.allowance.per_observation
 
-    def _run_spent(self) -> str:
-        return f"the model used more than {self.limits.run_cpu_s:g} s of CPU time in this run"
+    @property
+    def cpu_used(self) -> float:
+        """Seconds of CPU of the calls of this run."""
+        return self.allowance.used
 
-    def _failure_reason(self, failure: SandboxFailure, budget: Budget, run_left: float) -> str:
+    def _failure_reason(self, failure: SandboxFailure, budget: Budget, over: str) -> str:
         if failure.fatal:
             self._process.close()
             self._process = None
@@ -112,11 +113,8 @@ class SandboxedAgent(Agent):
         elif budget.spent_on_the_wall_clock():
             reason = (f"the model stopped answering without using the CPU "
                       f"(no answer after {budget.wall_s:g} s)")
-        elif budget.cpu_s >= run_left:
-            reason = self._run_spent()
         else:
-            reason = (f"the model used more than its {self.limits.step_deadline_s * 1000:g} ms of CPU per "
-                      f"observation (allowance left: {self.bank * 1000:.0f} ms)")
+            reason = over
         self.last_failure = reason
         self.log.note(reason)
         return reason
@@ -138,6 +136,3 @@ class SandboxedAgent(Agent):
 
 def _raise(error: Exception):
     raise error
-
-
-# --------------------------------------------------------------------------- validation

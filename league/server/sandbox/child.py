@@ -277,19 +277,6 @@ def blocks_between_zero_and(pid: int) -> list[tuple[int, int]]:
     return below_top + under_pid
 
 
-def cap_address_space(extra_mb: int) -> None:
-    """The runtime's own footprint (torch maps ~0.7 GB) plus what the model may allocate."""
-    resource.setrlimit(resource.RLIMIT_AS, (virtual_memory_size() + extra_mb * 1024 * 1024,) * 2)
-
-
-def virtual_memory_size() -> int:
-    with open("/proc/self/status") as status:
-        for line in status:
-            if line.startswith("VmSize:"):
-                return int(line.split()[1]) * 1024
-    raise RuntimeError("no VmSize in /proc/self/status")
-
-
 def single_thread_environment() -> None:
     for name in ("OMP_NUM_THREADS", "MKL_NUM_THREADS", "OPENBLAS_NUM_THREADS", "NUMEXPR_NUM_THREADS"):
         os.environ[name] = "1"
@@ -309,37 +296,9 @@ def import_league_module(name: str) -> types.ModuleType:
 
 
 def load_model(model_path: Path, memory_mb: int | None):
-    """Static checks, then the toolkit's loader (which dry-runs the model) under the memory cap (None:
-    no cap, for the fork server's own tiny models)."""
-    agents = import_league_module("agents")
-    checks = import_league_module("server.sandbox.checks")
-    if model_path.suffix == ".onnx":
-        checks.check_onnx(model_path)
-        agents.import_onnxruntime().disable_telemetry_events()  # before the cap: its footprint is not the model's
-        if memory_mb is not None:
-            cap_address_space(memory_mb)
-        return agents.load_agent(model_path, name="submission")
-    checks.check_torchscript_archive(model_path)
-    torch = _import_torch()
-    if memory_mb is not None:
-        cap_address_space(memory_mb)
-    module = torch.jit.load(str(model_path), map_location="cpu")
-    checks.check_torchscript_graph(module)
-    return agents.torch_module_agent(module, name="submission")
-
-
-def _import_torch():
-    """torch, on one thread (set once per process: a sandbox forked from the server has it so)."""
-    if "torch" in sys.modules:
-        return sys.modules["torch"]
-    import warnings
-
-    import torch
-
-    torch.set_num_threads(1)
-    torch.set_num_interop_threads(1)
-    warnings.simplefilter("ignore", DeprecationWarning)  # torch.jit is in maintenance, still supported
-    return torch
+    """The toolkit's checked load (league.validation.loading: static checks, then the loader, which
+    dry-runs the model) under the memory cap (None: no cap, for the fork server's own tiny models)."""
+    return import_league_module("validation.loading").load_checked(model_path, memory_mb)
 
 
 def tiny_onnx(path: Path) -> Path:
@@ -357,7 +316,7 @@ def tiny_onnx(path: Path) -> Path:
 
 def tiny_torchscript(path: Path) -> Path:
     """A small MLP, scripted as students export theirs."""
-    nn = _import_torch().nn
+    nn = import_league_module("validation.loading").import_torch().nn
     mlp = nn.Sequential(nn.Linear(5, 8), nn.Tanh(), nn.Linear(8, 2))
     return import_league_module("agents").export_torchscript(mlp, path)
 
@@ -384,15 +343,6 @@ def prepare_runtime(suffix: str) -> None:
 def run_tiny_model(path: Path) -> None:
     agent = load_model(path, memory_mb=None)
     agent(import_league_module("agents").dry_run_observations(agent.obs_dim, 3))
-
-
-def failure_reason(error: BaseException, memory_mb: int) -> str:
-    """One line for the student; the full message goes to the log (stderr)."""
-    print(f"{type(error).__name__}: {error}", file=sys.stderr, flush=True)
-    reason = getattr(error, "reason", None) or f"{type(error).__name__}: {' '.join(str(error).split())[:300]}"
-    if isinstance(error, MemoryError) or "alloc" in reason.lower():
-        return f"out of memory (the cap is {memory_mb} MB): {reason}"
-    return reason
 
 
 # --------------------------------------------------------------------------- fork server
@@ -452,7 +402,8 @@ def preload_runtimes() -> None:
     import pyseccomp  # noqa: F401  (what every sandbox confines itself with)
 
     import_league_module("agents")  # numpy
-    import_league_module("server.sandbox.checks")
+    import_league_module("validation.loading")
+    import_league_module("validation.checks")
     prepare_runtime(".onnx")
 
 
@@ -557,7 +508,7 @@ def serve(agent, proto_in: int, proto_out: int, memory_mb: int) -> None:
         try:
             actions = np.ascontiguousarray(agent(obs), dtype="<f4")
         except Exception as error:  # the model's failure is an answer, not the sandbox's end
-            send_text(proto_out, b"E", failure_reason(error, memory_mb))
+            send_text(proto_out, b"E", import_league_module("validation.loading").failure_reason(error, memory_mb))
             continue
         send(proto_out, HEADER.pack(b"A", actions.shape[0], actions.shape[1]) + actions.tobytes())
 
@@ -580,7 +531,7 @@ def run_sandbox(args: list[str], server: int) -> int:
             isolation.update(probe_runtimes())
         agent = None if model == "--probe" else load_model(Path(model), memory_mb)
     except BaseException as error:  # whatever the file did, it is the reason it is refused
-        send_text(proto_out, b"E", failure_reason(error, memory_mb))
+        send_text(proto_out, b"E", import_league_module("validation.loading").failure_reason(error, memory_mb))
         return 1
     send_text(proto_out, b"R", json.dumps({"isolation": isolation, "obs_dim": getattr(agent, "obs_dim", None)}))
     if agent is not None:

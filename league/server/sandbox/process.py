@@ -32,8 +32,9 @@ import numpy as np
 
 from league.agents import plain_text
 from league.server.sandbox import child
-from league.server.sandbox.limits import SandboxLimits
 from league.server.sandbox.log import LogBuffer
+from league.validation.limits import SandboxLimits
+from league.validation.timing import load_over
 
 log = logging.getLogger("league.server.sandbox")
 CHILD_SCRIPT = Path(child.__file__).resolve()
@@ -143,9 +144,7 @@ class SandboxProcess:
                                               expected=(b"R", b"E"))
         except SandboxFailure as failure:
             if failure.timed_out:
-                raise SandboxFailure(f"the model did not load and pass its dry run within {limit:g} s of CPU "
-                                     f"time (a model may use {self.limits.step_deadline_s * 1000:g} ms "
-                                     f"per observation)", fatal=True) from failure
+                raise SandboxFailure(load_over(self.limits), fatal=True) from failure
             raise
         if tag == b"E":
             raise SandboxFailure(plain_text(payload.decode("utf-8", errors="replace")), fatal=True)

@@ -5,7 +5,7 @@ import pytest
 
 from league.agents import heuristic_agent
 from league.server.jobs.race import FailedAgent, InvalidRaceSettings, car_limits, public, race_in_sandboxes
-from league.server.sandbox.limits import SandboxLimits
+from league.validation.limits import SandboxLimits
 
 
 class Tracked:

@@ -7,8 +7,8 @@ from pathlib import Path
 
 import pytest
 
-from league.server.sandbox.limits import SandboxLimits
 from league.server.sandbox.validation import validate_model
+from league.validation.limits import SandboxLimits
 
 from .. import model_factory as mf
 

@@ -22,8 +22,8 @@ from pathlib import Path
 import pytest
 
 from league.server.sandbox import child, process
-from league.server.sandbox.limits import SandboxLimits
 from league.server.sandbox.process import ForkServer, _child_environment
+from league.validation.limits import SandboxLimits
 
 # child.py run as the fork server, except that its sandboxes run a model file named *.py as Python
 # instead of loading it (after confine(), as they would load it)

@@ -16,10 +16,10 @@ import pytest
 
 from league.agents import AgentError, dry_run_observations
 from league.server.sandbox.agent import SandboxedAgent
-from league.server.sandbox.limits import SandboxLimits
 from league.server.sandbox.log import LogBuffer
 from league.server.sandbox.process import ForkServer, Isolation, IsolationUnavailable, _child_environment
 from league.server.sandbox.validation import validate_model
+from league.validation.limits import SandboxLimits
 
 from .. import model_factory as mf
 
@@ -77,7 +77,7 @@ import json, os, sys
 from league.evaluation import metrics_run
 from league.server.sandbox.agent import SandboxedAgent
 from league.server.sandbox.child import set_autogroup_nice
-from league.server.sandbox.limits import SandboxLimits
+from league.validation.limits import SandboxLimits
 model, cpu_per_observation, cpu = sys.argv[1], float(sys.argv[2]), int(sys.argv[3])
 os.sched_setaffinity(0, {cpu})
 limits = SandboxLimits(step_deadline_s=cpu_per_observation, first_call_allowance_s=0.0, load_cpu_s=20,
@@ -130,7 +130,7 @@ def test_a_busy_machine_changes_no_result_and_the_budget_is_on_the_cpu_clock(fil
 _HEAT_OF_SANDBOXES = """
 import contextlib, os, sys
 from league.server.sandbox.agent import SandboxedAgent
-from league.server.sandbox.limits import SandboxLimits
+from league.validation.limits import SandboxLimits
 os.nice(10)
 with contextlib.ExitStack() as stack:
     agents = [stack.enter_context(SandboxedAgent(sys.argv[1], "onnx", SandboxLimits())) for _ in range(10)]
@@ -277,7 +277,8 @@ def test_sandboxes_end_with_the_thread_that_started_them(files):
 
 def test_nothing_outlives_a_killed_worker(files, tmp_path):
     script = ("import os, signal, sys\n"
-              "from league.server.sandbox.agent import SandboxedAgent, SandboxLimits\n"
+              "from league.server.sandbox.agent import SandboxedAgent\n"
+              "from league.validation.limits import SandboxLimits\n"
               "from league.server.sandbox.process import ForkServer\n"
               "agent = SandboxedAgent(sys.argv[1], 'onnx', SandboxLimits(load_cpu_s=20))\n"
               "print(ForkServer.of_this_thread().proc.pid, agent._process.proc.pid, flush=True)\n"

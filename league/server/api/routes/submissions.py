@@ -19,7 +19,8 @@ from league.server.schemas import (
     DbId, EpisodeOut, EpisodePage, EvaluationOut, EvaluationSummary, SubmissionCreated, SubmissionDetail,
     SubmissionLinks, SubmissionOut, SubmissionUpdate,
 )
-from league.server.storage import EmptyFile, FileTooLarge, model_kind_of
+from league.server.storage import EmptyFile, FileTooLarge
+from league.validation.files import model_kind_of, unsupported
 
 router = APIRouter(prefix="/submissions", tags=["submissions"])
 
@@ -27,9 +28,7 @@ router = APIRouter(prefix="/submissions", tags=["submissions"])
 def model_kind(filename: str | None) -> str:
     kind = model_kind_of(filename)
     if kind is None:
-        suffix = PurePath(filename or "").suffix or "(none)"
-        raise HTTPException(status.HTTP_415_UNSUPPORTED_MEDIA_TYPE,
-                            f"unsupported file type {suffix!r}: upload an .onnx or a TorchScript .pt file")
+        raise HTTPException(status.HTTP_415_UNSUPPORTED_MEDIA_TYPE, unsupported(filename or ""))
     return kind
 
 

@@ -15,7 +15,7 @@ from league.server.db import crud
 from league.server.db.models import BASELINE, EVALUATE, LOW, QUEUED, REJECTED, STUDENT, Job
 from league.server.jobs.leases import fairest_queued
 from league.server.results import SUPERSEDED
-from league.server.sandbox.validation import ValidationReport
+from league.validation.report import ValidationReport
 
 from ...conftest import create_student, episodes, submission, upload, wait_for, wait_settled
 from ..conftest import evaluation_outcome, in_process_league

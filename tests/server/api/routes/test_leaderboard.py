@@ -246,7 +246,7 @@ def test_uploads_and_validations_keep_the_state_stamp_an_evaluation_changes_it(k
     validations, which show nothing on the board: they must not make the next request recompute it."""
     from league.server.db import crud
     from league.server.db.models import STUDENT, Evaluation, Job
-    from league.server.sandbox.validation import ValidationReport
+    from league.validation.report import ValidationReport
 
     from ..conftest import evaluation_outcome, in_process_league
 

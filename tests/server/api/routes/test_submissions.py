@@ -118,7 +118,19 @@ def test_unknown_file_type_is_refused(app_league, tmp_path):
     script.write_text("print('hello')")
     response = upload(student, script)
     assert response.status_code == 415
-    assert response.json()["detail"] == "unsupported file type '.py': upload an .onnx or a TorchScript .pt file"
+    assert response.json()["detail"] == ("unsupported file type '.py': the league runs ONNX (.onnx) and TorchScript "
+                                         "(.pt) files; export the network with torch.onnx.export or torch.jit.script")
+
+
+def test_a_keras_model_is_refused_with_the_route_to_onnx(app_league, tmp_path):
+    student = create_student(app_league, unique("keras"))
+    keras_file = tmp_path / "actor.h5"
+    keras_file.write_bytes(b"\x89HDF\r\n\x1a\n")
+    response = upload(student, keras_file)
+    assert response.status_code == 415
+    assert response.json()["detail"].startswith("unsupported file type '.h5' (a Keras model): the league runs ONNX "
+                                                "(.onnx) and TorchScript (.pt) files; convert it to ONNX first, with "
+                                                "tf2onnx or Keras' own model.export(path, format='onnx')")
 
 
 def test_file_over_the_size_limit_is_refused(app_league, tmp_path):
@@ -231,7 +243,7 @@ def test_a_rejected_uploads_file_is_deleted(app_league, tmp_path):
     from league.server.db import crud
     from league.server.db.models import Job, Submission
     from league.server.jobs.validate import ValidateSubmission
-    from league.server.sandbox.validation import ValidationReport
+    from league.validation.report import ValidationReport
 
     from ... import model_factory as mf
 

@@ -1,4 +1,5 @@
-"""Static checks of untrusted model files, run inside the sandbox before a model is loaded.
+"""Static checks of untrusted model files, run before a model is loaded: in the server's sandbox
+(league/server/sandbox/child.py) and by `league check` (league.validation.local), the same code.
 
 A policy is an MLP or a CNN: the allow-lists hold what those need (as exported by
 torch.onnx / torch.jit) and nothing that touches files, processes, threads or randomness.
@@ -12,7 +13,12 @@ import zipfile
 from pathlib import Path
 from typing import Any, Iterator
 
+from league.constants import PICKLE_MARK
+
 ONNX_DOMAINS = ("", "ai.onnx")
+# Operator sets a model may declare: the ONNX standard's own. tf2onnx and Keras declare ai.onnx.ml
+# (the standard's classical-ML operators) in every model; its operators are still refused, node by node.
+ONNX_IMPORTS = (*ONNX_DOMAINS, "ai.onnx.ml")
 ONNX_OPS = frozenset("""
 Abs Acos Add And ArgMax ArgMin Asin Atan AveragePool BatchNormalization Cast CastLike Ceil Celu Clip Concat
 Constant ConstantOfShape Conv Cos Div Dropout Elu Equal Erf Exp Expand Flatten Floor Gather GatherElements Gelu
@@ -45,7 +51,8 @@ format warn item is_floating_point new_zeros new_ones masked_fill where_ erf ler
 # Methods that run while a TorchScript file is loaded (the unpickler calls __setstate__; its pair
 # makes no sense alone): refused outright, wherever they are defined.
 LOAD_TIME_METHODS = frozenset({"__setstate__", "__getstate__"})
-PICKLE_MARK = b"\x80"  # first byte of every pickle of protocol >= 2
+# How to get one file: torch writes weights beside the model by default; `league submit` packs them
+SELF_CONTAINED = "torch.onnx.export(..., external_data=False), or `league submit`, which packs them in"
 MAX_CODE_FILE = 4 * 1024 * 1024  # bytes of TorchScript source per file (zip bombs are not read)
 
 
@@ -80,7 +87,7 @@ def check_onnx(path: Path) -> None:
 
 def _check_onnx_imports(model: Any) -> None:
     for opset in model.opset_import:
-        if opset.domain not in ONNX_DOMAINS:
+        if opset.domain not in ONNX_IMPORTS:
             raise ModelRejected(f"non-standard operator domain {opset.domain!r}: only the standard ONNX operators "
                                 "are allowed")
     if len(model.functions):
@@ -97,15 +104,29 @@ def _onnx_graphs(graph: Any) -> Iterator[Any]:
                 yield from _onnx_graphs(subgraph)
 
 
-def _check_onnx_tensors(graph: Any) -> None:
+def onnx_tensors(model: Any) -> Iterator[Any]:
+    """Every tensor of the model: initializers and node attributes, of its graph and subgraphs."""
+    for graph in _onnx_graphs(model.graph):
+        yield from _graph_tensors(graph)
+
+
+def _graph_tensors(graph: Any) -> list[Any]:
     tensors = list(graph.initializer) + [s.values for s in graph.sparse_initializer]
     for node in graph.node:
         for attribute in node.attribute:
             tensors += ([attribute.t] if attribute.HasField("t") else []) + list(attribute.tensors)
-    for tensor in tensors:
-        if tensor.data_location == 1 or len(tensor.external_data):  # TensorProto.EXTERNAL
+    return tensors
+
+
+def refers_to_external_data(tensor: Any) -> bool:
+    return tensor.data_location == 1 or len(tensor.external_data) > 0  # TensorProto.EXTERNAL
+
+
+def _check_onnx_tensors(graph: Any) -> None:
+    for tensor in _graph_tensors(graph):
+        if refers_to_external_data(tensor):
             raise ModelRejected(f"tensor {tensor.name!r} refers to external data: upload one self-contained "
-                                "file (export without external data)")
+                                f"file ({SELF_CONTAINED})")
 
 
 def _check_onnx_node(node: Any) -> None:

@@ -1,0 +1,274 @@
+"""A student's first hour against a real server (`league serve` on SQLite, with its worker):
+
+- the toolkit installed from the server's own package (GET /api/package, the command it gives)
+  into a fresh venv of the system's Python, by an ordinary user, from the package index (with
+  PIP_FIND_LINKS passed on, so that torch would stay the CPU build if anything asked for it);
+  `league evaluate` there gives the server's figures for the same file on the same seed;
+- `league check` in that venv, which has the onnx and client extras and not the server's: with no
+  server, and with a saved server that is down;
+- every common export path (torch.onnx.export with its defaults, whose weights go beside the model,
+  the legacy exporter, torch.jit.script, torch.jit.trace) checked, submitted, ready and evaluated
+  with `league evaluate`'s figures.
+"""
+from __future__ import annotations
+
+import json
+import os
+import pwd
+import shlex
+import subprocess
+import sys
+import warnings
+from pathlib import Path
+
+import httpx
+import pytest
+
+from league.client import EXIT_OK, EXIT_USAGE
+
+from .conftest import TEST_SETTINGS
+from .ordinary import SYSTEM_PYTHON, ordinary_user, require_root_tools, shared_directory
+from .test_client import league, server, student_env, student_token, unique  # noqa: F401 (server: a fixture)
+
+EPISODES, SEED = TEST_SETTINGS["LEAGUE_EVAL_EPISODES"], TEST_SETTINGS["LEAGUE_EVAL_SEED"]
+PIP_CACHE = Path("/tmp/league-student-pip-cache")  # the ordinary user's downloads, kept between runs
+
+
+# --------------------------------------------------------------------------- exports
+
+
+def export(how: str, folder: Path) -> Path:
+    """The thesis-like driver exported as a student would, with each exporter's defaults."""
+    import torch
+
+    from ..toolkit_models import thesis_driver
+
+    model, example = thesis_driver().eval(), (torch.zeros(1, 5),)
+    path = folder / ("policy.pt" if how.startswith("jit") else "policy.onnx")
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")  # the legacy exporter's and torch.jit's deprecation notices
+        if how == "onnx":
+            torch.onnx.export(model, example, str(path))
+        elif how == "onnx-legacy":
+            torch.onnx.export(model, example, str(path), dynamo=False)
+        elif how == "jit-script":
+            torch.jit.script(model).save(str(path))
+        else:
+            torch.jit.trace(model, example).save(str(path))
+    return path
+
+
+def evaluated_table(result: subprocess.CompletedProcess) -> list[str]:
+    """The figures of `league evaluate` (the table without its title line)."""
+    assert result.returncode == EXIT_OK, result.stderr
+    return result.stdout.splitlines()[1:]
+
+
+EXPORTS = ["onnx", "onnx-legacy", "jit-script", "jit-trace"]
+
+
+@pytest.mark.long
+def test_every_common_export_is_checked_submitted_and_evaluated_as_league_evaluate_does(server, tmp_path):
+    """Each export checked (one `league check` of them all), then submitted and waited for (all at once,
+    one student each) and evaluated here: the server's figures are `league evaluate`'s."""
+    paths = {}
+    for how in EXPORTS:
+        (tmp_path / how).mkdir()
+        paths[how] = export(how, tmp_path / how)
+    assert (tmp_path / "onnx" / "policy.onnx.data").is_file()  # torch's default: the weights beside the model
+    checked = league("check", *map(str, paths.values()), "--server", server.url, config=tmp_path)
+    assert checked.returncode == EXIT_OK, checked.stdout + checked.stderr
+    lines = checked.stdout.splitlines()
+    assert [line.split(":")[0] for line in lines] == [path.name for path in paths.values()]
+    assert all(": the server would accept it: observation size 5" in line for line in lines), lines
+    assert ["its weights in policy.onnx.data are packed in" in line for line in lines] == [True, False, False, False]
+
+    submits = {how: subprocess.Popen(
+        [sys.executable, "-m", "league.cli", "submit", str(path), "--wait", "--no-progress", "--server", server.url,
+         "--token", student_token(server, unique(how))], cwd=tmp_path, env=student_env(tmp_path),
+        stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True) for how, path in paths.items()}
+    for how, submit in submits.items():
+        stdout, stderr = submit.communicate(timeout=600)
+        assert submit.returncode == EXIT_OK, (how, stdout, stderr)
+        evaluated = league("evaluate", str(paths[how]), "--episodes", EPISODES, "--seed", SEED, "--no-progress",
+                           config=tmp_path)
+        assert stdout.splitlines()[0].endswith(" is ready"), (how, stdout)
+        assert stdout.splitlines()[2:] == evaluated_table(evaluated), how
+
+
+# --------------------------------------------------------------------------- the student's own venv
+
+
+class Student:
+    """An ordinary user with a home and a venv of the system's Python, under a shared directory."""
+
+    def __init__(self, root: Path):
+        self.uid = ordinary_user()
+        self.gid = pwd.getpwuid(self.uid).pw_gid
+        self.root, self.home, self.venv = root, root / "home", root / "home" / "venv"
+        self.home.mkdir()
+        PIP_CACHE.mkdir(exist_ok=True)
+        for path in (self.home, PIP_CACHE):
+            os.chown(path, self.uid, self.gid)
+
+    def run(self, *command: str, expect: int | None = 0, **env: str) -> subprocess.CompletedProcess:
+        base = {"PATH": f"{self.venv / 'bin'}:{os.defpath}", "HOME": str(self.home), "LANG": "C.UTF-8",
+                "XDG_CONFIG_HOME": str(self.home / ".config"), "PIP_CACHE_DIR": str(PIP_CACHE),
+                "PIP_FIND_LINKS": os.environ.get("PIP_FIND_LINKS", ""), "MPLBACKEND": "Agg"}
+        done = subprocess.run(command, cwd=self.home, env={**base, **env}, capture_output=True, text=True,
+                              timeout=900, user=self.uid, group=self.gid, extra_groups=[])
+        if expect is not None:
+            assert done.returncode == expect, f"{command}: {done.returncode}\n{done.stdout}\n{done.stderr}"
+        return done
+
+    def give(self, path: Path) -> Path:
+        """A copy of a file (and what lies beside it under the same stem) that the student owns."""
+        target = self.home / path.name
+        for source in path.parent.glob(f"{path.name}*"):
+            copy = self.home / source.name
+            copy.write_bytes(source.read_bytes())
+            os.chown(copy, self.uid, self.gid)
+        return target
+
+
+@pytest.fixture(scope="module")
+def student(server):
+    """The toolkit installed as the server says, in a fresh venv of an ordinary user."""
+    require_root_tools()
+    package = httpx.get(f"{server.url}/api/package", timeout=120).json()
+    wheel = next(file for file in package["files"] if file["kind"] == "wheel")
+    with shared_directory() as root:
+        student = Student(root)
+        student.run(str(SYSTEM_PYTHON), "-m", "venv", str(student.venv))
+        command = shlex.split(wheel["install"])
+        assert command[:2] == ["pip", "install"] and command[2].startswith("microracer-league[onnx,client] @ http")
+        student.run(*command, "-q")
+        yield student
+
+
+@pytest.mark.long
+def test_a_fresh_venv_installs_the_servers_own_package_and_evaluates_as_the_server(server, student, tmp_path):
+    where = student.run("python", "-c", "import league; print(league.__file__, league.__version__)").stdout.split()
+    assert Path(where[0]).is_relative_to(student.venv) and where[1] == httpx.get(f"{server.url}/api/package").json()[
+        "version"]
+    installed = student.run("pip", "list", "--format=json").stdout
+    assert not [p["name"] for p in json.loads(installed) if p["name"].startswith(("torch", "nvidia"))]
+
+    model = student.give(export("onnx", tmp_path))
+    token = student_token(server, unique("fresh-venv"))
+    evaluated = student.run("league", "evaluate", model.name, "--episodes", EPISODES, "--seed", SEED, "--no-progress")
+    submitted = student.run("league", "submit", model.name, "--wait", "--no-progress", "--server", server.url,
+                            "--token", token)
+    assert "its weights in policy.onnx.data are packed in" in submitted.stderr
+    assert submitted.stdout.splitlines()[2:] == evaluated_table(evaluated)
+
+
+@pytest.mark.long
+def test_check_without_the_server_extra_alone_and_with_a_saved_server_that_is_down(student, tmp_path):
+    no_server = student.run("python", "-c", "import league.server.config", expect=1)
+    assert "ModuleNotFoundError: No module named 'pydantic" in no_server.stderr  # the onnx and client extras only
+    model = student.give(export("onnx", tmp_path))
+    alone = student.run("league", "check", model.name)
+    assert alone.stderr == "" and alone.stdout.startswith("policy.onnx: the server would accept it: observation "
+                                                          "size 5")
+
+    hidden = ("import sys; sys.modules['httpx'] = sys.modules['platformdirs'] = None; from league.cli import main; "
+              "sys.exit(main(['check', 'policy.onnx']))")
+    onnx_extra_only = student.run("python", "-c", hidden)  # as if the client extra were not installed
+    assert onnx_extra_only.stdout.startswith("policy.onnx: the server would accept it") and not onnx_extra_only.stderr
+
+    down = f"http://127.0.0.1:{_closed_port()}"
+    saved = student.home / ".config" / "microracer-league" / "client.json"
+    saved.parent.mkdir(parents=True, exist_ok=True)
+    saved.write_text(json.dumps({"server": down, "token": "lg_saved"}))  # as `league login` saves it
+    for path in (saved.parent.parent, saved.parent, saved):
+        os.chown(path, student.uid, student.gid)
+    offline = student.run("league", "check", model.name)
+    assert offline.stdout == alone.stdout.replace(_figure(alone.stdout), _figure(offline.stdout))
+    assert offline.stderr.startswith(f"cannot reach the league server at {down}: ")
+    assert offline.stderr.rstrip().endswith("; checking against the league's default limits")
+
+    scripted = student.give(export("jit-script", tmp_path))
+    no_torch = student.run("league", "check", scripted.name, "--server", down, expect=EXIT_USAGE)
+    assert "checking torchscript models here needs torch: pip install torch --index-url " \
+           "https://download.pytorch.org/whl/cpu" in no_torch.stderr
+
+
+def _figure(line: str) -> str:
+    """The measured CPU time of a check's line (it differs from run to run)."""
+    return line.split(", ")[1].split(" ms")[0]
+
+
+def _closed_port() -> int:
+    from .conftest import free_port
+
+    return free_port()
+
+
+# --------------------------------------------------------------------------- Keras and TensorFlow
+
+TENSORFLOW = ("tensorflow-cpu==2.21.0", "tf2onnx==1.17.0")  # pinned: a new release changes the test when we choose
+TENSORFLOW_VENV = Path("/tmp/league-tensorflow-venv")  # never /tmp/league-venv: TensorFlow pins numpy and protobuf
+# The thesis' DDPG actor (its section 4.1, "Implemented methods"): two towers of two 32-unit relu layers, each ending in one
+# tanh unit (acceleration, direction), concatenated; exported both ways the guide shows.
+KERAS_ACTOR = """
+import keras
+import numpy as np
+from keras import layers
+
+keras.utils.set_random_seed(0)
+inputs = layers.Input(shape=(5,))
+towers = []
+for _ in range(2):
+    out = layers.Dense(32, activation="relu")(inputs)
+    out = layers.Dense(32, activation="relu")(out)
+    towers.append(layers.Dense(1, activation="tanh")(out))
+actor = keras.Model(inputs, layers.concatenate(towers), name="actor")
+probe = np.random.default_rng(0).uniform(-1, 1, (16, 5)).astype(np.float32)
+np.save("keras_actions.npy", actor.predict(probe, verbose=0))  # (a model is called once before its export)
+actor.export("keras_actor.onnx", format="onnx")  # Keras 3's own route
+actor.export("actor_savedmodel")  # a TensorFlow SavedModel, as the thesis' scripts save their actors
+"""
+
+
+@pytest.fixture(scope="module")
+def tensorflow_python() -> Path:
+    """A venv with tensorflow-cpu and tf2onnx (made once, kept between runs as the pins say)."""
+    base_python = Path(sys.base_prefix) / "bin" / "python3"
+    marker = TENSORFLOW_VENV / "league-requirements.txt"
+    if not marker.exists() or marker.read_text() != "\n".join(TENSORFLOW):
+        subprocess.run([str(base_python), "-m", "venv", "--clear", str(TENSORFLOW_VENV)], check=True)
+        subprocess.run([str(TENSORFLOW_VENV / "bin" / "pip"), "install", "-q", *TENSORFLOW], check=True, timeout=1500)
+        marker.write_text("\n".join(TENSORFLOW))
+    return TENSORFLOW_VENV / "bin" / "python"
+
+
+@pytest.mark.slow
+@pytest.mark.long
+def test_the_thesis_keras_actor_goes_to_onnx_both_ways_and_is_evaluated_as_league_evaluate_does(
+        server, tensorflow_python, tmp_path):
+    import numpy as np
+
+    from league.agents import load_agent
+
+    quiet = {**os.environ, "TF_CPP_MIN_LOG_LEVEL": "3", "CUDA_VISIBLE_DEVICES": ""}
+    subprocess.run([str(tensorflow_python), "-c", KERAS_ACTOR], cwd=tmp_path, env=quiet, check=True,
+                   capture_output=True, timeout=600)
+    subprocess.run([str(tensorflow_python), "-m", "tf2onnx.convert", "--saved-model", "actor_savedmodel",
+                    "--output", "tf2onnx_actor.onnx"], cwd=tmp_path, env=quiet, check=True, capture_output=True,
+                   timeout=600)
+    probe = np.random.default_rng(0).uniform(-1, 1, (16, 5)).astype(np.float32)
+    for name in ("keras_actor.onnx", "tf2onnx_actor.onnx"):
+        path = tmp_path / name
+        np.testing.assert_allclose(load_agent(path)(probe), np.load(tmp_path / "keras_actions.npy"), atol=1e-5)
+        checked = league("check", str(path), "--server", server.url, config=tmp_path)
+        assert checked.returncode == EXIT_OK, checked.stdout + checked.stderr
+        token = student_token(server, unique("keras"))
+        submitted = league("submit", str(path), "--wait", "--no-progress", "--server", server.url, "--token", token,
+                           config=tmp_path)
+        assert submitted.returncode == EXIT_OK, submitted.stdout + submitted.stderr
+        evaluated = league("evaluate", str(path), "--episodes", EPISODES, "--seed", SEED, "--no-progress",
+                           config=tmp_path)
+        assert submitted.stdout.splitlines()[2:] == evaluated_table(evaluated)
+    refused = league("check", str(tmp_path / "actor_savedmodel"), config=tmp_path)
+    assert "is a folder (a TensorFlow SavedModel), not a model file: convert it to ONNX first" in refused.stdout
