@@ -180,7 +180,7 @@ def make_server(tmp_path: Path, urls: tuple[str, str, str], **settings: str) -> 
            "LEAGUE_BASELINES_DIR": str(data_dir / "baselines"),  # empty: the heuristic driver is the baseline
            "PYTHONPATH": str(REPO)}
     server = LeagueServer(env, data_dir)
-    added = server.command("users", "add", "prof", "--role", "instructor")
+    added = server.command("init", "--instructor", "prof")
     assert added.returncode == 0, added.stderr
     server.instructor_token = added.stdout.strip()
     return server

@@ -32,6 +32,7 @@ def test_league_cli_has_the_server_commands():
 
 
 def test_users_add_prints_a_token_once_and_names_are_unique(tmp_path):
+    assert league(tmp_path, "init").returncode == 0
     added = league(tmp_path, "users", "add", "prof", "--role", "instructor")
     assert added.returncode == 0, added.stderr
     token = added.stdout.strip()
@@ -84,6 +85,7 @@ def test_a_worker_runs_its_threads_on_the_cpus_it_is_given(tmp_path):
     cpu = str(min(os.sched_getaffinity(0)))
     log = tmp_path / "worker.log"
     env = {**os.environ, "LEAGUE_DATA_DIR": str(tmp_path), "PYTHONPATH": str(REPO)}
+    assert league(tmp_path, "init").returncode == 0
     with open(log, "wb") as output:
         worker = subprocess.Popen([sys.executable, "-m", "league.cli", "worker", "--cpus", cpu], env=env, cwd=tmp_path,
                                   stdout=output, stderr=subprocess.STDOUT)
