@@ -109,19 +109,20 @@ class LeagueServer:
     api: subprocess.Popen | None = None
     workers: list[subprocess.Popen] = field(default_factory=list)
     instructor_token: str = ""
+    root: Path = REPO  # the source tree it runs (with PYTHONPATH: another release's, to upgrade from)
 
     @property
     def url(self) -> str:
         return f"http://127.0.0.1:{self.port}"
 
     def command(self, *args: str, **kwargs) -> subprocess.CompletedProcess:
-        return subprocess.run([sys.executable, "-m", "league.server", *args], env=self.env, cwd=REPO,
+        return subprocess.run([sys.executable, "-m", "league.server", *args], env=self.env, cwd=self.root,
                               capture_output=True, text=True, timeout=120, **kwargs)
 
     def _spawn(self, *args: str, log_name: str, prefix: tuple[str, ...] = (), **env: str) -> subprocess.Popen:
         log = open(self.data_dir / log_name, "ab")
         return subprocess.Popen([*prefix, sys.executable, "-m", "league.server", *args], env={**self.env, **env},
-                                cwd=REPO, stdout=log, stderr=subprocess.STDOUT)
+                                cwd=self.root, stdout=log, stderr=subprocess.STDOUT)
 
     def start_api(self, embedded_worker: bool = True) -> None:
         args = ["serve", "--port", str(self.port)] + ([] if embedded_worker else ["--no-worker"])

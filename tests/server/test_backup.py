@@ -15,10 +15,9 @@ from sqlalchemy import create_engine, text
 from league.server.backup import BackupError, backup, backup_revision, holds_league, restore
 from league.server.db.session import head_revision, make_engine, revision_of, upgrade
 
-from .answers import collect, differences
-from .conftest import LeagueServer, fresh_backend, make_server, upload, wait_for, wait_race, wait_settled
+from .semester import collect, differences, drained, semester
+from .conftest import LeagueServer, fresh_backend, make_server, upload
 
-STUDENTS = 3
 LOAD_UPLOADS = 9  # arriving while the backup is taken
 
 
@@ -37,41 +36,6 @@ def evaluation_ids_off(answer):
     return answer
 
 
-def drained(server: LeagueServer, timeout: float = 120) -> None:
-    """Every job of the league done or failed (jobs of the baselines' account included)."""
-    engine = make_engine(server.env["LEAGUE_DATABASE_URL"])
-    try:
-        def waiting() -> int:
-            with engine.connect() as connection:
-                return connection.execute(text("SELECT count(*) FROM jobs WHERE status IN ('queued', 'running')")
-                                          ).scalar_one()
-        wait_for(waiting, lambda n: n == 0, timeout, interval=0.2)
-    finally:
-        engine.dispose()
-
-
-def semester(server: LeagueServer, models: dict[str, Path]) -> list[str]:
-    """Students with evaluated submissions, a friendly race and a championship round; their tokens."""
-    with server.client(server.instructor_token) as instructor:
-        tokens = [instructor.post("/api/users", json={"name": f"student{k}"}).json()["token"] for k in range(STUDENTS)]
-        students = [server.client(token) for token in tokens]
-        files = [models["onnx"], models["torchscript"], models["heuristic_onnx"]]
-        sent = [upload(student, files[k], f"agent{k}").json()["id"] for k, student in enumerate(students)]
-        mine = [wait_settled(student, submission_id) for student, submission_id in zip(students, sent)]
-        assert [s["status"] for s in mine] == ["ready"] * STUDENTS
-        students[1].patch(f"/api/submissions/{mine[1]['id']}", json={"public": True}).raise_for_status()
-        race = students[0].post("/api/races", json={"submission_ids": [mine[0]["id"], mine[1]["id"]], "seed": 5})
-        assert race.status_code == 201, race.text
-        cup = instructor.post("/api/championships", json={"name": "cup", "heat_size": 2, "seed": 3}).json()
-        instructor.post(f"/api/championships/{cup['id']}/rounds").raise_for_status()
-        assert wait_race(students[0], race.json()["id"])["status"] == "done"
-        wait_for(lambda: instructor.get(f"/api/championships/{cup['id']}/rounds/1").json()["status"],
-                 lambda status: status in ("done", "failed"), timeout=120)
-    for student in students:
-        student.close()
-    return tokens
-
-
 class Uploads(threading.Thread):
     """Students uploading one file after another (each answered before the next), as a deadline's."""
 
@@ -84,7 +48,7 @@ class Uploads(threading.Thread):
     def run(self) -> None:
         files = [self.models["onnx"], self.models["torchscript"], self.models["wrong_input"]]
         for k in range(LOAD_UPLOADS):
-            token, file, name = self.tokens[k % STUDENTS], files[k % len(files)], f"rush{k}"
+            token, file, name = self.tokens[k % len(self.tokens)], files[k % len(files)], f"rush{k}"
             with self.server.client(token) as student:
                 response = upload(student, file, name)
             assert response.status_code == 201, response.text

@@ -1,18 +1,61 @@
-"""Every answer a league gives about its state, collected over HTTP, and compared between two servers
-(a backup's original and its restored copy; a database before and after an upgrade).
+"""A league's state written and read over HTTP, to compare two servers (a backup's original and its
+restored copy; a database before and after an upgrade).
 
-`collect` reads what users see: the leaderboard (every page) and its CSV, the accounts, every
+`semester` writes a small one (students, evaluated submissions, a friendly race, a championship
+round). `collect` reads what users see: the leaderboard (every page) and its CSV, the accounts, every
 submission with its episodes, every race with its replay and log, every championship with its rounds
 and standings (and CSV), and each student's own view. `differences` compares two collections field by
 field, over the fields both have (an upgrade may add fields), and lists what differs.
 """
 from __future__ import annotations
 
+from pathlib import Path
 from typing import Any, Callable
 
 import httpx
+from sqlalchemy import text
+
+from league.server.db.session import make_engine
+
+from .conftest import LeagueServer, upload, wait_for, wait_race, wait_settled
 
 PAGE = 100  # the API's largest page
+STUDENTS = 3
+
+
+def semester(server: LeagueServer, models: dict[str, Path]) -> list[str]:
+    """Students with evaluated submissions, a friendly race and a championship round; their tokens."""
+    with server.client(server.instructor_token) as instructor:
+        tokens = [instructor.post("/api/users", json={"name": f"student{k}"}).json()["token"] for k in range(STUDENTS)]
+        students = [server.client(token) for token in tokens]
+        files = [models["onnx"], models["torchscript"], models["heuristic_onnx"]]
+        sent = [upload(student, files[k], f"agent{k}").json()["id"] for k, student in enumerate(students)]
+        mine = [wait_settled(student, submission_id) for student, submission_id in zip(students, sent)]
+        assert [s["status"] for s in mine] == ["ready"] * STUDENTS
+        students[1].patch(f"/api/submissions/{mine[1]['id']}", json={"public": True}).raise_for_status()
+        race = students[0].post("/api/races", json={"submission_ids": [mine[0]["id"], mine[1]["id"]], "seed": 5})
+        assert race.status_code == 201, race.text
+        cup = instructor.post("/api/championships", json={"name": "cup", "heat_size": 2, "seed": 3}).json()
+        instructor.post(f"/api/championships/{cup['id']}/rounds").raise_for_status()
+        assert wait_race(students[0], race.json()["id"])["status"] == "done"
+        wait_for(lambda: instructor.get(f"/api/championships/{cup['id']}/rounds/1").json()["status"],
+                 lambda status: status in ("done", "failed"), timeout=120)
+    for student in students:
+        student.close()
+    return tokens
+
+
+def drained(server: LeagueServer, timeout: float = 120) -> None:
+    """Every job of the league done or failed (jobs of the baselines' account included)."""
+    engine = make_engine(server.env["LEAGUE_DATABASE_URL"])
+    try:
+        def waiting() -> int:
+            with engine.connect() as connection:
+                return connection.execute(text("SELECT count(*) FROM jobs WHERE status IN ('queued', 'running')")
+                                          ).scalar_one()
+        wait_for(waiting, lambda n: n == 0, timeout, interval=0.2)
+    finally:
+        engine.dispose()
 
 
 def _pages(client: httpx.Client, path: str, **params: Any) -> list[Any]:

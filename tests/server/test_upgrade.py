@@ -1,0 +1,98 @@
+"""Upgrades keep everything: a league written by an earlier release (that release's own code, from `git
+archive` of its commit, run as a server with its own PYTHONPATH) and upgraded with this code (`league
+migrate`) answers every read as it did, field by field over the fields both versions have.
+
+It needs the repository's history (CI clones main whole); the releases' compiled core is copied from
+this checkout when its sources did not change since, else built.
+"""
+from __future__ import annotations
+
+import io
+import os
+import shutil
+import subprocess
+import sys
+import tarfile
+from pathlib import Path
+
+import pytest
+
+from league.server.db.session import head_revision
+
+from .conftest import REPO, TEST_SETTINGS, LeagueServer, fresh_backend
+from .semester import collect, differences, drained, semester
+
+# commit -> the schema revision its code writes: releases a course may upgrade from
+RELEASES = {
+    "c4a0240": "0006",  # the last one before issues 22-26 (assignments, the database as the queue, ...)
+    "b0d63d4": "0005",  # before the state stamp's indexes by kind
+}
+CORE_SOURCES = ("league/lidar.pyx", "league/constants.py")  # what league/lidar.*.so is built from
+
+
+def release_tree(commit: str, folder: Path) -> Path:
+    """The release's source tree, its simulator core compiled."""
+    if subprocess.run(["git", "-C", str(REPO), "cat-file", "-e", f"{commit}^{{commit}}"]).returncode != 0:
+        pytest.fail(f"commit {commit} is not in this clone: the upgrade test needs the history (git fetch --unshallow)")
+    archive = subprocess.run(["git", "-C", str(REPO), "archive", "--format=tar", commit], check=True,
+                             capture_output=True).stdout
+    tree = folder / commit
+    tree.mkdir(parents=True)
+    with tarfile.open(fileobj=io.BytesIO(archive)) as tar:
+        tar.extractall(tree, filter="data")
+    same_core = subprocess.run(["git", "-C", str(REPO), "diff", "--quiet", commit, "--", *CORE_SOURCES]).returncode == 0
+    built = sorted((REPO / "league").glob("lidar.*.so"))
+    if same_core and built:
+        shutil.copy2(built[0], tree / "league" / built[0].name)
+    else:
+        subprocess.run([sys.executable, "setup.py", "build_ext", "--inplace"], cwd=tree, check=True,
+                       capture_output=True)
+    return tree
+
+
+@pytest.fixture(scope="module")
+def releases(tmp_path_factory) -> dict[str, Path]:
+    folder = tmp_path_factory.mktemp("releases")
+    return {commit: release_tree(commit, folder) for commit in RELEASES}
+
+
+@pytest.mark.parametrize("commit, kind", [("c4a0240", "sqlite"), ("c4a0240", "postgres"), ("b0d63d4", "sqlite")])
+def test_a_league_written_by_an_earlier_release_answers_the_same_after_the_upgrade(commit, kind, releases, tmp_path,
+                                                                                   models):
+    with fresh_backend(kind, tmp_path) as (database_url, queue_url, queue_name):
+        data_dir = tmp_path / "data"
+        data_dir.mkdir()
+        env = {**os.environ, **TEST_SETTINGS, "LEAGUE_DATA_DIR": str(data_dir), "LEAGUE_DATABASE_URL": database_url,
+               "LEAGUE_QUEUE_URL": queue_url, "LEAGUE_QUEUE_NAME": queue_name,
+               "LEAGUE_CPU_SLOTS_DIR": str(tmp_path / "cpu-slots"), "LEAGUE_BASELINES_DIR": str(data_dir / "baselines")}
+        old = LeagueServer({**env, "PYTHONPATH": str(releases[commit])}, data_dir, root=releases[commit])
+        added = old.command("users", "add", "prof", "--role", "instructor")  # (which created the database then)
+        assert added.returncode == 0, added.stderr
+        old.instructor_token = added.stdout.strip()
+        old.start_api()
+        try:
+            tokens = semester(old, models)
+            drained(old)
+            before = collect(old.url, old.instructor_token, tokens)
+        finally:
+            old.stop_all()
+
+        new = LeagueServer({**env, "PYTHONPATH": str(REPO)}, data_dir, instructor_token=old.instructor_token)
+        if RELEASES[commit] != head_revision():  # this code's workers do not run on the old schema
+            refused = new.command("worker")
+            assert refused.returncode == 2
+            assert refused.stderr.splitlines()[-1] == (
+                f"league: error: this database is at revision {RELEASES[commit]}, older than this installation's "
+                f"{head_revision()}: run `league migrate` (back it up first: `league backup FILE`)")
+        migrated = new.command("migrate")
+        assert migrated.returncode == 0, migrated.stderr
+        assert migrated.stderr.splitlines()[-1] in (f"league: migrated from schema revision {RELEASES[commit]} to "
+                                                    f"{head_revision()}",
+                                                    f"league: already at schema revision {head_revision()}: nothing to do")
+        new.start_api()
+        try:
+            after = collect(new.url, new.instructor_token, tokens)  # the old tokens still work, too
+        finally:
+            new.stop_all()
+    assert before.keys() == after.keys()
+    assert [d for path in before for d in differences(before[path], after[path], path, common_fields_only=True)] == []
