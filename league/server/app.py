@@ -19,7 +19,7 @@ from league.server.api.limits import KB, BodyLimits, Limit
 from league.server.api.main import api_router
 from league.server.api.routes.pages import MAX_TRACK_BYTES, mount_web
 from league.server.bootstrap import bootstrap
-from league.server.config import Settings
+from league.server.config import Settings, load_settings
 from league.server.db.session import check_schema, make_engine, make_sessionmaker, revision_of
 from league.server.jobs.queue import JobQueue, build_queue
 from league.server.jobs.worker import sweep_store
@@ -66,7 +66,7 @@ async def lifespan(app: FastAPI):
 
 
 def create_app(settings: Settings | None = None, league_: League | None = None) -> FastAPI:
-    settings = settings or Settings()
+    settings = settings or load_settings()
     league_ = league_ or open_league(settings)
     app = FastAPIOffline(title="MicroRacer League", version=league.__version__, lifespan=lifespan,  # /docs: no CDN
                          description="Upload TorchScript or ONNX agents; they are validated in a sandbox and "

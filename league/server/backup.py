@@ -79,9 +79,11 @@ def backup(engine: Engine, revision: str | None, path: Path) -> Report:
     return _report(path, time.monotonic() - started)
 
 
-def _sqlite_snapshot(database: Path, destination: Path) -> None:
-    """SQLite's online backup, all pages in one step: one read transaction, so one consistent state."""
-    with contextlib.closing(sqlite3.connect(database, timeout=30)) as source, \
+def _sqlite_snapshot(database: Path, destination: Path, *, read_only: bool = False) -> None:
+    """SQLite's online backup, all pages in one step: one read transaction, so one consistent state
+    (a live database in WAL mode goes on taking writes meanwhile)."""
+    source_uri = f"file:{Path(database).absolute()}{'?mode=ro' if read_only else ''}"
+    with contextlib.closing(sqlite3.connect(source_uri, uri=True, timeout=30)) as source, \
             contextlib.closing(sqlite3.connect(destination)) as copy:
         source.backup(copy)
 
@@ -173,7 +175,7 @@ def _restore_sqlite(path: Path, database: Path) -> None:
     """Copy the backup next to the database, migrate and release it there, then move it into place."""
     database.parent.mkdir(parents=True, exist_ok=True)
     with _temporary(database.parent, f".{database.name}.restore-") as copy:
-        _sqlite_snapshot(path, copy)
+        _sqlite_snapshot(path, copy, read_only=True)
         engine = create_engine(f"sqlite:///{copy}")
         try:
             with engine.connect() as connection:
@@ -191,7 +193,7 @@ def _restore_postgres(path: Path, url: str, replace: bool) -> None:
     """Migrate a private copy of the backup to this schema, then copy its rows in one transaction."""
     with tempfile.TemporaryDirectory(prefix="league-restore-") as folder:
         copy = Path(folder) / "restore.db"
-        _sqlite_snapshot(path, copy)
+        _sqlite_snapshot(path, copy, read_only=True)
         source, engine = create_engine(f"sqlite:///{copy}"), make_engine(url)
         try:
             with source.connect() as connection:

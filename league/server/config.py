@@ -11,6 +11,7 @@ read, `unknown_variables` the LEAGUE_* names that are no setting (with the close
 from __future__ import annotations
 
 import difflib
+import json
 import os
 import tempfile
 from pathlib import Path
@@ -272,8 +273,6 @@ def shown_value(value: Any) -> str:
     if isinstance(value, bool):
         return str(value).lower()
     if isinstance(value, (dict, list)):
-        import json
-
         return json.dumps(value)
     return mask_url(str(value))
 

@@ -171,6 +171,14 @@ class LeagueServer:
         return httpx.Client(base_url=self.url, headers=headers, timeout=30)
 
 
+def server_command(cwd: Path, *args: str, **env: str) -> subprocess.CompletedProcess:
+    """`python -m league.server ARGS` in `cwd`, with no LEAGUE_* variable but `env`'s (as a shell
+    without the test settings)."""
+    clean = {name: value for name, value in os.environ.items() if not name.upper().startswith("LEAGUE_")}
+    return subprocess.run([sys.executable, "-m", "league.server", *args], cwd=cwd, capture_output=True, text=True,
+                          env={**clean, "PYTHONPATH": str(REPO), **env}, timeout=120)
+
+
 def make_server(tmp_path: Path, urls: tuple[str, str, str], **settings: str) -> LeagueServer:
     database_url, queue_url, queue_name = urls
     data_dir = tmp_path / "data"

@@ -3,11 +3,6 @@ the database said out loud (secrets masked), bad values and unreachable database
 settings table of the docs generated from `Settings`."""
 from __future__ import annotations
 
-import os
-import subprocess
-import sys
-from pathlib import Path
-
 import pytest
 from pydantic import SecretStr
 
@@ -15,14 +10,7 @@ from league.server.config import (
     ConfigError, Settings, load_settings, setting_sources, settings_markdown, shown_value, unknown_variables,
 )
 
-REPO = Path(__file__).resolve().parents[2]
-
-
-def server_command(cwd: Path, *args: str, **env: str) -> subprocess.CompletedProcess:
-    """`python -m league.server ARGS` in `cwd`, with no LEAGUE_* variable but `env`'s."""
-    clean = {name: value for name, value in os.environ.items() if not name.upper().startswith("LEAGUE_")}
-    return subprocess.run([sys.executable, "-m", "league.server", *args], cwd=cwd, capture_output=True, text=True,
-                          env={**clean, "PYTHONPATH": str(REPO), **env}, timeout=120)
+from .conftest import REPO, server_command
 
 
 def test_unknown_variables_are_named_with_the_closest_setting(tmp_path):

@@ -13,16 +13,7 @@ from sqlalchemy import create_engine, text
 
 from league.server.db.session import head_revision, upgrade
 
-from .conftest import fresh_backend
-
-REPO = Path(__file__).resolve().parents[2]
-
-
-def server_command(cwd: Path, *args: str, **env: str) -> subprocess.CompletedProcess:
-    """`python -m league.server ARGS` in `cwd`, with no LEAGUE_* variable but `env`'s."""
-    clean = {name: value for name, value in os.environ.items() if not name.upper().startswith("LEAGUE_")}
-    return subprocess.run([sys.executable, "-m", "league.server", *args], cwd=cwd, capture_output=True, text=True,
-                          env={**clean, "PYTHONPATH": str(REPO), **env}, timeout=120)
+from .conftest import REPO, fresh_backend, server_command
 
 
 def revision(url: str) -> str | None:
