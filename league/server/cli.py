@@ -255,19 +255,14 @@ def run_worker(args: argparse.Namespace) -> int:
 
 def run_init(args: argparse.Namespace) -> int:
     from league.server.bootstrap import ensure_course
-    from league.server.db.session import DatabaseError, make_sessionmaker, migrate, schema_problem, schema_state
+    from league.server.db.session import make_sessionmaker, migrate
     from league.server.storage import BlobStore
 
     settings, sources = _setup(args)
-    engine, revision = _open(settings, sources, create=True)
-    state = schema_state(revision)
-    if state == "empty":
-        _, revision = migrate(engine)
-        _say(f"created a new league (schema revision {revision})")
-    elif state == "current":
-        _say(f"this database already holds a league (schema revision {revision}): nothing to create")
-    else:
-        raise DatabaseError(schema_problem(revision))
+    engine, _ = _open(settings, sources, create=True)
+    before, revision = migrate(engine, new_only=True)
+    _say(f"created a new league (schema revision {revision})" if before is None else
+         f"this database already holds a league (schema revision {revision}): nothing to create")
     BlobStore(settings.data_dir).ensure()
     sessions = make_sessionmaker(engine)
     ensure_course(sessions, settings)

@@ -143,11 +143,13 @@ def check_schema(revision: str | None) -> None:
         raise DatabaseError(problem)
 
 
-def migrate(engine: Engine) -> tuple[str | None, str]:
-    """`alembic upgrade head`, serialised between processes that start together; (from, to) revisions."""
+def migrate(engine: Engine, *, new_only: bool = False) -> tuple[str | None, str]:
+    """`alembic upgrade head`, serialised between processes that start together; (from, to) revisions.
+    With `new_only` (`league init`) a database of an older schema is refused instead. The revision is
+    read under the lock: one read before it may see another process's migration half done."""
     with migration_lock(engine) as connection:
         before = revision_of(connection)
-        if schema_state(before) == "newer":
+        if schema_state(before) == "newer" or (new_only and schema_state(before) == "older"):
             raise DatabaseError(schema_problem(before))
         connection.commit()  # (reading the revision began a transaction)
         upgrade(connection, "head")
