@@ -2,13 +2,15 @@
 restored copy; a database before and after an upgrade).
 
 `semester` writes a small one (students, evaluated submissions, a friendly race, a championship
-round). `collect` reads what users see: the leaderboard (every page) and its CSV, the accounts, every
-submission with its episodes, every race with its replay and log, every championship with its rounds
-and standings (and CSV), and each student's own view. `differences` compares two collections field by
+round). `collect` reads what users see: the leaderboard (every page) and its CSV (rows by column),
+the accounts, every submission with its episodes, every race with its replay and log, every
+championship with its rounds and standings (and CSV), and each student's own view. `differences` compares two collections field by
 field, over the fields both have (an upgrade may add fields), and lists what differs.
 """
 from __future__ import annotations
 
+import csv
+import io
 from pathlib import Path
 from typing import Any, Callable
 
@@ -68,9 +70,12 @@ def _pages(client: httpx.Client, path: str, **params: Any) -> list[Any]:
 
 
 def _get(client: httpx.Client, path: str, **params: Any) -> Any:
+    """JSON, a CSV's rows as dicts (a newer version may add columns), or text."""
     response = client.get(path, params=params)
     assert response.status_code == 200, (path, response.status_code, response.text)
     kind = response.headers.get("content-type", "")
+    if kind.startswith("text/csv"):
+        return list(csv.DictReader(io.StringIO(response.text)))
     return response.json() if kind.startswith("application/json") else response.text
 
 
