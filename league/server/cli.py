@@ -75,15 +75,15 @@ def add_commands(subparsers) -> None:
                                    description="Write the league's whole state (its database: accounts, model "
                                                "files, results, replays) to FILE, an SQLite file readable by you "
                                                "only, while the server runs.")
-    backup.add_argument("file", type=Path, metavar="FILE")
+    backup.add_argument("file", type=Path, metavar="FILE", help="where to write it (replaced if it exists)")
     backup.set_defaults(run=run_backup)
 
     restore = subparsers.add_parser("restore", parents=[where], help="restore a backup into a new database",
                                     description="Restore a `league backup` FILE into a fresh data directory or an "
-                                                "empty database (SQLite or PostgreSQL, whichever the backup came "
-                                                "from), migrated to this version's schema. Jobs queued or running "
-                                                "at the backup run again once a worker starts.")
-    restore.add_argument("file", type=Path, metavar="FILE")
+                                                "empty database, SQLite or PostgreSQL whatever the backup was taken "
+                                                "from, migrated to this version's schema. Jobs queued or running at "
+                                                "the backup run again once a worker starts.")
+    restore.add_argument("file", type=Path, metavar="FILE", help="a file written by `league backup`")
     restore.add_argument("--replace", action="store_true",
                          help="overwrite a database that holds a league (every table of it is dropped); stop its "
                               "server and workers first")
