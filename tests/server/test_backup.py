@@ -74,7 +74,6 @@ def restored_server(tmp_path: Path, urls: tuple[str, str, str], original: League
     return LeagueServer(env, data_dir, instructor_token=original.instructor_token)
 
 
-@pytest.mark.long
 @pytest.mark.parametrize("source, target", [("sqlite", "postgres"), ("postgres", "sqlite")])
 def test_a_backup_taken_under_load_restores_every_answer(source, target, tmp_path, models):
     (tmp_path / "original").mkdir()

@@ -2,8 +2,8 @@
 archive` of its commit, run as a server with its own PYTHONPATH) and upgraded with this code (`league
 migrate`) answers every read as it did, field by field over the fields both versions have.
 
-It needs the repository's history (CI clones main whole); the releases' compiled core is copied from
-this checkout when its sources did not change since, else built.
+It needs the repository's history (CI clones main whole); the releases' compiled core is built once per
+version of its sources (copied from this checkout's while they did not change).
 """
 from __future__ import annotations
 
@@ -27,11 +27,20 @@ RELEASES = {
     "c4a0240": "0006",  # the last one before issues 22-26 (assignments, the database as the queue, ...)
     "b0d63d4": "0005",  # before the state stamp's indexes by kind
 }
-CORE_SOURCES = ("league/lidar.pyx", "league/constants.py")  # what league/lidar.*.so is built from
+CORE_SOURCES = ("league/lidar.pyx", "league/constants.py", "setup.py")  # what league/lidar.*.so is built from
 
 
-def release_tree(commit: str, folder: Path) -> Path:
-    """The release's source tree, its simulator core compiled."""
+def core_sources(commit: str | None) -> bytes:
+    """The sources of the compiled core at `commit` (None: this checkout)."""
+    if commit is None:
+        return b"".join((REPO / path).read_bytes() for path in CORE_SOURCES)
+    return b"".join(subprocess.run(["git", "-C", str(REPO), "show", f"{commit}:{path}"], check=True,
+                                   capture_output=True).stdout for path in CORE_SOURCES)
+
+
+def release_tree(commit: str, folder: Path, cores: dict[bytes, Path]) -> Path:
+    """The release's source tree, its simulator core compiled (or copied from a tree whose core's sources
+    are the same: `cores`, by sources, holds the ones built so far)."""
     if subprocess.run(["git", "-C", str(REPO), "cat-file", "-e", f"{commit}^{{commit}}"]).returncode != 0:
         pytest.fail(f"commit {commit} is not in this clone: the upgrade test needs the history (git fetch --unshallow)")
     archive = subprocess.run(["git", "-C", str(REPO), "archive", "--format=tar", commit], check=True,
@@ -40,24 +49,27 @@ def release_tree(commit: str, folder: Path) -> Path:
     tree.mkdir(parents=True)
     with tarfile.open(fileobj=io.BytesIO(archive)) as tar:
         tar.extractall(tree, filter="data")
-    same_core = subprocess.run(["git", "-C", str(REPO), "diff", "--quiet", commit, "--", *CORE_SOURCES]).returncode == 0
-    built = sorted((REPO / "league").glob("lidar.*.so"))
-    if same_core and built:
-        shutil.copy2(built[0], tree / "league" / built[0].name)
-    else:
+    sources = core_sources(commit)
+    if sources not in cores:
         subprocess.run([sys.executable, "setup.py", "build_ext", "--inplace"], cwd=tree, check=True,
                        capture_output=True)
+        cores[sources] = next((tree / "league").glob("lidar.*.so"))
+    built = cores[sources]
+    if built.parent != tree / "league":
+        shutil.copy2(built, tree / "league" / built.name)
     return tree
 
 
 @pytest.fixture(scope="module")
 def releases(tmp_path_factory) -> dict[str, Path]:
-    folder = tmp_path_factory.mktemp("releases")
-    return {commit: release_tree(commit, folder) for commit in RELEASES}
+    folder, cores = tmp_path_factory.mktemp("releases"), {}
+    built_here = sorted((REPO / "league").glob("lidar.*.so"))
+    if built_here:
+        cores[core_sources(None)] = built_here[0]
+    return {commit: release_tree(commit, folder, cores) for commit in RELEASES}
 
 
 # every migration since each release on both backends: PostgreSQL's from 0006, SQLite's (batch copies) from 0005
-@pytest.mark.long
 @pytest.mark.parametrize("commit, kind", [("c4a0240", "postgres"), ("b0d63d4", "sqlite")])
 def test_a_league_written_by_an_earlier_release_answers_the_same_after_the_upgrade(commit, kind, releases, tmp_path,
                                                                                    models):
