@@ -117,7 +117,7 @@ class League:
         self.env = {**os.environ, "LEAGUE_DATA_DIR": str(folder), "PYTHONPATH": str(root),
                     "LEAGUE_BASELINES_DIR": str(folder / "baselines"),  # empty: the heuristic driver only
                     **(settings or {})}
-        self.token = self._run("users", "add", "bench", "--role", "instructor").strip()
+        self.token = self._first_instructor()
         self.workers: list[subprocess.Popen] = []  # running (started and not stopped yet)
         self.workers_started = 0
         self.serve = ["serve", "--port", str(self.port)] + ([] if embedded else ["--no-worker"])
@@ -135,6 +135,16 @@ class League:
 
     def __exit__(self, *exc) -> None:
         self.stop()
+
+    def _first_instructor(self) -> str:
+        """A new league and its instructor's token (in a source tree older than `league init`, `users add`
+        created the database)."""
+        try:
+            return self._run("init", "--instructor", "bench").strip()
+        except subprocess.CalledProcessError as error:
+            if "invalid choice: 'init'" not in error.stderr:
+                raise
+            return self._run("users", "add", "bench", "--role", "instructor").strip()
 
     def _run(self, *args: str) -> str:
         return subprocess.run([sys.executable, "-m", "league.server", *args], env=self.env, cwd=self.root, check=True,

@@ -9,7 +9,8 @@
 Errors print one line saying what went wrong and what to do, and exit with status 2
 (``LEAGUE_DEBUG=1`` shows the traceback). Output into a pipe whose reader quit (``league ... |
 head``) ends the command quietly, with status 141 as SIGPIPE would. The server adds its own commands
-(``serve``, ``worker``, ``users``) through ``league.server.cli.add_commands``.
+(``serve``, ``worker``, ``init``, ``migrate``, ``backup``, ``restore``, ``config``, ``users``) through
+``league.server.cli.add_commands``.
 """
 from __future__ import annotations
 
@@ -244,11 +245,12 @@ class UsageError(Exception):
     """A mistake in the command line that argparse cannot see."""
 
 
-def main(argv: Sequence[str] | None = None) -> int:
-    """Entry point of the ``league`` console script; returns the exit status."""
+def main(argv: Sequence[str] | None = None, parser: argparse.ArgumentParser | None = None) -> int:
+    """Entry point of the ``league`` console script (and, with its parser, of ``python -m league.server``);
+    returns the exit status."""
     try:
         try:
-            status = _run(argv)
+            status = _run(parser or build_parser(), argv)
         except SystemExit as done:  # argparse: --help, or a mistake in the command line
             if not isinstance(done.code, (int, type(None))):
                 raise  # a message for Python to print
@@ -263,8 +265,8 @@ def main(argv: Sequence[str] | None = None) -> int:
         return EXIT_CLOSED_PIPE
 
 
-def _run(argv: Sequence[str] | None) -> int:
-    args = build_parser().parse_args(argv)
+def _run(parser: argparse.ArgumentParser, argv: Sequence[str] | None) -> int:
+    args = parser.parse_args(argv)
     try:
         return args.run(args)
     except KeyboardInterrupt:
@@ -304,7 +306,7 @@ def _describe(error: Exception) -> str:
         return (f"{message}: this command needs the package's `{extra}` extra: pip install "
                 f"\"microracer-league[{extra}]\" (in a checkout: pip install -e \".[{extra}]\")")
     if isinstance(error, (AgentError, UsageError, ValueError, TypeError, OSError)) or \
-            type(error).__name__ in ("RenderError", "ClientError"):
+            type(error).__name__ in ("RenderError", "ClientError", "ConfigError", "DatabaseError", "BackupError"):
         return message
     return f"unexpected {type(error).__name__}: {message} (set LEAGUE_DEBUG=1 to see the traceback and report it)"
 

@@ -19,8 +19,8 @@ from league.server.api.limits import KB, BodyLimits, Limit
 from league.server.api.main import api_router
 from league.server.api.routes.pages import MAX_TRACK_BYTES, mount_web
 from league.server.bootstrap import bootstrap
-from league.server.config import Settings
-from league.server.db.session import make_engine, make_sessionmaker, migrate
+from league.server.config import Settings, load_settings
+from league.server.db.session import check_schema, make_engine, make_sessionmaker, revision_of
 from league.server.jobs.queue import JobQueue, build_queue
 from league.server.jobs.worker import sweep_store
 from league.server.roster import MAX_ROSTER_BYTES
@@ -41,14 +41,16 @@ class League:
     store: BlobStore
 
 
-def open_league(settings: Settings) -> League:
-    engine = make_engine(settings.resolved_database_url)
+def open_league(settings: Settings, engine: Engine | None = None) -> League:
+    engine = engine or make_engine(settings.resolved_database_url)
     return League(settings, engine, make_sessionmaker(engine), build_queue(settings), BlobStore(settings.data_dir))
 
 
 def prepare_league(league_: League) -> None:
-    """Migrate the database, create the store, register the baselines on first start (idempotent)."""
-    migrate(league_.engine)
+    """Check the schema (`league serve` or `league migrate` brought it up to date), create the store,
+    register the baselines on first start (idempotent)."""
+    with league_.engine.connect() as connection:
+        check_schema(revision_of(connection))
     league_.store.ensure()
     bootstrap(league_.settings, league_.sessions, league_.queue, league_.store)
     sweep_store(league_.sessions, league_.store)
@@ -64,7 +66,7 @@ async def lifespan(app: FastAPI):
 
 
 def create_app(settings: Settings | None = None, league_: League | None = None) -> FastAPI:
-    settings = settings or Settings()
+    settings = settings or load_settings()
     league_ = league_ or open_league(settings)
     app = FastAPIOffline(title="MicroRacer League", version=league.__version__, lifespan=lifespan,  # /docs: no CDN
                          description="Upload TorchScript or ONNX agents; they are validated in a sandbox and "

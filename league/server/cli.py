@@ -1,4 +1,4 @@
-"""The server's commands of the `league` CLI: serve, worker, users.
+"""The server's commands of the `league` CLI: serve, worker, init, migrate, backup, restore, config, users.
 
 league/cli.py calls `add_commands(subparsers)`; each command is run as `args.run(args)` and
 returns the exit status. `python -m league.server ...` runs the same commands.
@@ -12,8 +12,17 @@ import os
 import signal
 import subprocess
 import sys
+from collections.abc import Callable
+from pathlib import Path
 
-from league.server.config import Settings
+from sqlalchemy import Engine
+from sqlalchemy.engine import make_url
+from sqlalchemy.orm import Session, sessionmaker
+
+from league.server.config import (
+    Settings, database_origin, database_setting, describe_settings, load_settings, setting_sources,
+    settings_markdown, unknown_variables,
+)
 from league.server.db.models import INSTRUCTOR, STUDENT
 
 log = logging.getLogger("league.server")
@@ -21,17 +30,24 @@ PR_SET_PDEATHSIG = 1  # prctl(2)
 
 
 def add_commands(subparsers) -> None:
-    serve = subparsers.add_parser("serve", help="run the league server: the API and a worker",
+    where = argparse.ArgumentParser(add_help=False)
+    where.add_argument("--data-dir", type=Path, metavar="DIR",
+                       help="the server's data directory, its SQLite database included (default LEAGUE_DATA_DIR, "
+                            "else agents_submissions in the current directory)")
+
+    serve = subparsers.add_parser("serve", parents=[where], help="run the league server: the API and a worker",
                                   description="Run the API (OpenAPI docs at /docs) and, unless --no-worker, a "
-                                              "`league worker` as its child process (stopped with it). Settings "
-                                              "come from LEAGUE_* variables and .env (see league/server/config.py).")
+                                              "`league worker` as its child process (stopped with it). Creates the "
+                                              "database, or migrates it to this version's schema, first. Settings "
+                                              "come from LEAGUE_* variables and .env (`league config`).")
     serve.add_argument("--host", default="127.0.0.1", help="address to listen on (default 127.0.0.1)")
     serve.add_argument("--port", type=int, default=8000, help="port (default 8000)")
     serve.add_argument("--no-worker", action="store_true", help="API only: jobs are run by `league worker`s")
     serve.add_argument("--threads", type=int, help="jobs its worker runs at once")
     serve.set_defaults(run=run_serve)
 
-    worker = subparsers.add_parser("worker", help="run a worker (more of them: on this or other machines)",
+    worker = subparsers.add_parser("worker", parents=[where],
+                                   help="run a worker (more of them: on this or other machines)",
                                    description="Run jobs from the queue until interrupted. Point "
                                                "LEAGUE_DATABASE_URL and LEAGUE_QUEUE_URL at the shared "
                                                "PostgreSQL and Redis to work for a remote server.")
@@ -42,16 +58,53 @@ def add_commands(subparsers) -> None:
                                        "(LEAGUE_CPU_SLOTS_DIR)")
     worker.set_defaults(run=run_worker)
 
+    init = subparsers.add_parser("init", parents=[where], help="create a new league's database",
+                                 description="Create the database (an SQLite file in the data directory, or the "
+                                             "schema in an empty LEAGUE_DATABASE_URL) and the data directory. "
+                                             "Other commands never create a database: run from the wrong "
+                                             "directory, they say where they looked.")
+    init.add_argument("--instructor", metavar="NAME", help="also add this instructor and print their API token")
+    init.set_defaults(run=run_init)
+
+    migrate_ = subparsers.add_parser("migrate", parents=[where], help="upgrade the database to this version's schema",
+                                     description="Run the migrations this version of microracer-league brings "
+                                                 "(`league serve` runs them too). Back up first: league backup FILE.")
+    migrate_.set_defaults(run=run_migrate)
+
+    backup = subparsers.add_parser("backup", parents=[where], help="write a snapshot of the league to a file",
+                                   description="Write the league's whole state (its database: accounts, model "
+                                               "files, results, replays) to FILE, an SQLite file readable by you "
+                                               "only, while the server runs.")
+    backup.add_argument("file", type=Path, metavar="FILE", help="where to write it (replaced if it exists)")
+    backup.set_defaults(run=run_backup)
+
+    restore = subparsers.add_parser("restore", parents=[where], help="restore a backup into a new database",
+                                    description="Restore a `league backup` FILE into a fresh data directory or an "
+                                                "empty database, SQLite or PostgreSQL whatever the backup was taken "
+                                                "from, migrated to this version's schema. Jobs queued or running at "
+                                                "the backup run again once a worker starts.")
+    restore.add_argument("file", type=Path, metavar="FILE", help="a file written by `league backup`")
+    restore.add_argument("--replace", action="store_true",
+                         help="overwrite a database that holds a league (every table of it is dropped); stop its "
+                              "server and workers first")
+    restore.set_defaults(run=run_restore)
+
+    config = subparsers.add_parser("config", parents=[where], help="print the settings in effect",
+                                   description="Print every setting as a line of .env, with where its value comes "
+                                               "from (default, environment, .env, command line); passwords masked.")
+    config.add_argument("--markdown", action="store_true", help="print the table of every setting (docs/SETTINGS.md)")
+    config.set_defaults(run=run_config)
+
     users = subparsers.add_parser("users", help="manage accounts")
     commands = users.add_subparsers(dest="users_command", required=True, metavar="{add,import,list,revoke}")
-    add = commands.add_parser("add", help="add an account and print its API token")
+    add = commands.add_parser("add", parents=[where], help="add an account and print its API token")
     add.add_argument("name")
     add.add_argument("--role", choices=[INSTRUCTOR, STUDENT], default=STUDENT, help="default: student")
     add.add_argument("--email", help="the student's email address (optional)")
     add.add_argument("--student-id", help="the school's id of the student, unique in the course (optional)")
     add.set_defaults(run=run_users_add)
     roster = commands.add_parser(
-        "import", help="create the students of a roster (CSV) and print their tokens as CSV",
+        "import", parents=[where], help="create the students of a roster (CSV) and print their tokens as CSV",
         description="Create the students of a roster as spreadsheets export it: comma-, semicolon- or "
                     "tab-separated, with a header naming the columns (name, or first name and last name; email; "
                     "student id; in common spellings) or one name a line. Students enrolled already are skipped "
@@ -60,9 +113,9 @@ def add_commands(subparsers) -> None:
                     "standard output (tokens are shown once: redirect it to a file); exits 1 if a line had an error.")
     roster.add_argument("file", help="the roster, e.g. roster.csv (UTF-8, as Excel's 'CSV UTF-8' saves it)")
     roster.set_defaults(run=run_users_import)
-    listing = commands.add_parser("list", help="list the accounts")
+    listing = commands.add_parser("list", parents=[where], help="list the accounts")
     listing.set_defaults(run=run_users_list)
-    revoke = commands.add_parser("revoke", help="revoke an account (its token stops working)")
+    revoke = commands.add_parser("revoke", parents=[where], help="revoke an account (its token stops working)")
     revoke.add_argument("name")
     revoke.set_defaults(run=run_users_revoke)
 
@@ -71,18 +124,67 @@ def _logging() -> None:
     logging.basicConfig(level=logging.INFO, format="%(asctime)s %(levelname)s %(name)s: %(message)s")
 
 
+def _say(text: str) -> None:
+    """What an admin command tells its user (stderr: stdout is for what it prints, such as a token)."""
+    print(f"league: {text}", file=sys.stderr)
+
+
+def _warn(text: str) -> None:
+    _say(f"warning: {text}")
+
+
+def _setup(args: argparse.Namespace, warn: Callable[[str], None] = _warn) -> tuple[Settings, dict[str, str]]:
+    """The settings (command-line options over LEAGUE_* variables over .env) and where each came from;
+    warns of LEAGUE_* variables that are no setting."""
+    overrides = {"data_dir": getattr(args, "data_dir", None)}
+    settings = load_settings(**overrides)
+    for warning in unknown_variables():
+        warn(warning)
+    return settings, setting_sources(overrides)
+
+
+def _open(settings: Settings, sources: dict[str, str], say: Callable[[str], None] = _say, *,
+          create: bool = False) -> tuple[Engine, str | None]:
+    """The league's database, named on stderr; created only if `create` (serve, init), else it must exist."""
+    from league.server.db.session import open_engine, shown_url
+
+    url = settings.resolved_database_url
+    say(f"database {shown_url(url)} ({database_origin(settings, sources)})")
+    missing = (f"no league database at {make_url(url).database}: run this command where the server runs, or point "
+               f"it at the server's data directory with --data-dir DIR or LEAGUE_DATA_DIR=DIR (LEAGUE_DATABASE_URL "
+               f"for PostgreSQL); `league init` creates a new league there")
+    return open_engine(url, setting=database_setting(settings, sources), missing=missing, create=create)
+
+
+def _sessions(args: argparse.Namespace) -> sessionmaker[Session]:
+    """Sessions on the league's existing database, at this version's schema (admin commands)."""
+    from league.server.bootstrap import ensure_course
+    from league.server.db.session import check_schema, make_sessionmaker
+
+    settings, sources = _setup(args)
+    engine, revision = _open(settings, sources)
+    check_schema(revision)
+    sessions = make_sessionmaker(engine)
+    ensure_course(sessions, settings)
+    return sessions
+
+
 def run_serve(args: argparse.Namespace) -> int:
     import uvicorn
 
     from league.server.api.connections import connection_limits, uvicorn_protocols
-    from league.server.app import create_app, open_league, prepare_league
+    from league.server.app import create_app, open_league
+    from league.server.db.session import migrate
 
     _logging()
-    settings = Settings()
+    settings, sources = _setup(args, log.warning)
     protocols = uvicorn_protocols(connection_limits(settings))
-    league_ = open_league(settings)
-    prepare_league(league_)
-    worker = None if args.no_worker else start_child_worker(args.threads)
+    engine, _ = _open(settings, sources, log.info, create=True)
+    before, after = migrate(engine)
+    if before != after:
+        log.info("database migrated from revision %s to %s", before, after)
+    league_ = open_league(settings, engine)
+    worker = None if args.no_worker else start_child_worker(args.threads, args.data_dir)
     # uvicorn raises the SIGTERM or SIGINT it stopped on again once it is done: end here, not die there
     signal.signal(signal.SIGTERM, _exit_on_signal)
     try:
@@ -100,7 +202,7 @@ def _exit_on_signal(signum, frame) -> None:
     raise SystemExit(0)
 
 
-def start_child_worker(threads: int | None) -> subprocess.Popen:
+def start_child_worker(threads: int | None, data_dir: Path | None = None) -> subprocess.Popen:
     """`league worker` as a child process: jobs never share the API's GIL. It gets SIGTERM (hands its
     jobs back, stops its sandboxes) when we stop, and also if we die (PR_SET_PDEATHSIG); in a session
     of its own, so a Ctrl-C reaches only us and we stop it at once instead of waiting for its jobs."""
@@ -111,7 +213,8 @@ def start_child_worker(threads: int | None) -> subprocess.Popen:
         if os.getppid() != parent:  # we died before prctl
             os.kill(os.getpid(), signal.SIGTERM)
 
-    command = [sys.executable, "-m", "league.server", "worker", *(["--threads", str(threads)] if threads else [])]
+    command = [sys.executable, "-m", "league.server", "worker", *(["--threads", str(threads)] if threads else []),
+               *(["--data-dir", str(data_dir)] if data_dir else [])]
     worker = subprocess.Popen(command, preexec_fn=die_with_parent, start_new_session=True)
     log.info("serve: worker process %d started", worker.pid)
     return worker
@@ -128,11 +231,12 @@ def stop_child_worker(worker: subprocess.Popen, timeout_s: float = 30) -> None:
 
 
 def run_worker(args: argparse.Namespace) -> int:
+    from league.server.db.session import check_schema
     from league.server.jobs.runner import lower_session_priority
     from league.server.jobs.worker import Worker, pin_to_cpus, worker_context
 
     _logging()
-    settings = Settings()
+    settings, sources = _setup(args, log.warning)
     cpus = args.cpus if args.cpus is not None else settings.worker_cpus
     if cpus:
         try:
@@ -140,39 +244,96 @@ def run_worker(args: argparse.Namespace) -> int:
         except ValueError as error:
             print(f"league worker: --cpus {cpus!r}: {error}", file=sys.stderr)
             return 2
+    engine, revision = _open(settings, sources, lambda text: log.info("worker: %s", text))
+    check_schema(revision)  # workers never migrate: `league serve` or `league migrate` does
     lower_session_priority(settings.job_nice)
-    context = worker_context(settings)
-    log.info("worker: database %s, queue %s", context.sessions.kw["bind"].url.render_as_string(),
-             type(context.queue.huey).__name__)
+    context = worker_context(settings, engine)
+    log.info("worker: queue %s", type(context.queue.huey).__name__)
     Worker(context, threads=args.threads or settings.worker_threads).run_forever()
     return 0
 
 
-def _sessions():
-    from league.server.app import open_league
+def run_init(args: argparse.Namespace) -> int:
     from league.server.bootstrap import ensure_course
-    from league.server.db.session import migrate
+    from league.server.db.session import make_sessionmaker, migrate
+    from league.server.storage import BlobStore
 
-    settings = Settings()
-    league_ = open_league(settings)
-    migrate(league_.engine)
-    ensure_course(league_.sessions, settings)
-    return league_.sessions
+    settings, sources = _setup(args)
+    engine, _ = _open(settings, sources, create=True)
+    before, revision = migrate(engine, new_only=True)
+    _say(f"created a new league (schema revision {revision})" if before is None else
+         f"this database already holds a league (schema revision {revision}): nothing to create")
+    BlobStore(settings.data_dir).ensure()
+    sessions = make_sessionmaker(engine)
+    ensure_course(sessions, settings)
+    return _add_user(sessions, args.instructor, INSTRUCTOR) if args.instructor else 0
 
 
-def run_users_add(args: argparse.Namespace) -> int:
+def run_migrate(args: argparse.Namespace) -> int:
+    from league.server.db.session import DatabaseError, migrate, schema_problem, schema_state
+
+    settings, sources = _setup(args)
+    engine, revision = _open(settings, sources)
+    if schema_state(revision) == "empty":
+        raise DatabaseError(schema_problem(revision))
+    before, after = migrate(engine)
+    _say(f"migrated from schema revision {before} to {after}" if before != after else
+         f"already at schema revision {after}: nothing to do")
+    return 0
+
+
+def run_backup(args: argparse.Namespace) -> int:
+    from league.server.backup import backup
+
+    settings, sources = _setup(args)
+    engine, revision = _open(settings, sources)
+    report = backup(engine, revision, args.file)
+    _say(f"backed up to {args.file}: {report.summary()}")
+    return 0
+
+
+def run_restore(args: argparse.Namespace) -> int:
+    from league.server.backup import restore
+    from league.server.db.session import head_revision, shown_url
+
+    settings, sources = _setup(args)
+    url = settings.resolved_database_url
+    if make_url(url).get_backend_name() == "sqlite":
+        _say(f"database {shown_url(url)} ({database_origin(settings, sources)})")
+    else:  # it must exist and answer; an SQLite file is written whole
+        _open(settings, sources, create=True)[0].dispose()
+    report = restore(args.file, url, replace=args.replace)
+    _say(f"restored {args.file}: {report.summary()}, migrated to {head_revision()}. Jobs queued or running at "
+         f"the backup run as soon as a worker starts")
+    return 0
+
+
+def run_config(args: argparse.Namespace) -> int:
+    if args.markdown:
+        print(settings_markdown(), end="")
+        return 0
+    settings, sources = _setup(args)
+    print(describe_settings(settings, sources))
+    return 0
+
+
+def _add_user(sessions: sessionmaker[Session], name: str, role: str, **identity: str | None) -> int:
     from league.server.db import crud
 
-    with _sessions().begin() as session:
+    with sessions.begin() as session:
         try:
-            user, token = crud.create_user(session, name=args.name, role=args.role, course=crud.first_course(session),
-                                           email=args.email, student_id=args.student_id)
+            user, token = crud.create_user(session, name=name, role=role, course=crud.first_course(session),
+                                           **identity)
         except crud.InvalidAccount as error:
             print(f"league: error: {error}", file=sys.stderr)
             return 1
         print(token)
-    print(f"created {args.role} {user.name!r} (id {user.id}); the token above is shown once", file=sys.stderr)
+    _say(f"created {role} {user.name!r} (id {user.id}); the token above is shown once")
     return 0
+
+
+def run_users_add(args: argparse.Namespace) -> int:
+    return _add_user(_sessions(args), args.name, args.role, email=args.email, student_id=args.student_id)
 
 
 def run_users_import(args: argparse.Namespace) -> int:
@@ -186,7 +347,7 @@ def run_users_import(args: argparse.Namespace) -> int:
     except (OSError, RosterError) as error:
         print(f"league: error: {args.file}: {error}", file=sys.stderr)
         return 1
-    with _sessions().begin() as session:
+    with _sessions(args).begin() as session:
         report = import_roster(session, course=crud.first_course(session), created_by=None, roster=roster)
         tokens = csv_text(["name", "email", "student_id", "token"],
                           ([user.name, user.email, user.student_id, token] for user, token in report.created))
@@ -209,7 +370,7 @@ def run_users_list(args: argparse.Namespace) -> int:
 
     from league.server.db.models import User
 
-    with _sessions()() as session:
+    with _sessions(args)() as session:
         for user in session.scalars(select(User).order_by(User.id)):
             state = "active" if user.active else "revoked"
             print(f"{user.id:>5}  {user.name:<30} {user.role:<10} {state}")
@@ -219,18 +380,19 @@ def run_users_list(args: argparse.Namespace) -> int:
 def run_users_revoke(args: argparse.Namespace) -> int:
     from league.server.db import crud
 
-    with _sessions().begin() as session:
+    with _sessions(args).begin() as session:
         user = crud.user_by_name(session, name=args.name)
         if user is None:
             print(f"league: error: no user {args.name!r}", file=sys.stderr)
             return 1
         crud.revoke_user(session, user=user)
-    print(f"revoked {args.name!r}", file=sys.stderr)
+    _say(f"revoked {args.name!r}")
     return 0
 
 
 def main(argv: list[str] | None = None) -> int:
+    from league.cli import main as run
+
     parser = argparse.ArgumentParser(prog="python -m league.server", description="MicroRacer League server")
     add_commands(parser.add_subparsers(dest="command", required=True))
-    args = parser.parse_args(argv)
-    return args.run(args)
+    return run(argv, parser)

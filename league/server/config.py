@@ -2,15 +2,24 @@
 
 Every default runs the embedded league (SQLite database and SQLite task queue in the data
 directory); point `database_url` at PostgreSQL and `queue_url` at Redis to run workers on
-several machines.
+several machines. docs/SETTINGS.md is generated from this class (`league config --markdown`).
+
+A setting cannot be wrong silently: `load_settings` names the variable of a value it cannot
+read, `unknown_variables` the LEAGUE_* names that are no setting (with the closest one), and
+`setting_sources` where each value came from (`league config` prints them, secrets masked).
 """
 from __future__ import annotations
 
+import difflib
+import json
+import os
 import tempfile
 from pathlib import Path
-from typing import Any
+from typing import Any, Mapping
+from urllib.parse import urlsplit
 
-from pydantic import Field
+from dotenv import dotenv_values
+from pydantic import Field, SecretStr, ValidationError
 from pydantic_settings import BaseSettings, SettingsConfigDict
 
 from league.validation.limits import MAX_UPLOAD_MB, SandboxLimits
@@ -18,17 +27,34 @@ from league.validation.limits import MAX_UPLOAD_MB, SandboxLimits
 MB = 1024 * 1024
 LIMITS = SandboxLimits()  # the league's defaults (the toolkit's: `league check` uses them without a server)
 BUNDLED_BASELINES = Path(__file__).resolve().parents[1] / "baselines" / "agents"  # package data: travels with it
+ENV_PREFIX, ENV_FILE = "LEAGUE_", ".env"
+# LEAGUE_* variables that other parts of the package read (not server settings)
+OTHER_VARIABLES = {
+    "LEAGUE_SERVER": "the league server the student commands (`league submit`, ...) talk to",
+    "LEAGUE_TOKEN": "the API token of those commands",
+    "LEAGUE_DEBUG": "any value: a failing `league` command prints its traceback",
+    "LEAGUE_WEB_DIR": "the folder of the web pages the server serves (default: the package's)",
+}
+OWN_PREFIXES = ("LEAGUE_TEST_", "LEAGUE_BENCH_")  # the test suite's and the benchmarks' own variables
+
+
+class ConfigError(Exception):
+    """A setting that cannot be used as given (its variable named)."""
 
 
 class Settings(BaseSettings):
     """Environment variables are the field names in upper case with the prefix LEAGUE_,
     e.g. LEAGUE_DATABASE_URL; dicts are JSON (LEAGUE_EVAL_ENV_OPTIONS='{"obstacles": false}')."""
 
-    model_config = SettingsConfigDict(env_prefix="LEAGUE_", env_file=".env", extra="ignore")
+    model_config = SettingsConfigDict(env_prefix=ENV_PREFIX, env_file=ENV_FILE, extra="ignore")
 
     # where things live
-    data_dir: Path = Field(Path("agents_submissions"), description="submission store, SQLite files")
-    database_url: str | None = Field(None, description="SQLAlchemy URL; default sqlite:///DATA_DIR/league.db")
+    data_dir: Path = Field(Path("agents_submissions"), description="the server's folder, relative to the current "
+                                                                   "directory: the SQLite database (league.db) and "
+                                                                   "local copies of model files")
+    database_url: str | None = Field(None, description="the database, as an SQLAlchemy URL "
+                                                       "(postgresql+psycopg://user:password@host/league); "
+                                                       "default: sqlite:///DATA_DIR/league.db")
     queue_url: str | None = Field(None, description="redis://host:port/db, or default SQLite DATA_DIR/queue.db")
     queue_name: str = Field("league", description="Huey queue name (the Redis key prefix)")
     baselines_dir: Path | None = Field(None, description="agents registered under the `baselines` account on an "
@@ -92,9 +118,10 @@ class Settings(BaseSettings):
     log_limit_kb: int = Field(LIMITS.log_limit // 1024, description="sandbox output kept per run")
 
     # evaluation defaults (of a new course; instructors change them through the API)
-    eval_seed: int = 0
-    eval_episodes: int = 100
-    eval_env_options: dict[str, Any] = Field(default_factory=dict)
+    eval_seed: int = Field(0, description="seed of a new course's evaluation tracks")
+    eval_episodes: int = Field(100, description="episodes of a new course's evaluations")
+    eval_env_options: dict[str, Any] = Field(default_factory=dict, description="environment options of a new "
+                                                                               "course's evaluations, as JSON")
 
     # jobs: leases as in fishtest, a job whose worker stops heart-beating is given to another
     worker_threads: int = Field(1, description="jobs one worker process runs at once")
@@ -106,14 +133,15 @@ class Settings(BaseSettings):
                                                    "CPUs of their own (see league/server/jobs/placement.py)")
     cpu_slots_dir: str = Field(str(Path(tempfile.gettempdir()) / "league-cpu-slots"),
                                description="directory the workers of one machine share to split its CPUs; "
-                                           "empty: each worker splits only its own CPUs between its threads")
+                                           "empty: each worker splits only its own CPUs between its threads",
+                               json_schema_extra={"shown_default": "$TMPDIR/league-cpu-slots"})
     job_nice: int = Field(10, ge=0, le=19, description="CPU priority (nice) of job threads and their sandboxes: "
                                                        "the API stays responsive while they race")
-    heartbeat_interval_s: float = 5.0
+    heartbeat_interval_s: float = Field(5.0, description="how often a running job's worker renews its lease")
     lease_timeout_s: float = Field(60.0, description="a running job without heartbeat for this long is re-queued")
-    reaper_interval_s: float = 10.0
+    reaper_interval_s: float = Field(10.0, description="how often each worker looks for jobs whose worker stopped")
     requeue_queued_after_s: float = Field(600.0, description="re-send a job left queued this long (lost message)")
-    max_job_attempts: int = 3
+    max_job_attempts: int = Field(3, description="a job whose worker dies this many times fails for good")
 
     def sandbox_limits(self) -> SandboxLimits:
         """What each sandbox may use, in the toolkit's units."""
@@ -142,3 +170,148 @@ class Settings(BaseSettings):
 
     def default_evaluation(self) -> dict[str, Any]:
         return {"seed": self.eval_seed, "episodes": self.eval_episodes, "env_options": dict(self.eval_env_options)}
+
+
+def variable(field: str) -> str:
+    return ENV_PREFIX + field.upper()
+
+
+def load_settings(**overrides: Any) -> Settings:
+    """Settings from the environment, `.env` and `overrides` (command-line options, None: not given);
+    a value that cannot be read raises ConfigError naming its variable."""
+    given = {name: value for name, value in overrides.items() if value is not None}
+    try:
+        return Settings(**given)
+    except ValidationError as error:
+        problems = [f"{variable(str(item['loc'][0]))}={item.get('input')!r}: {item['msg']}" if item["loc"] else
+                    item["msg"] for item in error.errors()]
+        raise ConfigError("; ".join(problems)) from None
+
+
+def env_file_values(path: Path = Path(ENV_FILE)) -> dict[str, str]:
+    """The LEAGUE_* lines of a `.env` file (upper-cased names, as pydantic-settings matches them)."""
+    if not path.is_file():
+        return {}
+    return {name.upper(): value or "" for name, value in dotenv_values(path).items()
+            if name.upper().startswith(ENV_PREFIX)}
+
+
+def unknown_variables(environ: Mapping[str, str] = os.environ, env_file: Path = Path(ENV_FILE)) -> list[str]:
+    """A warning for each LEAGUE_* variable (environment or `.env`) that nothing reads: a misspelled
+    setting would otherwise be ignored and its default used."""
+    known = {variable(name) for name in Settings.model_fields} | set(OTHER_VARIABLES)
+    found = {name.upper(): "the environment" for name in environ if name.upper().startswith(ENV_PREFIX)}
+    found.update({name: str(env_file.resolve()) for name in env_file_values(env_file) if name not in found})
+    warnings = []
+    for name, where in sorted(found.items()):
+        if name in known or name.startswith(OWN_PREFIXES):
+            continue
+        closest = difflib.get_close_matches(name.removeprefix(ENV_PREFIX), [k.removeprefix(ENV_PREFIX) for k in known],
+                                            n=1, cutoff=0.7)  # the shared prefix would make every name close
+        hint = f": did you mean {ENV_PREFIX}{closest[0]}?" if closest else " (`league config` lists the settings)"
+        warnings.append(f"{name} (in {where}) is not a setting and is ignored{hint}")
+    return warnings
+
+
+def setting_sources(overrides: Mapping[str, Any] = {}, environ: Mapping[str, str] = os.environ,
+                    env_file: Path = Path(ENV_FILE)) -> dict[str, str]:
+    """Where each setting's value comes from: a command-line option, the environment, `.env`, or
+    its default (the order in which they win)."""
+    in_environment = {name.upper() for name in environ}
+    in_file = env_file_values(env_file)
+    sources = {}
+    for name in Settings.model_fields:
+        if overrides.get(name) is not None:
+            sources[name] = "command line"
+        elif variable(name) in in_environment:
+            sources[name] = "environment"
+        elif variable(name) in in_file:
+            sources[name] = str(env_file.resolve())
+        else:
+            sources[name] = "default"
+    return sources
+
+
+def database_origin(settings: Settings, sources: Mapping[str, str]) -> str:
+    """Which setting names the database and where its value came from (said with the database's URL)."""
+    if settings.database_url:
+        return f"LEAGUE_DATABASE_URL, from {_place(sources['database_url'])}"
+    source = sources["data_dir"]
+    if source == "default":
+        return f"the default data directory: {settings.data_dir} in the current directory"
+    if source == "command line":
+        return "the data directory given by --data-dir"
+    return f"the data directory LEAGUE_DATA_DIR, from {_place(source)}"
+
+
+def database_setting(settings: Settings, sources: Mapping[str, str]) -> str:
+    """The option or variable to change to name another database."""
+    if settings.database_url:
+        return "LEAGUE_DATABASE_URL"
+    return "--data-dir" if sources["data_dir"] == "command line" else "LEAGUE_DATA_DIR"
+
+
+def _place(source: str) -> str:
+    return "the environment" if source == "environment" else source
+
+
+def mask_url(text: str) -> str:
+    """A URL with its password replaced by ***: 'postgresql://league:***@db-host/league'."""
+    parts = urlsplit(text)
+    if "://" not in text or parts.password is None:
+        return text
+    userinfo, _, host = parts.netloc.rpartition("@")
+    return parts._replace(netloc=f"{userinfo.partition(':')[0]}:***@{host}").geturl()
+
+
+def shown_value(value: Any) -> str:
+    """A setting's value as its variable would be written, secrets masked."""
+    if isinstance(value, SecretStr):
+        return "**********" if value.get_secret_value() else ""
+    if value is None:
+        return ""
+    if isinstance(value, bool):
+        return str(value).lower()
+    if isinstance(value, (dict, list)):
+        return json.dumps(value)
+    return mask_url(str(value))
+
+
+def describe_settings(settings: Settings, sources: Mapping[str, str]) -> str:
+    """`league config`: every setting as a line of `.env`, and where its value came from."""
+    lines = [(f"{variable(name)}={shown_value(getattr(settings, name))}", _source_note(settings, name, sources[name]))
+             for name in Settings.model_fields]
+    width = max(len(line) for line, _ in lines)
+    return "\n".join(f"{line:<{width}}  # {source}" for line, source in lines)
+
+
+def _source_note(settings: Settings, name: str, source: str) -> str:
+    """The source, and what a relative path or an unset value stands for ("default: sqlite:///...")."""
+    value, resolved = getattr(settings, name), getattr(settings, f"resolved_{name}", None)
+    if value is None and resolved is not None:
+        return f"{source}: {shown_value(resolved)}"
+    if isinstance(value, Path) and not value.is_absolute():
+        return f"{source}: {value.resolve()}"
+    return source
+
+
+def settings_markdown() -> str:
+    """docs/SETTINGS.md: every setting in one table (`league config --markdown` prints it)."""
+    rows = ["| Variable | Default | What it sets |", "|---|---|---|"]
+    for name, field in Settings.model_fields.items():
+        extra = field.json_schema_extra if isinstance(field.json_schema_extra, dict) else {}
+        default = extra.get("shown_default", shown_value(field.get_default(call_default_factory=True)))
+        rows.append(f"| `{variable(name)}` | {f'`{default}`' if default != '' else ''} | {field.description} |")
+    others = ["| Variable | What it sets |", "|---|---|"]
+    others += [f"| `{name}` | {what} |" for name, what in OTHER_VARIABLES.items()]
+    return "\n".join([
+        "# Settings", "",
+        "<!-- Generated by `league config --markdown > docs/SETTINGS.md` from league/server/config.py; "
+        "tests/server/test_config.py checks that it matches. -->", "",
+        "The league server reads every setting from an environment variable, or from a line of a `.env` "
+        "file in the directory it starts in (the environment wins). `league config` prints the values in "
+        "effect and where each came from; a `LEAGUE_*` variable that is no setting is warned about at "
+        "start, with the closest name. Dicts are JSON: `LEAGUE_EVAL_ENV_OPTIONS='{\"obstacles\": false}'`.",
+        "", *rows, "",
+        "Other parts of the package read these:", "", *others, "",
+    ])

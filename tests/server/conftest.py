@@ -109,19 +109,20 @@ class LeagueServer:
     api: subprocess.Popen | None = None
     workers: list[subprocess.Popen] = field(default_factory=list)
     instructor_token: str = ""
+    root: Path = REPO  # the source tree it runs (with PYTHONPATH: another release's, to upgrade from)
 
     @property
     def url(self) -> str:
         return f"http://127.0.0.1:{self.port}"
 
     def command(self, *args: str, **kwargs) -> subprocess.CompletedProcess:
-        return subprocess.run([sys.executable, "-m", "league.server", *args], env=self.env, cwd=REPO,
+        return subprocess.run([sys.executable, "-m", "league.server", *args], env=self.env, cwd=self.root,
                               capture_output=True, text=True, timeout=120, **kwargs)
 
     def _spawn(self, *args: str, log_name: str, prefix: tuple[str, ...] = (), **env: str) -> subprocess.Popen:
         log = open(self.data_dir / log_name, "ab")
         return subprocess.Popen([*prefix, sys.executable, "-m", "league.server", *args], env={**self.env, **env},
-                                cwd=REPO, stdout=log, stderr=subprocess.STDOUT)
+                                cwd=self.root, stdout=log, stderr=subprocess.STDOUT)
 
     def start_api(self, embedded_worker: bool = True) -> None:
         args = ["serve", "--port", str(self.port)] + ([] if embedded_worker else ["--no-worker"])
@@ -170,6 +171,14 @@ class LeagueServer:
         return httpx.Client(base_url=self.url, headers=headers, timeout=30)
 
 
+def server_command(cwd: Path, *args: str, **env: str) -> subprocess.CompletedProcess:
+    """`python -m league.server ARGS` in `cwd`, with no LEAGUE_* variable but `env`'s (as a shell
+    without the test settings)."""
+    clean = {name: value for name, value in os.environ.items() if not name.upper().startswith("LEAGUE_")}
+    return subprocess.run([sys.executable, "-m", "league.server", *args], cwd=cwd, capture_output=True, text=True,
+                          env={**clean, "PYTHONPATH": str(REPO), **env}, timeout=120)
+
+
 def make_server(tmp_path: Path, urls: tuple[str, str, str], **settings: str) -> LeagueServer:
     database_url, queue_url, queue_name = urls
     data_dir = tmp_path / "data"
@@ -180,7 +189,7 @@ def make_server(tmp_path: Path, urls: tuple[str, str, str], **settings: str) -> 
            "LEAGUE_BASELINES_DIR": str(data_dir / "baselines"),  # empty: the heuristic driver is the baseline
            "PYTHONPATH": str(REPO)}
     server = LeagueServer(env, data_dir)
-    added = server.command("users", "add", "prof", "--role", "instructor")
+    added = server.command("init", "--instructor", "prof")
     assert added.returncode == 0, added.stderr
     server.instructor_token = added.stdout.strip()
     return server

@@ -1,17 +1,28 @@
-"""Engines, sessions and migrations, for SQLite (the embedded default) and PostgreSQL."""
+"""Engines, sessions and migrations, for SQLite (the embedded default) and PostgreSQL.
+
+Only `league serve`, `league init` and `league migrate` change the schema (`migrate`, under a
+lock); every other process opens the database with `open_engine`, which never creates one, and
+refuses a schema other than its own (`schema_problem` says what to do).
+"""
 from __future__ import annotations
 
 import contextlib
 import fcntl
+import functools
 import os
 from collections.abc import Iterator
 from pathlib import Path
 
 from alembic import command
 from alembic.config import Config
-from sqlalchemy import Engine, create_engine, event, text
+from alembic.migration import MigrationContext
+from alembic.script import ScriptDirectory
+from sqlalchemy import Connection, Engine, create_engine, event, text
 from sqlalchemy.engine import make_url
+from sqlalchemy.exc import DBAPIError
 from sqlalchemy.orm import Session, sessionmaker
+
+import league
 
 MIGRATIONS_DIR = Path(__file__).resolve().parent.parent / "migrations"
 PG_MIGRATION_LOCK = 7_305_512  # pg_advisory_lock key: API and workers may start at the same time
@@ -19,6 +30,10 @@ PG_MIGRATION_LOCK = 7_305_512  # pg_advisory_lock key: API and workers may start
 # unacknowledged data times out after 30 s, an idle connection is probed every 10 s after 30 s.
 PG_LINK_TIMEOUTS = {"connect_timeout": 10, "tcp_user_timeout": 30_000, "keepalives": 1, "keepalives_idle": 30,
                     "keepalives_interval": 10, "keepalives_count": 3}
+
+
+class DatabaseError(Exception):
+    """A database a command cannot use as it is; the message says what to do."""
 
 
 def make_engine(url: str) -> Engine:
@@ -63,16 +78,93 @@ def alembic_config(url: str) -> Config:
     return config
 
 
-def migrate(engine: Engine) -> None:
-    """`alembic upgrade head`, serialised between processes that start together."""
-    with _migration_lock(engine) as connection:
-        config = alembic_config(engine.url.render_as_string(hide_password=False))
-        config.attributes["connection"] = connection
-        command.upgrade(config, "head")
+def open_engine(url: str, *, setting: str, missing: str, create: bool = False) -> tuple[Engine, str | None]:
+    """An engine on the league's database and its schema revision (None: no league in it yet).
+
+    An SQLite file that does not exist is created only with `create` (else DatabaseError(`missing`):
+    a command run from the wrong directory must not start a new, empty league); a database that
+    does not answer raises DatabaseError naming `setting` and the host."""
+    parsed = make_url(url)
+    if parsed.get_backend_name() == "sqlite" and not create and parsed.database not in (None, "", ":memory:") \
+            and not Path(parsed.database).is_file():
+        raise DatabaseError(missing)
+    engine = make_engine(url)
+    try:
+        with engine.connect() as connection:
+            return engine, revision_of(connection)
+    except DBAPIError as error:
+        engine.dispose()
+        reason = " ".join(str(getattr(error, "orig", None) or error).split())
+        raise DatabaseError(f"{setting}: cannot connect to {shown_url(url)}: {reason}") from None
+
+
+def shown_url(url: str) -> str:
+    return make_url(url).render_as_string(hide_password=True)
+
+
+def revision_of(connection: Connection) -> str | None:
+    return MigrationContext.configure(connection).get_current_revision()
+
+
+@functools.cache
+def _scripts() -> ScriptDirectory:
+    return ScriptDirectory.from_config(alembic_config(""))
+
+
+def head_revision() -> str:
+    return _scripts().get_current_head()
+
+
+def schema_state(revision: str | None) -> str:
+    """"current", "empty" (no league yet), "older" (run migrations) or "newer" (a newer installation's)."""
+    if revision == head_revision():
+        return "current"
+    if revision is None:
+        return "empty"
+    return "older" if revision in {script.revision for script in _scripts().walk_revisions()} else "newer"
+
+
+def schema_problem(revision: str | None) -> str | None:
+    """None if a database at `revision` is this installation's schema, else what to do about it."""
+    head = head_revision()
+    return {
+        "current": None,
+        "empty": "this database holds no league yet: `league init` creates one",
+        "older": f"this database is at revision {revision}, older than this installation's {head}: run "
+                 f"`league migrate` (back it up first: `league backup FILE`)",
+        "newer": f"this database is at revision {revision}, written by a newer version of microracer-league "
+                 f"(this one, {league.__version__}, knows revisions up to {head}): upgrade this installation",
+    }[schema_state(revision)]
+
+
+def check_schema(revision: str | None) -> None:
+    problem = schema_problem(revision)
+    if problem:
+        raise DatabaseError(problem)
+
+
+def migrate(engine: Engine, *, new_only: bool = False) -> tuple[str | None, str]:
+    """`alembic upgrade head`, serialised between processes that start together; (from, to) revisions.
+    With `new_only` (`league init`) a database of an older schema is refused instead. The revision is
+    read under the lock: one read before it may see another process's migration half done."""
+    with migration_lock(engine) as connection:
+        before = revision_of(connection)
+        if schema_state(before) == "newer" or (new_only and schema_state(before) == "older"):
+            raise DatabaseError(schema_problem(before))
+        connection.commit()  # (reading the revision began a transaction)
+        upgrade(connection, "head")
+        return before, revision_of(connection)
+
+
+def upgrade(connection: Connection, revision: str) -> None:
+    """`alembic upgrade REVISION` on this connection (committed); no lock: `migrate` takes it."""
+    config = alembic_config(connection.engine.url.render_as_string(hide_password=False))
+    config.attributes["connection"] = connection
+    command.upgrade(config, revision)
 
 
 @contextlib.contextmanager
-def _migration_lock(engine: Engine) -> Iterator:
+def migration_lock(engine: Engine) -> Iterator:
     if engine.dialect.name == "postgresql":
         with engine.connect() as connection:
             connection.execute(text("SELECT pg_advisory_lock(:key)"), {"key": PG_MIGRATION_LOCK})

@@ -144,6 +144,13 @@ def hand_back(sessions: sessionmaker[Session], *, job_id: int, attempt_id: str, 
                               error=reason)
 
 
+def release_running(session: Session, *, reason: str) -> int:
+    """Every running job back to the queue, its attempt not counted: a restored database's jobs whose
+    workers are gone (they would otherwise wait for the lease timeout). Returns how many."""
+    return session.execute(update(Job).where(Job.status == RUNNING).values(
+        status=QUEUED, worker_id=None, attempts=Job.attempts - 1, error=reason, enqueued_at=utcnow())).rowcount
+
+
 def reap(sessions: sessionmaker[Session], handlers: Mapping[str, Any], *, lease_timeout_s: float,
          requeue_queued_after_s: float, now: datetime | None = None) -> list[int]:
     """Re-queue running jobs whose worker stopped heart-beating and re-send long-queued ones.

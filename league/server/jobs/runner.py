@@ -180,11 +180,12 @@ def release_active(context: WorkerContext) -> list[int]:
     return released
 
 
-def reap(context: WorkerContext) -> list[int]:
+def reap(context: WorkerContext, requeue_queued_after_s: float | None = None) -> list[int]:
     """One reaper pass (league.server.jobs.leases.reap), sending what it freed to the queue."""
     settings = context.settings
+    resend = settings.requeue_queued_after_s if requeue_queued_after_s is None else requeue_queued_after_s
     sent = leases.reap(context.sessions, context.handlers, lease_timeout_s=settings.lease_timeout_s,
-                       requeue_queued_after_s=settings.requeue_queued_after_s)
+                       requeue_queued_after_s=resend)
     for job_id in sent:
         context.queue.enqueue(job_id)
     return sent

@@ -11,10 +11,11 @@ import threading
 from pathlib import Path
 
 from huey.consumer import Consumer
+from sqlalchemy import Engine
 
 from league.server.config import Settings
 from league.server.db import crud
-from league.server.db.session import make_engine, make_sessionmaker, migrate
+from league.server.db.session import make_sessionmaker
 from league.server.jobs.handlers import HANDLERS
 from league.server.jobs.placement import Placement
 from league.server.jobs.queue import JobQueue, build_queue
@@ -40,9 +41,11 @@ class Reaper:
         self._thread.join(timeout=5)
 
     def _loop(self) -> None:
+        resend_after_s = 0.0  # the first pass re-sends every queued job: a restore or a lost queue left no message
         while True:
             try:
-                sent = reap(self.context)
+                sent = reap(self.context, resend_after_s)
+                resend_after_s = self.context.settings.requeue_queued_after_s
                 if sent:
                     log.info("reaper re-sent jobs %s", sent)
                 sweep_store(self.context.sessions, self.context.store)
@@ -93,9 +96,8 @@ def sweep_store(sessions, store: BlobStore) -> None:
         log.info("removed %d model files no longer kept", len(removed))
 
 
-def worker_context(settings: Settings, queue: JobQueue | None = None) -> WorkerContext:
-    engine = make_engine(settings.resolved_database_url)
-    migrate(engine)
+def worker_context(settings: Settings, engine: Engine, queue: JobQueue | None = None) -> WorkerContext:
+    """What a worker's jobs work with, on the league's database (its schema checked: workers never migrate)."""
     store = BlobStore(settings.data_dir)
     store.ensure()
     sandbox_isolation(settings.sandbox_uid_base)  # logged at start-up: what this machine's sandboxes get

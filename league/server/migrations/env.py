@@ -1,9 +1,11 @@
-"""Alembic environment: migrations run programmatically at startup (league.server.db.session.migrate)
-or by hand with `alembic -c league/server/alembic.ini upgrade head`."""
+"""Alembic environment: migrations run programmatically (league.server.db.session.migrate: `league
+serve`, `init`, `migrate`) or by hand with `alembic -c league/server/alembic.ini ...` (see there)."""
 from alembic import context
-from sqlalchemy import engine_from_config, pool
+from sqlalchemy import create_engine, pool
 
+from league.server.config import load_settings
 from league.server.db.models import Base, UTCDateTime
+from league.server.db.session import migration_lock
 
 config = context.config
 target_metadata = Base.metadata
@@ -29,18 +31,19 @@ def run_migrations_online() -> None:
         run_migrations(connection)
         connection.commit()
         return
-    section = config.get_section(config.config_ini_section, {})
-    url = context.get_x_argument(as_dictionary=True).get("url")
-    if url:
-        section["sqlalchemy.url"] = url
-    engine = engine_from_config(section, prefix="sqlalchemy.", poolclass=pool.NullPool)
-    with engine.connect() as connection:
+    engine = create_engine(_url(), poolclass=pool.NullPool)
+    with migration_lock(engine) as connection:
         run_migrations(connection)
+        connection.commit()
+
+
+def _url() -> str:
+    """`-x url=...`, else the league's own database (its LEAGUE_* settings), never a relative default."""
+    return context.get_x_argument(as_dictionary=True).get("url") or load_settings().resolved_database_url
 
 
 def run_migrations_offline() -> None:
-    context.configure(url=config.get_main_option("sqlalchemy.url"), target_metadata=target_metadata,
-                      literal_binds=True)
+    context.configure(url=_url(), target_metadata=target_metadata, literal_binds=True)
     with context.begin_transaction():
         context.run_migrations()
 

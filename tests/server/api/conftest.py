@@ -19,7 +19,7 @@ from league.server.app import create_app
 from league.server.config import Settings
 from league.server.db import crud
 from league.server.db.models import DONE, INSTRUCTOR, READY, REJECTED, STUDENT, Submission, User
-from league.server.db.session import make_sessionmaker
+from league.server.db.session import make_engine, make_sessionmaker, migrate
 from league.server.results import settings_key
 
 from ..conftest import BACKENDS, TEST_SETTINGS, fresh_backend
@@ -132,8 +132,10 @@ def in_process_league(kind: str, tmp_path: Path, prepare: Callable[[str], None] 
         values.update(baselines_dir=tmp_path / "baselines")  # empty: the heuristic driver is the baseline
         settings = Settings(_env_file=None, **{**values, **settings}, data_dir=tmp_path / "data",
                             database_url=database_url, queue_url=queue_url, queue_name=queue_name)
+        migrate(app_engine := make_engine(settings.resolved_database_url))  # as `league serve` does first
+        app_engine.dispose()
         app = create_app(settings)
-        with TestClient(app):  # the lifespan: migrations, the course, the baselines registered
+        with TestClient(app):  # the lifespan: the schema checked, the course, the baselines registered
             with make_sessionmaker(app.state.league.engine).begin() as session:
                 _, token = crud.create_user(session, name="prof", role=INSTRUCTOR,
                                             course=crud.first_course(session))

@@ -1,0 +1,87 @@
+"""Settings that cannot be wrong silently: misspelled variables warned about, every value's source and
+the database said out loud (secrets masked), bad values and unreachable databases named, and the
+settings table of the docs generated from `Settings`."""
+from __future__ import annotations
+
+import pytest
+from pydantic import SecretStr
+
+from league.server.config import (
+    ConfigError, Settings, load_settings, setting_sources, settings_markdown, shown_value, unknown_variables,
+)
+
+from .conftest import REPO, server_command
+
+
+def test_unknown_variables_are_named_with_the_closest_setting(tmp_path):
+    env_file = tmp_path / ".env"
+    env_file.write_text("LEAGUE_QUOTA_PER_DAYS=3\nLEAGUE_MAX_UPLOAD_MB=5\nOTHER=1\n")
+    warnings = unknown_variables({"LEAGUE_DATABSE_URL": "postgresql://db-host/league", "LEAGUE_TOKEN": "lg_x",
+                                  "LEAGUE_TEST_PG": "postgresql://", "LEAGUE_ZZZ": "1", "PATH": "/bin"}, env_file)
+    assert warnings == [
+        "LEAGUE_DATABSE_URL (in the environment) is not a setting and is ignored: did you mean LEAGUE_DATABASE_URL?",
+        f"LEAGUE_QUOTA_PER_DAYS (in {env_file}) is not a setting and is ignored: did you mean LEAGUE_QUOTA_PER_DAY?",
+        "LEAGUE_ZZZ (in the environment) is not a setting and is ignored (`league config` lists the settings)",
+    ]
+
+
+def test_sources_say_where_each_value_came_from(tmp_path):
+    env_file = tmp_path / ".env"
+    env_file.write_text("LEAGUE_QUOTA_PER_DAY=7\nLEAGUE_MAX_UPLOAD_MB=5\n")
+    sources = setting_sources({"data_dir": tmp_path, "worker_threads": None},
+                              {"LEAGUE_MAX_UPLOAD_MB": "6", "league_job_nice": "5"}, env_file)
+    assert (sources["data_dir"], sources["max_upload_mb"], sources["job_nice"], sources["quota_per_day"],
+            sources["worker_threads"]) == ("command line", "environment", "environment", str(env_file), "default")
+
+
+def test_a_value_that_cannot_be_read_names_its_variable(monkeypatch):
+    monkeypatch.setenv("LEAGUE_MAX_UPLOAD_MB", "lots")
+    with pytest.raises(ConfigError, match=r"^LEAGUE_MAX_UPLOAD_MB='lots': Input should be a valid number"):
+        load_settings()
+
+
+def test_secrets_are_masked():
+    assert shown_value("postgresql+psycopg://league:hunter2@db-host:5432/league") == \
+        "postgresql+psycopg://league:***@db-host:5432/league"
+    assert shown_value("redis://:hunter2@redis-host:6379/0") == "redis://:***@redis-host:6379/0"
+    assert shown_value("sqlite:////srv/league/league.db") == "sqlite:////srv/league/league.db"
+    assert shown_value(SecretStr("hunter2")) == "**********"
+
+
+def test_league_config_prints_every_setting_its_source_and_the_database(tmp_path):
+    (tmp_path / ".env").write_text("LEAGUE_QUOTA_PER_DAY=7\nLEAGUE_MAX_UPLOD_MB=5\n")
+    shown = server_command(tmp_path, "config", "--data-dir", "semester",
+                           LEAGUE_DATABASE_URL="postgresql+psycopg://league:hunter2@db-host:5432/league",
+                           LEAGUE_DATABSE_URL="postgresql+psycopg://league:hunter2@db-host:5432/other")
+    assert shown.returncode == 0, shown.stderr
+    assert "hunter2" not in shown.stdout + shown.stderr
+    lines = dict(map(str.strip, line.split("  # ")) for line in shown.stdout.splitlines())
+    assert len(lines) == len(Settings.model_fields)
+    assert lines["LEAGUE_DATABASE_URL=postgresql+psycopg://league:***@db-host:5432/league"] == "environment"
+    assert lines["LEAGUE_QUOTA_PER_DAY=7"] == str(tmp_path / ".env")
+    assert lines["LEAGUE_DATA_DIR=semester"] == f"command line: {tmp_path / 'semester'}"
+    assert lines["LEAGUE_MAX_UPLOAD_MB=10.0"] == "default"
+    assert shown.stderr.splitlines() == [
+        "league: warning: LEAGUE_DATABSE_URL (in the environment) is not a setting and is ignored: did you mean "
+        "LEAGUE_DATABASE_URL?",
+        f"league: warning: LEAGUE_MAX_UPLOD_MB (in {tmp_path / '.env'}) is not a setting and is ignored: did you "
+        f"mean LEAGUE_MAX_UPLOAD_MB?"]
+
+
+def test_an_unreachable_database_is_named_with_its_setting_and_host(tmp_path):
+    url = "postgresql+psycopg://league:hunter2@127.0.0.1:1/league"  # nothing listens on port 1
+    for command in (("users", "list"), ("worker",), ("serve", "--no-worker")):
+        failed = server_command(tmp_path, *command, LEAGUE_DATABASE_URL=url)
+        assert failed.returncode == 2, failed.stderr
+        assert "hunter2" not in failed.stderr
+        last = failed.stderr.splitlines()[-1]
+        assert last.startswith("league: error: LEAGUE_DATABASE_URL: cannot connect to "
+                               "postgresql+psycopg://league:***@127.0.0.1:1/league: connection failed: "), last
+        assert "Traceback" not in failed.stderr and "unexpected" not in failed.stderr
+
+
+def test_the_settings_table_of_the_docs_is_generated_from_settings():
+    for name, field in Settings.model_fields.items():
+        assert field.description, f"{name}: every setting says what it sets (docs/SETTINGS.md is made from it)"
+    assert (REPO / "docs" / "SETTINGS.md").read_text() == settings_markdown(), \
+        "docs/SETTINGS.md is stale: regenerate it with `league config --markdown > docs/SETTINGS.md`"

@@ -1,0 +1,112 @@
+"""Upgrades keep everything: a league written by an earlier release (that release's own code, from `git
+archive` of its commit, run as a server with its own PYTHONPATH) and upgraded with this code (`league
+migrate`) answers every read as it did, field by field over the fields both versions have.
+
+It needs the repository's history (CI clones main whole); the releases' compiled core is built once per
+version of its sources (copied from this checkout's while they did not change).
+"""
+from __future__ import annotations
+
+import io
+import os
+import shutil
+import subprocess
+import sys
+import tarfile
+from pathlib import Path
+
+import pytest
+
+from league.server.db.session import head_revision
+
+from .conftest import REPO, TEST_SETTINGS, LeagueServer, fresh_backend
+from .semester import collect, differences, drained, semester
+
+# commit -> the schema revision its code writes: releases a course may upgrade from
+RELEASES = {
+    "c4a0240": "0006",  # the last one before issues 22-26 (assignments, the database as the queue, ...)
+    "b0d63d4": "0005",  # before the state stamp's indexes by kind
+}
+CORE_SOURCES = ("league/lidar.pyx", "league/constants.py", "setup.py")  # what league/lidar.*.so is built from
+
+
+def core_sources(commit: str | None) -> bytes:
+    """The sources of the compiled core at `commit` (None: this checkout)."""
+    if commit is None:
+        return b"".join((REPO / path).read_bytes() for path in CORE_SOURCES)
+    return b"".join(subprocess.run(["git", "-C", str(REPO), "show", f"{commit}:{path}"], check=True,
+                                   capture_output=True).stdout for path in CORE_SOURCES)
+
+
+def release_tree(commit: str, folder: Path, cores: dict[bytes, Path]) -> Path:
+    """The release's source tree, its simulator core compiled (or copied from a tree whose core's sources
+    are the same: `cores`, by sources, holds the ones built so far)."""
+    if subprocess.run(["git", "-C", str(REPO), "cat-file", "-e", f"{commit}^{{commit}}"]).returncode != 0:
+        pytest.fail(f"commit {commit} is not in this clone: the upgrade test needs the history (git fetch --unshallow)")
+    archive = subprocess.run(["git", "-C", str(REPO), "archive", "--format=tar", commit], check=True,
+                             capture_output=True).stdout
+    tree = folder / commit
+    tree.mkdir(parents=True)
+    with tarfile.open(fileobj=io.BytesIO(archive)) as tar:
+        tar.extractall(tree, filter="data")
+    sources = core_sources(commit)
+    if sources not in cores:
+        subprocess.run([sys.executable, "setup.py", "build_ext", "--inplace"], cwd=tree, check=True,
+                       capture_output=True)
+        cores[sources] = next((tree / "league").glob("lidar.*.so"))
+    built = cores[sources]
+    if built.parent != tree / "league":
+        shutil.copy2(built, tree / "league" / built.name)
+    return tree
+
+
+@pytest.fixture(scope="module")
+def releases(tmp_path_factory) -> dict[str, Path]:
+    folder, cores = tmp_path_factory.mktemp("releases"), {}
+    built_here = sorted((REPO / "league").glob("lidar.*.so"))
+    if built_here:
+        cores[core_sources(None)] = built_here[0]
+    return {commit: release_tree(commit, folder, cores) for commit in RELEASES}
+
+
+# every migration since each release on both backends: PostgreSQL's from 0006, SQLite's (batch copies) from 0005
+@pytest.mark.parametrize("commit, kind", [("c4a0240", "postgres"), ("b0d63d4", "sqlite")])
+def test_a_league_written_by_an_earlier_release_answers_the_same_after_the_upgrade(commit, kind, releases, tmp_path,
+                                                                                   models):
+    with fresh_backend(kind, tmp_path) as (database_url, queue_url, queue_name):
+        data_dir = tmp_path / "data"
+        data_dir.mkdir()
+        env = {**os.environ, **TEST_SETTINGS, "LEAGUE_DATA_DIR": str(data_dir), "LEAGUE_DATABASE_URL": database_url,
+               "LEAGUE_QUEUE_URL": queue_url, "LEAGUE_QUEUE_NAME": queue_name,
+               "LEAGUE_CPU_SLOTS_DIR": str(tmp_path / "cpu-slots"), "LEAGUE_BASELINES_DIR": str(data_dir / "baselines")}
+        old = LeagueServer({**env, "PYTHONPATH": str(releases[commit])}, data_dir, root=releases[commit])
+        added = old.command("users", "add", "prof", "--role", "instructor")  # (which created the database then)
+        assert added.returncode == 0, added.stderr
+        old.instructor_token = added.stdout.strip()
+        old.start_api()
+        try:
+            tokens = semester(old, models)
+            drained(old)
+            before = collect(old.url, old.instructor_token, tokens)
+        finally:
+            old.stop_all()
+
+        new = LeagueServer({**env, "PYTHONPATH": str(REPO)}, data_dir, instructor_token=old.instructor_token)
+        if RELEASES[commit] != head_revision():  # this code's workers do not run on the old schema
+            refused = new.command("worker")
+            assert refused.returncode == 2
+            assert refused.stderr.splitlines()[-1] == (
+                f"league: error: this database is at revision {RELEASES[commit]}, older than this installation's "
+                f"{head_revision()}: run `league migrate` (back it up first: `league backup FILE`)")
+        migrated = new.command("migrate")
+        assert migrated.returncode == 0, migrated.stderr
+        assert migrated.stderr.splitlines()[-1] in (f"league: migrated from schema revision {RELEASES[commit]} to "
+                                                    f"{head_revision()}",
+                                                    f"league: already at schema revision {head_revision()}: nothing to do")
+        new.start_api()
+        try:
+            after = collect(new.url, new.instructor_token, tokens)  # the old tokens still work, too
+        finally:
+            new.stop_all()
+    assert before.keys() == after.keys()
+    assert [d for path in before for d in differences(before[path], after[path], path, common_fields_only=True)] == []
