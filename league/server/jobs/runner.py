@@ -18,9 +18,10 @@ from typing import Any, Mapping, Protocol
 
 from sqlalchemy.orm import Session, sessionmaker
 
+from league.server.assignments import close_due
 from league.server.config import Settings
 from league.server.db import crud
-from league.server.db.models import Job, Submission
+from league.server.db.models import Job, Submission, utcnow
 from league.server.jobs import leases
 from league.server.jobs.placement import Placement
 from league.server.jobs.queue import JobQueue
@@ -181,11 +182,14 @@ def release_active(context: WorkerContext) -> list[int]:
 
 
 def reap(context: WorkerContext, requeue_queued_after_s: float | None = None) -> list[int]:
-    """One reaper pass (league.server.jobs.leases.reap), sending what it freed to the queue."""
+    """One reaper pass (league.server.jobs.leases.reap), sending what it freed to the queue; and the
+    private tests of the due times that passed (league.server.assignments.close_due)."""
     settings = context.settings
     resend = settings.requeue_queued_after_s if requeue_queued_after_s is None else requeue_queued_after_s
     sent = leases.reap(context.sessions, context.handlers, lease_timeout_s=settings.lease_timeout_s,
                        requeue_queued_after_s=resend)
+    with context.sessions.begin() as session:
+        sent += close_due(session, now=utcnow(), max_attempts=settings.max_job_attempts)
     for job_id in sent:
         context.queue.enqueue(job_id)
     return sent
