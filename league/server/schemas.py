@@ -1,15 +1,15 @@
 """Request and response bodies of the API (they make the OpenAPI page at /docs)."""
 from __future__ import annotations
 
-from datetime import datetime
+from datetime import datetime, timezone
 from typing import Annotated, Any, Literal
 
 from pydantic import AwareDatetime, BaseModel, ConfigDict, Field, PlainSerializer, model_validator
 
 DbId = Annotated[int, Field(ge=1, le=2**63 - 1)]  # a row's id: a 64-bit integer
 # a UTC time shown with its zone as "+00:00" (assignments' times); taken with any zone, never without one
-UtcTime = Annotated[AwareDatetime, PlainSerializer(lambda t: t.isoformat(timespec="seconds"), return_type=str,
-                                                   when_used="json")]
+UtcTime = Annotated[AwareDatetime, PlainSerializer(lambda t: t.astimezone(timezone.utc).isoformat(timespec="seconds"),
+                                                   return_type=str, when_used="json")]
 
 
 class UserOut(BaseModel):
