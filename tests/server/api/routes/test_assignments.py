@@ -313,3 +313,39 @@ def test_assignment_settings_are_validated_and_names_unique(league):
         assert zone.json()["due_at"] == "2030-03-08T23:59:00+00:00"
     _, student = league.student()
     assert student.post("/api/assignments", json={"name": unique("a")}).status_code == 403
+
+
+def test_the_cli_creates_extends_lists_and_selects(league, clock, monkeypatch, capsys):
+    """`league assignments create|extend|publish`, `league assignments`, `league select`, against the app
+    itself (the CLI's HTTP client given the app's transport)."""
+    from league import client as cli_client
+    from league.cli import main
+
+    def api_on_the_app(self, conn, timeout: float = 60):
+        self.conn, self.http = conn, league.client(conn.token)
+
+    monkeypatch.setattr(cli_client.Api, "__init__", api_on_the_app)
+    monkeypatch.setenv("LEAGUE_SERVER", "http://testserver")
+    student_user, student_token = league.user("cli")
+    name = unique("cli-hw")
+
+    def league_cli(token: str, *args: str) -> str:
+        monkeypatch.setenv("LEAGUE_TOKEN", token)
+        assert main(list(args)) == 0
+        return capsys.readouterr().out
+
+    clock.set(T0)
+    league_cli(league.instructor_token, "assignments", "create", name, "--due", T1.isoformat(), "--episodes", "3")
+    league_cli(league.instructor_token, "assignments", "extend", name, student_user.name,
+               "--due", "2030-03-09T23:59:00+00:00")
+    with league.sessions() as session:
+        assignment_id = [a.id for a in crud.course_assignments(session, course_id=student_user.course_id)
+                         if a.name == name][0]
+    agent = ready(league, student_user, assignment_id, completed=2)
+    listing = league_cli(student_token, "assignments", "--csv")
+    row = [line for line in listing.splitlines() if name in line][0]
+    assert "(extension)" in row and ",\"open\"," in row and "8d 14h 59m" in row  # 2030-03-01 09:00 to 03-09 23:59
+    selected = league_cli(student_token, "select", str(agent))
+    assert f"your final submission is {agent}" in selected
+    monkeypatch.setenv("LEAGUE_TOKEN", league.instructor_token)
+    assert main(["assignments", "publish", name]) == cli_client.EXIT_REFUSED  # students may still upload
