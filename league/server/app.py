@@ -18,12 +18,12 @@ from league.server.api.cache import ResponseCache
 from league.server.api.limits import KB, BodyLimits, Limit
 from league.server.api.main import api_router
 from league.server.api.routes.pages import MAX_TRACK_BYTES, mount_web
-from league.server.assignments import close_due
 from league.server.bootstrap import bootstrap
 from league.server.clock import Clock
 from league.server.config import Settings, load_settings
 from league.server.db.session import check_schema, make_engine, make_sessionmaker, revision_of
 from league.server.jobs.queue import JobQueue, build_queue
+from league.server.jobs.runner import close_due_now
 from league.server.jobs.worker import sweep_store
 from league.server.roster import MAX_ROSTER_BYTES
 from league.server.sandbox.process import ForkServer, sandbox_isolation
@@ -65,11 +65,8 @@ def prepare_league(league_: League) -> None:
 def catch_up(league_: League) -> list[int]:
     """Freeze and queue the private tests of the due times that passed while the league was down (the
     reaper's passes do it while it runs)."""
-    with league_.sessions.begin() as session:
-        job_ids = close_due(session, now=league_.clock.now(), max_attempts=league_.settings.max_job_attempts)
-    for job_id in job_ids:
-        league_.queue.enqueue(job_id)
-    return job_ids
+    return close_due_now(league_.sessions, league_.queue, max_attempts=league_.settings.max_job_attempts,
+                         now=league_.clock.now())
 
 
 @asynccontextmanager

@@ -13,9 +13,11 @@ import socket
 import threading
 import uuid
 from dataclasses import dataclass, field
+from datetime import datetime
 from pathlib import Path
 from typing import Any, Mapping, Protocol
 
+from sqlalchemy.exc import IntegrityError, OperationalError
 from sqlalchemy.orm import Session, sessionmaker
 
 from league.server.assignments import close_due
@@ -188,11 +190,25 @@ def reap(context: WorkerContext, requeue_queued_after_s: float | None = None) ->
     resend = settings.requeue_queued_after_s if requeue_queued_after_s is None else requeue_queued_after_s
     sent = leases.reap(context.sessions, context.handlers, lease_timeout_s=settings.lease_timeout_s,
                        requeue_queued_after_s=resend)
-    with context.sessions.begin() as session:
-        sent += close_due(session, now=utcnow(), max_attempts=settings.max_job_attempts)
     for job_id in sent:
         context.queue.enqueue(job_id)
-    return sent
+    return sent + close_due_now(context.sessions, context.queue, max_attempts=settings.max_job_attempts)
+
+
+def close_due_now(sessions: sessionmaker[Session], queue: JobQueue, *, max_attempts: int,
+                  now: datetime | None = None) -> list[int]:
+    """Freeze the finals that came due and send their private tests to the queue. Another process
+    doing the same at the same moment (a worker's reaper, the API starting) may win a student's row
+    first: this pass then gives way, and the next one finds it done."""
+    try:
+        with sessions.begin() as session:
+            job_ids = close_due(session, now=now or utcnow(), max_attempts=max_attempts)
+    except (IntegrityError, OperationalError) as error:
+        log.warning("due-time pass gave way to another process: %s", error)
+        return []
+    for job_id in job_ids:
+        queue.enqueue(job_id)
+    return job_ids
 
 
 class Heartbeat:
