@@ -262,7 +262,8 @@ class RaceOut(BaseModel):
     id: int
     status: str = Field(description="pending, running, done or failed")
     error: str | None
-    seed: int
+    seed: int | None = Field(description="the track and start; null while the race is a heat of a round still "
+                                         "being raced (a round's track is secret until then)")
     env_options: dict[str, Any]
     versions: dict[str, Any] | None = Field(description="what raced it: {physics, track_format, package}; "
                                                         "null until done")
@@ -286,7 +287,8 @@ class ChampionshipCreate(BaseModel):
     points: list[int] = Field(default_factory=lambda: [25, 18, 15, 12, 10, 8, 6, 4, 2, 1], min_length=1,
                               max_length=100, description="points by finishing position in a heat")
     include_baselines: bool = True
-    seed: int | None = Field(None, ge=0, lt=2**63, description="the rounds' tracks and heats; default: drawn")
+    seed: int | None = Field(None, ge=0, lt=2**63, description="draws the rounds' heats (who races whom); "
+                                                               "default: drawn. Tracks are drawn secretly per round")
 
 
 class RoundOut(BaseModel):
@@ -295,7 +297,8 @@ class RoundOut(BaseModel):
     heats_done: int
     heats_total: int
     race_ids: list[int]
-    track_seed: int
+    track_seed: int | None = Field(description="the round's track, drawn secretly when the round is created; "
+                                               "null until the round is over (done or failed)")
     heats: list[list[int]] = Field(description="submission ids of each heat")
     created_at: datetime
 
@@ -307,7 +310,7 @@ class ChampionshipOut(BaseModel):
     heat_size: int
     points: list[int]
     include_baselines: bool
-    seed: int
+    seed: int = Field(description="draws each round's heats; the tracks do not derive from it")
     created_at: datetime
     rounds: list[RoundOut]
 

@@ -544,7 +544,7 @@ def test_instructor_runs_a_round_opens_a_replay_and_the_standings_break_ties(web
     championship = unique("Cup")
     web.page.fill("#champ-name", championship)
     web.page.fill("#champ-heat", "4")
-    web.page.fill("#champ-seed", "11")  # reproducible tracks and heats
+    web.page.fill("#champ-seed", "11")  # reproducible heats (the track is drawn secretly)
     web.page.fill("#champ-points", "10, 10")  # every heat's first two level on points: ties to break
     web.page.click("#championship-form button[type=submit]")
     card = web.page.locator("[data-championship]", has_text=championship)

@@ -232,7 +232,7 @@ class Championship(Base):
     heat_size: Mapped[int] = mapped_column(Integer)
     points: Mapped[list[Any]] = mapped_column()
     include_baselines: Mapped[bool] = mapped_column(default=True)
-    seed: Mapped[int] = mapped_column(BigInteger)  # the rounds' tracks and heat draws come from it
+    seed: Mapped[int] = mapped_column(BigInteger)  # the rounds' heat draws (tracks: drawn secretly per round)
     created_by_id: Mapped[int | None] = mapped_column(ForeignKey("users.id"))
     created_at: Mapped[datetime] = mapped_column(default=utcnow)
 
@@ -240,8 +240,9 @@ class Championship(Base):
 
 
 class ChampionshipRound(Base):
-    """One round: its track seed and its heats (lists of submission ids), fixed when it is created,
-    so the round can be raced again from what is stored. Its status follows from its heats' races."""
+    """One round: its track seed (drawn secretly, shown once the round is over) and its heats (lists
+    of submission ids), fixed when it is created, so the round can be raced again from what is
+    stored. Its status follows from its heats' races."""
 
     __tablename__ = "championship_rounds"
     __table_args__ = (UniqueConstraint("championship_id", "number"),)

@@ -18,7 +18,7 @@ from league.server.db import crud
 from league.server.db.models import (
     BASELINE, DONE, FAILED, READY, STUDENT, ChampionshipRound, Race, RaceReplay, Submission, User, utcnow,
 )
-from league.server.rounds import create_race
+from league.server.rounds import create_race, track_sealed
 from league.server.schemas import RaceCreate, RaceCreated, RaceOut, RacePage
 
 router = APIRouter(prefix="/races", tags=["races"])
@@ -94,6 +94,10 @@ def read_race(race_id: Id, session: SessionDep) -> RaceOut:
 def read_replay(race_id: Id, request: Request, session: SessionDep) -> Response:
     """The race's replay, as `league race --replay` writes it: what the race viewer plays (public)."""
     race = existing_race(session, race_id)
+    heat_of = heat_round(session, race)
+    if heat_of is not None and track_sealed(heat_of):  # a replay shows the track
+        raise HTTPException(status.HTTP_409_CONFLICT, f"race {race_id} is a heat of round {heat_of.number}, which is "
+                            "still being raced: its replay is shown once every heat of the round is over")
     replay = session.get(RaceReplay, race.id)
     if replay is None and race.status == FAILED:
         raise HTTPException(status.HTTP_409_CONFLICT, f"race {race_id} failed, so it has no replay: {race.error}")
@@ -135,9 +139,16 @@ def existing_race(session: Session, race_id: int) -> Race:
     return race
 
 
+def heat_round(session: Session, race: Race) -> ChampionshipRound | None:
+    """The championship round `race` is a heat of, if any."""
+    return session.get(ChampionshipRound, race.round_id) if race.round_id else None
+
+
 def race_out(session: Session, race: Race) -> RaceOut:
-    championship_round = session.get(ChampionshipRound, race.round_id) if race.round_id else None
-    return RaceOut(id=race.id, status=race.status, error=race.error, seed=race.seed, env_options=race.env_options,
+    championship_round = heat_round(session, race)
+    sealed = championship_round is not None and track_sealed(championship_round)
+    return RaceOut(id=race.id, status=race.status, error=race.error, seed=None if sealed else race.seed,
+                   env_options=race.env_options,
                    versions=race.versions, created_at=race.created_at, finished_at=race.finished_at,
                    championship_id=race.championship_id,
                    round=championship_round.number if championship_round else None, heat=race.heat,

@@ -360,9 +360,10 @@ def test_a_round_with_students_baselines_and_a_broken_agent_completes(season):
     for number, (round_, races) in enumerate(zip(season.rounds, season.races), start=1):
         created, done = round_["created"], round_["done"]
         assert created["number"] == number and created["status"] in ("pending", "running")
+        assert created["track_seed"] is None  # drawn secretly, shown once the round is over
         assert done["status"] == "done"
         assert done["heats_done"] == done["heats_total"] == 2 == len(done["heats"])
-        assert done["track_seed"] == episode_seeds(SEASON_SEED, number)[number - 1]
+        assert isinstance(done["track_seed"], int) and done["track_seed"] != episode_seeds(SEASON_SEED, number)[number - 1]
         assert sorted(i for heat in done["heats"] for i in heat) == entrant_ids(season)
         assert [len(heat) for heat in done["heats"]] == [3, 3]  # 6 entrants in heats of at most 3
         for k, (heat, race) in enumerate(zip(done["heats"], races), start=1):
@@ -401,6 +402,7 @@ def test_a_round_with_students_baselines_and_a_broken_agent_completes(season):
     assert sorted(r["id"] for r in season.listed["items"]) == sorted(race_ids)
     assert (season.replay["format"], season.replay["version"]) == ("microracer-replay", 1)
     assert len(season.replay["cars"]) == len(season.races[0][0]["entrants"])
+    assert season.replay["seed"] == season.rounds[0]["done"]["track_seed"]  # the round's track, shown now
 
 
 def test_every_heat_raced_again_locally_classifies_the_same(season):
