@@ -56,6 +56,9 @@ def add_commands(subparsers) -> None:
                                        "the sandboxes it starts inherit them. Not needed to share a machine: "
                                        "the workers of one machine split its CPUs by themselves "
                                        "(LEAGUE_CPU_SLOTS_DIR)")
+    worker.add_argument("--check", action="store_true",
+                        help="exit 0 if the worker using this data directory reached the database recently, "
+                             "else 1 with the reason (a container's health check; runs no worker)")
     worker.set_defaults(run=run_worker)
 
     init = subparsers.add_parser("init", parents=[where], help="create a new league's database",
@@ -237,6 +240,8 @@ def run_worker(args: argparse.Namespace) -> int:
 
     _logging()
     settings, sources = _setup(args, log.warning)
+    if args.check:
+        return check_worker(settings)
     cpus = args.cpus if args.cpus is not None else settings.worker_cpus
     if cpus:
         try:
@@ -250,6 +255,16 @@ def run_worker(args: argparse.Namespace) -> int:
     context = worker_context(settings, engine)
     log.info("worker: queue %s", type(context.queue.huey).__name__)
     Worker(context, threads=args.threads or settings.worker_threads).run_forever()
+    return 0
+
+
+def check_worker(settings: Settings) -> int:
+    from league.server.jobs.alive import alive_file, stale_reason
+
+    reason = stale_reason(alive_file(settings.data_dir), settings.reaper_interval_s)
+    if reason:
+        print(f"league worker --check: unhealthy: {reason}", file=sys.stderr)
+        return 1
     return 0
 
 

@@ -33,7 +33,6 @@ OTHER_VARIABLES = {
     "LEAGUE_SERVER": "the league server the student commands (`league submit`, ...) talk to",
     "LEAGUE_TOKEN": "the API token of those commands",
     "LEAGUE_DEBUG": "any value: a failing `league` command prints its traceback",
-    "LEAGUE_WEB_DIR": "the folder of the web pages the server serves (default: the package's)",
 }
 OWN_PREFIXES = ("LEAGUE_TEST_", "LEAGUE_BENCH_")  # the test suite's and the benchmarks' own variables
 

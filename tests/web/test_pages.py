@@ -25,7 +25,7 @@ from .conftest import instructor_of_a_new_course, require_browser, student_token
 require_browser()
 
 # The first cars' colours (the toolkit's, league/render.py) and a finished episode's (Okabe–Ito,
-# web/static/js/palette.js).
+# league/web/static/js/palette.js).
 CAR_COLORS = [tuple(color) for color in render.CAR_COLORS[:4]]
 FINISHED_COLOR = (0x00, 0x9E, 0x73)
 # CIEDE2000 above 10: two colours are clearly different at a glance.

@@ -5,6 +5,7 @@
     runner.py     running one job: claim, heartbeats while its handler works, the outcome
     worker.py     a worker process: Huey's consumer running jobs on threads, and the reaper
     placement.py  which CPUs a job thread and its sandboxes use
+    alive.py      the worker's sign of life on its machine (`league worker --check`)
     handlers.py   every kind of job, by name: validate.py, evaluate.py, race.py
 
 Why both a queue and leases in the database: Huey is a small, well-kept queue that wakes workers
