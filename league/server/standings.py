@@ -14,7 +14,7 @@ from sqlalchemy.orm import Session
 from league import championship as rules
 from league.server import results
 from league.server.db import crud
-from league.server.db.models import BASELINE, DONE, STUDENT, Championship, ChampionshipRound, Course
+from league.server.db.models import BASELINE, DELETED, DONE, STUDENT, Championship, ChampionshipRound, Course
 
 
 def finished_heats(rounds: list[ChampionshipRound]) -> list[list[dict]]:
@@ -50,8 +50,8 @@ def standings_rows(session: Session, championship: Championship) -> list[dict]:
     for rank, standing in enumerate(table, start=1):
         submission, rating = submissions.get(standing.entrant), ratings[standing.entrant]
         rows.append({"rank": rank, "submission_id": standing.entrant,
-                     "name": submission.name if submission else "(deleted)",
-                     "owner": submission.owner.name if submission else "", "points": standing.points,
+                     "name": submission.name if submission else DELETED,
+                     "owner": submission.owner.name if submission else DELETED, "points": standing.points,
                      "wins": standing.wins, "finishes": standing.finishes, "rating": rating.conservative,
                      "mu": rating.mu, "sigma": rating.sigma})
     return rows
