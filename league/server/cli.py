@@ -130,8 +130,17 @@ def add_commands(subparsers) -> None:
     delete.set_defaults(run=run_users_delete)
 
 
-def _logging() -> None:
-    logging.basicConfig(level=logging.INFO, format="%(asctime)s %(levelname)s %(name)s: %(message)s")
+def _logged_setup(args: argparse.Namespace) -> tuple[Settings, dict[str, str]]:
+    """serve's and worker's settings, then their logging as the settings say (league/server/logs.py);
+    the settings' warnings are logged in that format."""
+    from league.server.logs import configure
+
+    warnings: list[str] = []
+    settings, sources = _setup(args, warnings.append)
+    configure(settings)
+    for warning in warnings:
+        log.warning(warning)
+    return settings, sources
 
 
 def _say(text: str) -> None:
@@ -185,9 +194,9 @@ def run_serve(args: argparse.Namespace) -> int:
     from league.server.api.connections import connection_limits, uvicorn_protocols
     from league.server.app import create_app, open_league
     from league.server.db.session import migrate
+    from league.server.logs import log_config
 
-    _logging()
-    settings, sources = _setup(args, log.warning)
+    settings, sources = _logged_setup(args)
     protocols = uvicorn_protocols(connection_limits(settings))
     engine, _ = _open(settings, sources, log.info, create=True)
     before, after = migrate(engine)
@@ -198,8 +207,8 @@ def run_serve(args: argparse.Namespace) -> int:
     # uvicorn raises the SIGTERM or SIGINT it stopped on again once it is done: end here, not die there
     signal.signal(signal.SIGTERM, _exit_on_signal)
     try:
-        uvicorn.run(create_app(settings, league_), host=args.host, port=args.port, log_level="info",
-                    **protocols)
+        uvicorn.run(create_app(settings, league_), host=args.host, port=args.port, log_level=settings.log_level,
+                    log_config=log_config(settings.log_format, settings.log_level), **protocols)
     except KeyboardInterrupt:
         pass
     finally:
@@ -245,8 +254,7 @@ def run_worker(args: argparse.Namespace) -> int:
     from league.server.jobs.runner import lower_session_priority
     from league.server.jobs.worker import Worker, pin_to_cpus, worker_context
 
-    _logging()
-    settings, sources = _setup(args, log.warning)
+    settings, sources = _logged_setup(args)
     cpus = args.cpus if args.cpus is not None else settings.worker_cpus
     if cpus:
         try:
