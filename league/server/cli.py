@@ -404,6 +404,7 @@ def run_users_list(args: argparse.Namespace) -> int:
 
 
 def run_users_revoke(args: argparse.Namespace) -> int:
+    from league.server import audit
     from league.server.db import crud
 
     with _sessions(args).begin() as session:
