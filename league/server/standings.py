@@ -131,7 +131,7 @@ def grade_rows(session: Session, rows: list[dict], *, course_id: int | None, col
     enrolled = set(students)
     mine = [{**row, "student": row["owner"], "agent": row["name"], "heats": len(row.get("finishes", ())),
              **(dict.fromkeys(STALE_FIGURES) if row.get("stale") else {}), "stale": "yes" if row.get("stale") else None}
-            for row in rows if row["owner"] in enrolled]
+            for row in rows if row["owner"] in enrolled and row["submission_id"] > 0]  # < 0: a deleted student's
     ranked = {row["student"] for row in mine}
     mine += [{"student": name} for name in students if name not in ranked]
     return [[row.get(column) for column in columns] for row in mine]
