@@ -187,3 +187,20 @@ def test_league_users_delete_asks_and_erases(tmp_path):
         actions = [(e.action, e.actor_name) for e in session.scalars(select(AuditEvent).order_by(AuditEvent.id))]
     engine.dispose()
     assert actions == [("user.create", "league CLI"), ("user.delete", "league CLI")]
+
+
+def test_an_upload_or_race_of_a_student_deleted_meanwhile_is_refused(tmp_path):
+    """A request whose token was accepted just before the deletion finds the account gone when it
+    takes the student's row (uploads and races do, to check their quotas): 401, not a broken row."""
+    from fastapi import HTTPException
+
+    from league.server.api.deps import lock_account
+    from league.server.erasure import delete_student
+
+    with in_process_league("sqlite", tmp_path, bootstrap=False) as league:
+        student, _ = league.user("gil")
+        with league.sessions.begin() as session:
+            delete_student(session, user=session.get(User, student.id))
+        with league.sessions() as session, pytest.raises(HTTPException) as refusal:
+            lock_account(session, student)
+    assert (refusal.value.status_code, refusal.value.detail) == (401, "this account was deleted")

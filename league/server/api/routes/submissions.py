@@ -10,7 +10,9 @@ from fastapi.concurrency import run_in_threadpool
 from starlette.datastructures import UploadFile  # what a parsed form holds
 
 from league.server.api.cache import etag_response
-from league.server.api.deps import CurrentUser, Id, SessionDep, check_jobs_in_flight, check_upload_quota
+from league.server.api.deps import (
+    CurrentUser, Id, SessionDep, check_jobs_in_flight, check_upload_quota, lock_account,
+)
 from league.server.db import crud
 from league.server.logs import log_refused_upload
 from league.server.db.models import INSTRUCTOR, READY, STUDENT, Evaluation, Submission, User
@@ -72,7 +74,7 @@ def submit(league_, user: User, file: UploadFile, name: str | None, kind: str) -
     display_name = (name or "").strip() or PurePath(file.filename).stem
     try:
         with league_.sessions.begin() as session:
-            crud.lock_user(session, user_id=user.id)
+            lock_account(session, user)
             if user.role == STUDENT:
                 check_upload_quota(session, user, settings.quota_per_day)
                 check_jobs_in_flight(session, user, settings.max_jobs_in_flight)

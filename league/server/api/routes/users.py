@@ -143,7 +143,8 @@ def erase_student(user_id: Id, session: SessionDep, instructor: InstructorUser, 
     model files, evaluations; races other students took part in keep their results, the student's cars
     shown as "deleted student". 409 while a championship heat with their car is still to race."""
     user = course_student(session, instructor, user_id)
-    crud.lock_user(session, user_id=user.id)  # no upload or race of theirs starts meanwhile
+    if not crud.lock_user(session, user_id=user.id):  # no upload or race of theirs starts meanwhile
+        raise HTTPException(status.HTTP_404_NOT_FOUND, "no such student in your course")  # deleted meanwhile
     try:
         erased = delete_student(session, user=user)
     except DeletionRefused as refusal:
