@@ -1,11 +1,18 @@
 """Log lines (league/server/logs.py): with log_format=json every line the server and its worker write
 is one JSON object with a timestamp, uvicorn's included; job lines carry the job, submission, user,
-outcome and duration; a refused upload is logged with the user, the reason and the size; no token."""
+outcome and duration; a refused upload is logged with the user, the reason and the size; no token.
+The same run's /metrics hold what its worker left in the database."""
 from __future__ import annotations
 
 import json
 import logging
 
+import pytest
+from prometheus_client.parser import text_string_to_metric_families
+from sqlalchemy import func, select
+
+from league.server.db.models import Job
+from league.server.db.session import make_engine
 from league.server.logs import TextFormatter, log_config
 
 from . import model_factory as mf
@@ -24,6 +31,13 @@ def test_json_lines_from_the_api_uvicorn_and_the_worker(tmp_path):
             uploaded = upload(student, mf.onnx_heuristic(tmp_path / "lou.onnx"))
             settled = wait_settled(student, uploaded.json()["id"])
             user_id = student.get("/api/users/me").json()["id"]
+            with server.client(server.instructor_token) as instructor:  # the jobs' figures, as workers left them
+                metrics = instructor.get("/metrics").text
+            engine = make_engine(server.env["LEAGUE_DATABASE_URL"])
+            with engine.connect() as connection:
+                job_counts = connection.execute(select(Job.kind, Job.status, func.count())
+                                                .group_by(Job.kind, Job.status)).all()
+            engine.dispose()
         finally:
             server.stop_all()
         text = (server.data_dir / "api.log").read_text()
@@ -41,6 +55,16 @@ def test_json_lines_from_the_api_uvicorn_and_the_worker(tmp_path):
     assert [(r["user_id"], r["size"]) for r in refusals] == [(user_id, 5)]
     assert "unsupported file type" in refusals[0]["reason"]
     assert token not in text and server.instructor_token not in text
+
+    samples = {(s.name, tuple(sorted(s.labels.items()))): s.value
+               for family in text_string_to_metric_families(metrics) for s in family.samples}
+    assert {labels: n for (name, labels), n in samples.items() if name == "league_jobs"} == \
+        {(("kind", k), ("status", st)): n for k, st, n in job_counts}
+    assert samples[("league_job_duration_seconds_count", (("kind", "validate"),))] == 1
+    assert samples[("league_job_duration_seconds_count", (("kind", "evaluate"),))] == 1
+    assert samples[("league_job_duration_seconds_sum", (("kind", "evaluate"),))] == \
+        pytest.approx(jobs["evaluate"]["duration_s"], rel=0.5, abs=1.0)  # the job line's own measure
+    assert samples[("league_validations_total", (("outcome", "ok"),))] == 1
 
 
 def test_text_lines_carry_a_utc_timestamp():
