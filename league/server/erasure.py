@@ -1,7 +1,8 @@
 """Deleting a student: their data erased, not hidden (`league users delete`, DELETE /api/users/{id}).
 
 Erased: the account and its token, its submissions, their evaluations, episodes and jobs, the
-model files no other submission uses, and the friendly races no other student's car took part in.
+model files no other submission uses, the friendly races no other student's car took part in, and
+the friendly races with the student's car still to run.
 Kept: the races and championship heats other students took part in, with the student's cars
 shown as DELETED (entrant, classification and replay; the race log loses the car's output) and
 their submission ids replaced by the negated id, which no row ever gets: standings keep every
@@ -74,7 +75,8 @@ def delete_student(session: Session, *, user: User) -> Erased:
 
 
 def _erase_races(session: Session, user: User, ids: set[int], erased: Erased) -> None:
-    """Delete the student's friendly races no other student raced in; scrub the others."""
+    """Delete the student's friendly races no other student raced in and the friendly races with
+    their car still to run; scrub the others (championship heats always)."""
     races = {race.id: race for race in session.scalars(select(Race).where(Race.created_by_id == user.id))}
     races.update({race.id: race for race in _races_with(session, ids)})
     for race in races.values():
