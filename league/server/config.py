@@ -15,7 +15,7 @@ import json
 import os
 import tempfile
 from pathlib import Path
-from typing import Any, Mapping
+from typing import Any, Literal, Mapping
 from urllib.parse import urlsplit
 
 from dotenv import dotenv_values
@@ -141,6 +141,16 @@ class Settings(BaseSettings):
     reaper_interval_s: float = Field(10.0, description="how often each worker looks for jobs whose worker stopped")
     requeue_queued_after_s: float = Field(600.0, description="re-send a job left queued this long (lost message)")
     max_job_attempts: int = Field(3, description="a job whose worker dies this many times fails for good")
+
+    # monitoring (league/server/observability.py)
+    metrics_token: SecretStr | None = Field(None, description="a bearer token that reads /metrics (Prometheus' "
+                                                              "`authorization` credentials) and nothing else; "
+                                                              "instructors' tokens read it too")
+    log_format: Literal["text", "json"] = Field("text", description="log lines of the API, uvicorn and the workers: "
+                                                                   "text (timestamp level logger: message) or json "
+                                                                   "(one object a line)")
+    log_level: Literal["debug", "info", "warning", "error"] = Field("info", description="the least severe log "
+                                                                                        "lines written")
 
     def sandbox_limits(self) -> SandboxLimits:
         """What each sandbox may use, in the toolkit's units."""

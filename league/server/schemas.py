@@ -371,3 +371,23 @@ class PackageOut(BaseModel):
     python: str = Field(description="the server's Python (a wheel installs on this version only)")
     platform: str = Field(description="the server's platform (a wheel installs on this platform only)")
     files: list[PackageFileOut]
+
+
+class AuditEventOut(BaseModel):
+    model_config = ConfigDict(from_attributes=True)
+
+    id: int
+    at: datetime
+    actor_id: int | None = Field(description="the instructor's user id; null: an admin command (`league ...`)")
+    actor_name: str
+    action: str = Field(description="user.create, user.import, user.revoke, user.token, user.delete, job.cancel, "
+                                    "evaluation.rerun, settings.evaluation, championship.create, round.run, "
+                                    "round.retry")
+    target_kind: str = Field(description="user, job, submission, course, championship or roster")
+    target_id: int | None
+    details: dict[str, Any] = Field(description="ids and figures of the action (never a token; never a deleted "
+                                                "student's name)")
+
+
+class AuditPage(Page):
+    items: list[AuditEventOut]

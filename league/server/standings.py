@@ -14,7 +14,7 @@ from sqlalchemy.orm import Session
 from league import championship as rules
 from league.server import results
 from league.server.db import crud
-from league.server.db.models import BASELINE, DONE, STUDENT, Championship, ChampionshipRound, Course
+from league.server.db.models import BASELINE, DELETED, DONE, STUDENT, Championship, ChampionshipRound, Course
 
 
 def finished_heats(rounds: list[ChampionshipRound]) -> list[list[dict]]:
@@ -50,8 +50,8 @@ def standings_rows(session: Session, championship: Championship) -> list[dict]:
     for rank, standing in enumerate(table, start=1):
         submission, rating = submissions.get(standing.entrant), ratings[standing.entrant]
         rows.append({"rank": rank, "submission_id": standing.entrant,
-                     "name": submission.name if submission else "(deleted)",
-                     "owner": submission.owner.name if submission else "", "points": standing.points,
+                     "name": submission.name if submission else DELETED,
+                     "owner": submission.owner.name if submission else DELETED, "points": standing.points,
                      "wins": standing.wins, "finishes": standing.finishes, "rating": rating.conservative,
                      "mu": rating.mu, "sigma": rating.sigma})
     return rows
@@ -131,7 +131,7 @@ def grade_rows(session: Session, rows: list[dict], *, course_id: int | None, col
     enrolled = set(students)
     mine = [{**row, "student": row["owner"], "agent": row["name"], "heats": len(row.get("finishes", ())),
              **(dict.fromkeys(STALE_FIGURES) if row.get("stale") else {}), "stale": "yes" if row.get("stale") else None}
-            for row in rows if row["owner"] in enrolled]
+            for row in rows if row["owner"] in enrolled and row["submission_id"] > 0]  # < 0: a deleted student's
     ranked = {row["student"] for row in mine}
     mine += [{"student": name} for name in students if name not in ranked]
     return [[row.get(column) for column in columns] for row in mine]

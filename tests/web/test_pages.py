@@ -628,3 +628,31 @@ def test_student_picks_the_active_submission(web, web_server, agent_files):
     web.page.locator(f"#submissions tr[data-id='{older}'] .badge.active").wait_for()
     assert wait_for(lambda: web_server.client(token).get(f"/api/submissions/{older}").json(),
                     lambda s: s.get("active") is True)
+
+
+def test_instructor_deletes_a_student_after_a_confirmation_and_reads_it_in_the_audit_log(web, web_server):
+    token = instructor_of_a_new_course(web_server)
+    name = unique("dee")
+    with web_server.client(token) as instructor:
+        student = instructor.post("/api/users", json={"name": name}).json()
+    web.login(token)
+    delete = f"#users [data-focus-key='delete-{student['id']}']"
+    expect(web.page.locator(delete)).to_have_accessible_name(f"Delete {name} and their data")
+
+    web.page.click(delete)  # asks first: cancelling keeps the student
+    web.page.wait_for_selector("#delete-dialog[open]")
+    expect(web.page.locator("#delete-title")).to_have_text(f"Delete {name} and their data?")
+    web.page.click("#delete-dialog button[value=cancel]")
+    assert web_server.client(student["token"]).get("/api/users/me").status_code == 200
+
+    web.page.click(delete)
+    web.page.click("#delete-dialog button[value=delete]")
+    expect(web.page.locator("#students-message")).to_have_text(f"{name} and their data are deleted.")
+    expect(web.page.locator(delete)).to_have_count(0)
+    assert web_server.client(student["token"]).get("/api/users/me").status_code == 401
+
+    web.page.click("#refresh-audit")
+    newest = web.page.locator("#audit tbody tr").first
+    expect(newest).to_contain_text("user.delete")
+    expect(newest).to_contain_text(f"user #{student['id']}")
+    expect(web.page.locator("#audit")).not_to_contain_text(name)  # the deleted student's name is not kept

@@ -109,6 +109,13 @@ def check_env_options(options: dict) -> None:
         raise HTTPException(status.HTTP_422_UNPROCESSABLE_CONTENT, f"invalid env_options: {error}") from error
 
 
+def lock_account(session: Session, user: User) -> None:
+    """Hold the user's row for this transaction (crud.lock_user); 401 if the account was deleted
+    since its token was checked."""
+    if not crud.lock_user(session, user_id=user.id):
+        raise unauthorized("this account was deleted")
+
+
 def check_upload_quota(session: Session, user: User, limit: int) -> None:
     usage = crud.quota_usage(session, owner=user, limit=limit)
     if usage.exhausted:

@@ -148,10 +148,11 @@ class QuotaUsage:
         return self.used >= self.limit
 
 
-def lock_user(session: Session, *, user_id: int) -> None:
+def lock_user(session: Session, *, user_id: int) -> bool:
     """Hold the user's row until the transaction ends (PostgreSQL: a row lock; SQLite: the database's
-    write lock), so that checking a quota and using it are one step for concurrent requests."""
-    session.execute(update(User).where(User.id == user_id).values(id=User.id))
+    write lock), so that checking a quota and using it are one step for concurrent requests.
+    False if the user is gone (deleted meanwhile: league.server.erasure)."""
+    return bool(session.execute(update(User).where(User.id == user_id).values(id=User.id)).rowcount)
 
 
 def jobs_in_flight(session: Session, *, owner_id: int) -> int:

@@ -15,6 +15,7 @@ from sqlalchemy.types import TypeDecorator
 
 # roles
 INSTRUCTOR, STUDENT, BASELINE = "instructor", "student", "baseline"
+DELETED = "deleted student"  # what races and standings show for a deleted student (league.server.erasure)
 
 # submission statuses (what students see)
 PENDING, VALIDATING, READY, REJECTED, FAILED = "pending", "validating", "ready", "rejected", "failed"
@@ -304,3 +305,23 @@ class RaceReplay(Base):
 
     race_id: Mapped[int] = mapped_column(ForeignKey("races.id"), primary_key=True)
     data: Mapped[bytes] = mapped_column(LargeBinary)  # gzip of the replay JSON (a 10-car race: ~60 KB)
+
+
+class AuditEvent(Base):
+    """Who did what to whom (league.server.audit): instructors' actions and admin commands.
+
+    `actor_id` has no foreign key: the record outlives the accounts it names. `actor_name` is the
+    instructor's (an admin command's: "league CLI"); a deleted student's name is never kept here.
+    """
+
+    __tablename__ = "audit_events"
+
+    id: Mapped[int] = mapped_column(primary_key=True)
+    at: Mapped[datetime] = mapped_column(default=utcnow, index=True)
+    course_id: Mapped[int | None] = mapped_column(Integer, default=None, index=True)
+    actor_id: Mapped[int | None] = mapped_column(Integer, default=None)
+    actor_name: Mapped[str] = mapped_column(String(100))
+    action: Mapped[str] = mapped_column(String(40))
+    target_kind: Mapped[str] = mapped_column(String(20))
+    target_id: Mapped[int | None] = mapped_column(BigInteger, default=None)
+    details: Mapped[dict[str, Any]] = mapped_column(default=dict)

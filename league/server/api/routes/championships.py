@@ -8,6 +8,7 @@ from sqlalchemy.exc import IntegrityError
 from sqlalchemy.orm import Session
 
 from league.server.api.cache import cached_json
+from league.server import audit
 from league.server.api.deps import (
     Id, InstructorUser, PageNumber, PageSize, QueueDep, SessionDep, SettingsDep, check_env_options, csv_response,
     user_course,
@@ -36,6 +37,9 @@ def create_championship(body: ChampionshipCreate, instructor: InstructorUser, se
                                 include_baselines=body.include_baselines, created_by_id=instructor.id,
                                 seed=body.seed if body.seed is not None else secrets.randbelow(2**31))
     session.add(championship)
+    session.flush()
+    audit.record(session, actor=instructor, action=audit.CREATE_CHAMPIONSHIP, target_kind="championship",
+                 target_id=championship.id, course_id=championship.course_id, name=championship.name)
     session.commit()
     return championship_out(championship)
 
@@ -63,6 +67,9 @@ def create_round(championship_id: Id, instructor: InstructorUser, session: Sessi
     try:
         championship_round, job_ids = start_round(session, championship=championship, created_by=instructor,
                                                   max_attempts=settings.max_job_attempts)
+        audit.record(session, actor=instructor, action=audit.RUN_ROUND, target_kind="championship",
+                     target_id=championship.id, course_id=championship.course_id, round=championship_round.number,
+                     heats=len(job_ids))
         session.commit()
     except RoundRefused as refusal:
         raise HTTPException(status.HTTP_409_CONFLICT, str(refusal)) from refusal
@@ -91,6 +98,9 @@ def retry_failed_round(championship_id: Id, number: Id, instructor: InstructorUs
     try:
         job_ids = retry_round(session, championship=championship, championship_round=championship_round,
                               max_attempts=settings.max_job_attempts)
+        audit.record(session, actor=instructor, action=audit.RETRY_ROUND, target_kind="championship",
+                     target_id=championship.id, course_id=championship.course_id, round=championship_round.number,
+                     heats=len(job_ids))
         session.commit()
     except RoundRefused as refusal:
         raise HTTPException(status.HTTP_409_CONFLICT, str(refusal)) from refusal

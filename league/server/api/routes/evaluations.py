@@ -3,6 +3,7 @@ from __future__ import annotations
 
 from fastapi import APIRouter, HTTPException, status
 
+from league.server import audit
 from league.server.api.deps import (
     CurrentUser, InstructorUser, QueueDep, SessionDep, SettingsDep, check_env_options, user_course,
 )
@@ -35,6 +36,8 @@ def update_evaluation_settings(body: EvaluationSettings, instructor: InstructorU
     course = user_course(session, instructor)
     change = change_settings(session, course=course, settings=body.model_dump(),
                              max_attempts=settings.max_job_attempts)
+    audit.record(session, actor=instructor, action=audit.SETTINGS, target_kind="course", target_id=course.id,
+                 course_id=course.id, settings=body.model_dump(), reevaluating=change.reevaluated)
     session.commit()
     for job in change.queued:
         queue.enqueue(job.id)
@@ -54,6 +57,8 @@ def rerun_evaluations(body: RerunRequest, instructor: InstructorUser, session: S
     priority = LOW if body.all else NORMAL  # a whole course's backlog waits for the students' own jobs
     jobs = [queue_evaluation(session, submission=s, max_attempts=settings.max_job_attempts, course=course,
                              priority=priority) for s in submissions]
+    audit.record(session, actor=instructor, action=audit.RERUN, target_kind="submission",
+                 target_id=None if body.all else body.submission_id, all=body.all, queued=len(jobs))
     session.commit()
     for job in jobs:
         queue.enqueue(job.id)

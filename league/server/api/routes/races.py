@@ -12,7 +12,7 @@ from sqlalchemy.orm import Session
 
 from league.server.api.deps import (
     MAX_ID, CurrentUser, Id, InstructorUser, PageNumber, PageSize, QueueDep, SessionDep, SettingsDep, check_env_options,
-    check_jobs_in_flight,
+    check_jobs_in_flight, lock_account,
 )
 from league.server.db import crud
 from league.server.db.models import (
@@ -37,7 +37,7 @@ def create_friendly_race(body: RaceCreate, user: CurrentUser, session: SessionDe
         raise HTTPException(status.HTTP_422_UNPROCESSABLE_CONTENT,
                             f"submission {repeated[0]} is listed twice: each car races a different submission")
     entrants = [raceable(session, user, submission_id) for submission_id in body.submission_ids]
-    crud.lock_user(session, user_id=user.id)  # checking the quotas and creating the race: one step
+    lock_account(session, user)  # checking the quotas and creating the race: one step
     if user.role == STUDENT:
         check_friendly_race(session, user, entrants, settings.race_quota_per_day)
         check_jobs_in_flight(session, user, settings.max_jobs_in_flight)

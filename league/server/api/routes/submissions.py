@@ -10,8 +10,11 @@ from fastapi.concurrency import run_in_threadpool
 from starlette.datastructures import UploadFile  # what a parsed form holds
 
 from league.server.api.cache import etag_response
-from league.server.api.deps import CurrentUser, Id, SessionDep, check_jobs_in_flight, check_upload_quota
+from league.server.api.deps import (
+    CurrentUser, Id, SessionDep, check_jobs_in_flight, check_upload_quota, lock_account,
+)
 from league.server.db import crud
+from league.server.logs import log_refused_upload
 from league.server.db.models import INSTRUCTOR, READY, STUDENT, Evaluation, Submission, User
 from league.server.results import owners_current_keys
 from league.server.rounds import active_submission_ids
@@ -44,13 +47,17 @@ async def create_submission(request: Request, user: CurrentUser) -> SubmissionCr
     on the course's tracks. The body is read only once the token is accepted."""
     async with request.form(max_files=1, max_fields=1) as form:
         file, name = form.get("file"), form.get("name")
-        if not isinstance(file, UploadFile) or not file.filename:
-            raise HTTPException(status.HTTP_422_UNPROCESSABLE_CONTENT,
-                                "send the model as the multipart field `file` (with its file name)")
-        if name is not None and (not isinstance(name, str) or len(name) > 100):
-            raise HTTPException(status.HTTP_422_UNPROCESSABLE_CONTENT, "name: at most 100 characters")
-        kind = model_kind(file.filename)
-        return await run_in_threadpool(submit, request.app.state.league, user, file, name, kind)
+        try:
+            if not isinstance(file, UploadFile) or not file.filename:
+                raise HTTPException(status.HTTP_422_UNPROCESSABLE_CONTENT,
+                                    "send the model as the multipart field `file` (with its file name)")
+            if name is not None and (not isinstance(name, str) or len(name) > 100):
+                raise HTTPException(status.HTTP_422_UNPROCESSABLE_CONTENT, "name: at most 100 characters")
+            kind = model_kind(file.filename)
+            return await run_in_threadpool(submit, request.app.state.league, user, file, name, kind)
+        except HTTPException as refusal:
+            log_refused_upload(user.id, str(refusal.detail), getattr(file, "size", None))
+            raise
 
 
 def submit(league_, user: User, file: UploadFile, name: str | None, kind: str) -> SubmissionCreated:
@@ -67,7 +74,7 @@ def submit(league_, user: User, file: UploadFile, name: str | None, kind: str) -
     display_name = (name or "").strip() or PurePath(file.filename).stem
     try:
         with league_.sessions.begin() as session:
-            crud.lock_user(session, user_id=user.id)
+            lock_account(session, user)
             if user.role == STUDENT:
                 check_upload_quota(session, user, settings.quota_per_day)
                 check_jobs_in_flight(session, user, settings.max_jobs_in_flight)

@@ -1,8 +1,9 @@
-// The instructor console (/instructor): students, evaluation settings, championships, jobs.
+// The instructor console (/instructor): students, evaluation settings, championships, jobs, the audit log.
 
 import { api } from "../api.js";
 import { $, badge, element, onClick, replaceKeepingFocus, say } from "../dom.js";
 import { dateTime } from "../format.js";
+import { setUpAudit } from "../instructor/audit.js";
 import { setUpChampionships } from "../instructor/championships.js";
 import { setUpEvaluations } from "../instructor/evaluations.js";
 import { setUpStudents } from "../instructor/students.js";
@@ -39,7 +40,7 @@ async function start() {
   showAccount(me);
   const jobs = new Poller(refreshJobs, JOBS_POLL_MS);
   onClick($("refresh-jobs"), () => jobs.poll());
-  const parts = [setUpStudents(me), setUpEvaluations(), setUpChampionships(), jobs.poll()];
+  const parts = [setUpStudents(me), setUpEvaluations(), setUpChampionships(), jobs.poll(), setUpAudit()];
   const results = await Promise.allSettled(parts);
   const failures = results.filter((r) => r.status === "rejected").map((r) => r.reason.message);
   if (failures.length) say($("page-message"), failures.join(" "), "error");
