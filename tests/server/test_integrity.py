@@ -81,10 +81,23 @@ def test_submissions_without_actions_are_listed_and_compared_by_file_only():
     assert result.compared == 1
 
 
+def plain_close_pairs(matrix: np.ndarray, tolerance: float) -> list[tuple[int, int]]:
+    return [(i, j) for i in range(len(matrix)) for j in range(i + 1, len(matrix))
+            if np.abs(matrix[i] - matrix[j]).max() <= tolerance]
+
+
 def test_close_pairs_are_those_of_the_plain_definition():
     rng = np.random.default_rng(3)
     matrix = rng.uniform(-1, 1, (150, 8)).astype(np.float32)
     matrix[100:] = matrix[:50] + rng.uniform(-0.01, 0.01, (50, 8)).astype(np.float32)  # 50 near twins
-    expected = [(i, j) for i in range(150) for j in range(i + 1, 150)
-                if np.abs(matrix[i] - matrix[j]).max() <= 0.02]
+    expected = plain_close_pairs(matrix, 0.02)
     assert sorted(close_pairs(matrix, 0.02)) == expected and len(expected) >= 50
+
+
+def test_close_pairs_are_found_when_every_mean_is_alike():
+    """Rows that are permutations of one another: the means screen nothing out."""
+    rng = np.random.default_rng(4)
+    values = rng.uniform(-1, 1, 8).astype(np.float32)
+    matrix = np.stack([rng.permutation(values) for _ in range(60)] + [values, values + 1e-4])
+    expected = plain_close_pairs(matrix, 1e-3)
+    assert sorted(close_pairs(matrix, 1e-3)) == expected and (60, 61) in expected
