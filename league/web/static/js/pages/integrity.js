@@ -20,7 +20,13 @@ function groupRow(group, number) {
     element("td", { className: "num", text: number }), element("td", { text: kind }),
     element("td", { text: group.students.join(", ") }),
     element("td", {}, element("ul", { className: "plain" }, ...group.submissions.map(submissionItem))),
-    element("td", { className: "num", text: group.distance === null ? "–" : group.distance.toExponential(1) }));
+    element("td", { className: "num", text: distanceText(group.distance) }));
+}
+
+/** "–" when unknown, 0, else two significant digits (1.2e-7: rounding; 0.8: another agent). */
+function distanceText(distance) {
+  if (distance === null) return "–";
+  return distance === 0 ? "0" : distance.toExponential(1);
 }
 
 async function refresh() {
