@@ -75,8 +75,8 @@ class Report:
 
 
 def candidates(session: Session, *, course_id: int | None, assignment_id: int | None = None) -> list[Candidate]:
-    """The ready submissions of a course's users and of the baselines (of one assignment, once
-    submissions belong to assignments: before, `assignment_id` selects nothing)."""
+    """The ready submissions of a course's users and of the baselines; with `assignment_id`, those
+    of one assignment and the baselines (once submissions belong to assignments; ignored before)."""
     owners = select(User.id).where((User.course_id == course_id) | (User.role == BASELINE))
     query = (select(Submission.id, Submission.name, Submission.owner_id, User.name, User.role == BASELINE,
                     Submission.kind, Submission.sha256, Submission.obs_dim, Submission.probe_key,

@@ -4,6 +4,9 @@ from __future__ import annotations
 
 import csv
 import io
+import os
+import subprocess
+import sys
 import uuid
 
 from sqlalchemy import update
@@ -42,6 +45,14 @@ def groups_by_kind(report: dict) -> dict[str, list[dict]]:
     for group in report["groups"]:
         kinds.setdefault(group["kind"], []).append(group)
     return kinds
+
+
+def league_cli(server, token: str, *args: str) -> subprocess.CompletedProcess:
+    """`league ARGS` in a terminal with the server and token in the environment."""
+    env = {**{k: v for k, v in os.environ.items() if not k.startswith("LEAGUE_")}, "PYTHONPATH": server.env["PYTHONPATH"],
+           "LEAGUE_SERVER": server.url, "LEAGUE_TOKEN": token}
+    return subprocess.run([sys.executable, "-m", "league.cli", *args], env=env, capture_output=True, text=True,
+                          timeout=120)
 
 
 def forget_probe(server, submission_id: int) -> None:
@@ -101,10 +112,19 @@ def test_copies_are_grouped_and_different_agents_are_not(league_server, tmp_path
     assert sorted((row["kind"], int(row["submission_id"])) for row in rows) == sorted(
         [(g["kind"], s["id"]) for g in report["groups"] for s in g["submissions"]])
 
+    # the same in a terminal: one line per submission of each group
+    terminal = league_cli(league_server, prof.headers["Authorization"].removeprefix("Bearer "), "integrity")
+    assert terminal.returncode == 0, terminal.stderr
+    lines = terminal.stdout.splitlines()
+    assert lines[0].split() == ["group", "kind", "distance", "owner", "id", "agent", "file"]
+    assert any("baseline_copy (ppo.onnx)" in line and names["eve"] in line for line in lines)
+
     # students see none of it
     for path, method in (("/api/integrity", "GET"), ("/api/integrity.csv", "GET"), ("/api/integrity/probe", "POST")):
         refused = students["ann"].request(method, path)
         assert (refused.status_code, refused.json()) == (403, {"detail": "only instructors may do this"})
+    terminal = league_cli(league_server, students["ann"].headers["Authorization"].removeprefix("Bearer "), "integrity")
+    assert terminal.returncode == 3 and "only instructors may do this" in terminal.stderr
 
     # a submission validated before probes were recorded is compared by file only, until probed
     forget_probe(league_server, ids["dee"])
