@@ -382,7 +382,7 @@ class AuditEventOut(BaseModel):
     actor_name: str
     action: str = Field(description="user.create, user.import, user.revoke, user.token, user.delete, job.cancel, "
                                     "evaluation.rerun, settings.evaluation, championship.create, round.run, "
-                                    "round.retry")
+                                    "round.retry, integrity.probe")
     target_kind: str = Field(description="user, job, submission, course, championship or roster")
     target_id: int | None
     details: dict[str, Any] = Field(description="ids and figures of the action (never a token; never a deleted "

@@ -6,6 +6,7 @@ from typing import Annotated
 
 from fastapi import APIRouter, Query, Request, Response
 
+from league.server import audit
 from league.server.api.deps import MAX_ID, InstructorUser, SessionDep, csv_response, user_course
 from league.server.config import BUNDLED_BASELINES
 from league.server.integrity import (
@@ -57,9 +58,12 @@ def probe_submissions(request: Request, session: SessionDep, instructor: Instruc
                       assignment: Assignment = None) -> ProbesQueued:
     """Record the probe set's actions of the ready submissions that have none on the current probe
     set (validated before they were recorded, or on another simulator), as low-priority jobs."""
-    submissions = candidates(session, course_id=user_course(session, instructor).id, assignment_id=assignment)
-    ids = unprobed_submissions(session, submissions)
+    course = user_course(session, instructor)
+    ids = unprobed_submissions(session, candidates(session, course_id=course.id, assignment_id=assignment))
     job_ids = queue_probes(session, submission_ids=ids, max_attempts=request.app.state.settings.max_job_attempts)
+    if ids:
+        audit.record(session, actor=instructor, action=audit.PROBE, target_kind="course", target_id=course.id,
+                     queued=len(ids))
     session.commit()
     for job_id in job_ids:
         request.app.state.queue.enqueue(job_id)

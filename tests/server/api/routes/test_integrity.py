@@ -134,6 +134,8 @@ def test_copies_are_grouped_and_different_agents_are_not(league_server, tmp_path
     queued = prof.post("/api/integrity/probe")
     assert queued.status_code == 200 and queued.json() == {"queued": [ids["dee"]]}
     assert prof.post("/api/integrity/probe").json() == {"queued": []}  # waiting or done: not queued twice
+    [event] = [e for e in prof.get("/api/audit").json()["items"] if e["action"] == "integrity.probe"]
+    assert (event["target_kind"], event["details"]) == ("course", {"queued": 1})  # the empty one is not recorded
     report = wait_for(lambda: prof.get("/api/integrity").json(), lambda r: not r["not_compared"], timeout=120)
     [behaviour] = groups_by_kind(report)["same_behaviour"]
     assert [s["id"] for s in behaviour["submissions"]] == [ids["cy"], ids["dee"]]
