@@ -1,5 +1,5 @@
 """The audit log: who revoked, replaced a token, cancelled, re-ran, changed settings, created,
-imported or deleted accounts, created or raced championship rounds.
+imported or deleted accounts, created or raced championship rounds, had submissions probed.
 
 `record` adds the event to the caller's session, so it is committed with the change it records
 (or not at all). Details hold ids and figures, never tokens; a deleted student's name is personal
@@ -21,6 +21,7 @@ AUDIT_COLUMNS = ["at", "actor_id", "actor_name", "action", "target_kind", "targe
 REVOKE, TOKEN, CANCEL, RERUN, SETTINGS = "user.revoke", "user.token", "job.cancel", "evaluation.rerun", "settings.evaluation"
 CREATE_USER, IMPORT_ROSTER, DELETE_USER = "user.create", "user.import", "user.delete"
 CREATE_CHAMPIONSHIP, RUN_ROUND, RETRY_ROUND = "championship.create", "round.run", "round.retry"
+PROBE = "integrity.probe"
 
 
 def record(session: Session, *, actor: User | None, action: str, target_kind: str, target_id: int | None = None,

@@ -92,6 +92,12 @@ class Settings(BaseSettings):
                                                                  "served: past public_cache_s one is served while "
                                                                  "its successor is computed, up to this age")
 
+    # integrity report (league/server/integrity.py)
+    integrity_tolerance: float = Field(1e-3, gt=0, le=2, description="two submissions behave alike when none of "
+                                                                     "their actions on the probe set differ by "
+                                                                     "more (one network exported twice: ~2e-7; "
+                                                                     "different agents here: 0.8 to 2)")
+
     # sandbox limits
     sandbox_memory_mb: int = Field(LIMITS.memory_mb, description="address space a model may use on top of its "
                                                                  "runtime")

@@ -382,7 +382,7 @@ class AuditEventOut(BaseModel):
     actor_name: str
     action: str = Field(description="user.create, user.import, user.revoke, user.token, user.delete, job.cancel, "
                                     "evaluation.rerun, settings.evaluation, championship.create, round.run, "
-                                    "round.retry")
+                                    "round.retry, integrity.probe")
     target_kind: str = Field(description="user, job, submission, course, championship or roster")
     target_id: int | None
     details: dict[str, Any] = Field(description="ids and figures of the action (never a token; never a deleted "
@@ -391,3 +391,43 @@ class AuditEventOut(BaseModel):
 
 class AuditPage(Page):
     items: list[AuditEventOut]
+
+
+class IntegritySubmission(BaseModel):
+    id: int
+    name: str
+    owner: str
+    baseline: bool = Field(description="a submission of the `baselines` account")
+    kind: str = Field(description="onnx or torchscript")
+    sha256: str
+    created_at: datetime
+
+
+class IntegrityGroup(BaseModel):
+    kind: Literal["identical_file", "same_behaviour", "baseline_copy"] = Field(
+        description="identical_file: one file (sha256) uploaded by several students; same_behaviour: the same "
+                    "actions on the probe set within the tolerance (e.g. one network exported to ONNX and to "
+                    "TorchScript); baseline_copy: a bundled baseline's file or behaviour")
+    students: list[str]
+    baseline: str | None = Field(description="the baseline copied (baseline_copy)")
+    distance: float | None = Field(description="the largest difference of an action on the probe set between "
+                                               "two of its submissions (null: fewer than two probed)")
+    submissions: list[IntegritySubmission]
+
+
+class UncomparedSubmission(IntegritySubmission):
+    reason: str = Field(description="not yet probed (POST /api/integrity/probe), or the model failed on the "
+                                    "probe set (its log says why): compared by file only")
+
+
+class IntegrityReport(BaseModel):
+    tolerance: float = Field(description="actions within this of each other (max-abs) are the same behaviour")
+    probes: int = Field(description="observations in the probe set (2 actions each)")
+    submissions: int = Field(description="ready submissions the report covers (the course's and the baselines')")
+    compared: int = Field(description="of them, those whose actions on the probe set are known")
+    groups: list[IntegrityGroup]
+    not_compared: list[UncomparedSubmission]
+
+
+class ProbesQueued(BaseModel):
+    queued: list[int] = Field(description="ids of the submissions queued to be probed (low priority)")

@@ -175,3 +175,44 @@ def test_users_gain_email_and_student_id_with_their_data_kept(backend):
     assert [tuple(row) for row in rows] == [(1, "prof", "instructor", 1, "a" * 64, None, None),
                                             (2, "Ada", "student", 1, "b" * 64, None, None),
                                             (3, "Bea", "student", 2, None, None, None)]
+
+
+# --------------------------------------------------------------------------- 0013: submissions gain probe actions
+
+
+def test_submissions_gain_probe_actions_with_their_data_kept_and_lose_them_on_downgrade(backend):
+    """0013 on a database of 0008 that holds submissions: every row kept, not probed; a downgrade
+    back to 0008 keeps the rows too."""
+    _, (database_url, _, _) = backend
+    engine = make_engine(database_url)
+    config = alembic_config(database_url)
+    with engine.connect() as connection:
+        config.attributes["connection"] = connection
+        command.upgrade(config, "0008")
+        connection.commit()
+    created = datetime(2026, 11, 1)
+    with engine.begin() as connection:
+        connection.execute(text("INSERT INTO users (id, name, role, created_at) VALUES (1, 'Ada', 'student', :now)"),
+                           {"now": created})
+        connection.execute(text("INSERT INTO submissions (id, owner_id, name, filename, kind, sha256, size, status, "
+                                "public, created_at, updated_at) VALUES (:id, 1, :name, 'a.onnx', 'onnx', :sha, 10, "
+                                "'ready', false, :now, :now)"),
+                           [{"id": i, "name": f"agent {i}", "sha": str(i) * 64, "now": created} for i in (1, 2)])
+    migrate(engine)
+    with engine.begin() as connection:
+        rows = connection.execute(text("SELECT id, name, sha256, status, probe_key, probe_actions FROM submissions "
+                                       "ORDER BY id")).all()
+        connection.execute(text("UPDATE submissions SET probe_key = :key, probe_actions = :data WHERE id = 1"),
+                           {"key": "f" * 16, "data": b"\0" * 512})
+    with engine.connect() as connection:
+        config.attributes["connection"] = connection
+        command.downgrade(config, "0008")
+        connection.commit()
+    with engine.connect() as connection:
+        kept = connection.execute(text("SELECT id, name FROM submissions ORDER BY id")).all()
+        columns = {c["name"] for c in inspect(connection).get_columns("submissions")}
+    engine.dispose()
+    assert [tuple(row) for row in rows] == [(1, "agent 1", "1" * 64, "ready", None, None),
+                                            (2, "agent 2", "2" * 64, "ready", None, None)]
+    assert [tuple(row) for row in kept] == [(1, "agent 1"), (2, "agent 2")]
+    assert not {"probe_key", "probe_actions"} & columns

@@ -12,7 +12,8 @@ from league.web_geometry import track_geometry
 @pytest.mark.parametrize("path,marker,current", [
     ("/", "pages/leaderboard.js", "/"), ("/login", "pages/login.js", None),
     ("/submissions", "pages/submissions.js", "/submissions"), ("/races/12", "pages/race.js", None),
-    ("/replay", "pages/race.js", None), ("/instructor", "pages/instructor.js", "/instructor")])
+    ("/replay", "pages/race.js", None), ("/instructor", "pages/instructor.js", "/instructor"),
+    ("/integrity", "pages/integrity.js", "/instructor")])
 def test_pages_are_html_that_may_load_from_their_own_server_only(web_server, path, marker, current):
     response = httpx.get(web_server.url + path)
     assert response.status_code == 200

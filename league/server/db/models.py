@@ -24,7 +24,7 @@ PENDING, VALIDATING, READY, REJECTED, FAILED = "pending", "validating", "ready",
 QUEUED, RUNNING, DONE = "queued", "running", "done"
 
 # job kinds
-VALIDATE, EVALUATE, RACE = "validate", "evaluate", "race"
+VALIDATE, EVALUATE, RACE, PROBE = "validate", "evaluate", "race", "probe"
 
 # job priorities: a low one is claimed only when no normal one waits
 NORMAL, LOW = 0, 1
@@ -130,6 +130,10 @@ class Submission(Base):
     log: Mapped[str | None] = mapped_column(Text, default=None)  # sandbox output of the validation, truncated
     obs_dim: Mapped[int | None] = mapped_column(Integer, default=None)
     public: Mapped[bool] = mapped_column(default=False)
+    # its actions on the probe set named by probe_key (league.validation.probes), float32 (64, 2) bytes;
+    # None with a key: the model failed on it (why: its log); no key: not probed yet (league.server.integrity)
+    probe_key: Mapped[str | None] = mapped_column(String(16), default=None)
+    probe_actions: Mapped[bytes | None] = mapped_column(LargeBinary, default=None, deferred=True)
     created_at: Mapped[datetime] = mapped_column(default=utcnow)
     updated_at: Mapped[datetime] = mapped_column(default=utcnow, onupdate=utcnow)
 

@@ -30,6 +30,8 @@ class ValidateSubmission:
             crud.forget_blob_unless_used(session, sha256=submission.sha256)  # the stores sweep their copies
             return []
         submission.status, submission.error, submission.obs_dim = READY, None, report.obs_dim
+        if report.probe is not None:
+            submission.probe_key, submission.probe_actions = report.probe.key, report.probe.actions
         return [queue_evaluation(session, submission=submission, max_attempts=job.max_attempts).id]
 
     def give_up(self, session: Session, job: Job, reason: str) -> None:

@@ -1,5 +1,6 @@
-"""The web pages (league/web/, package data): HTML for the leaderboard, login, submissions, race viewer and instructor
-console, their assets under /static, and the track geometry the race viewer draws.
+"""The web pages (league/web/, package data): HTML for the leaderboard, login, submissions, race
+viewer, instructor console and integrity report, their assets under /static, and the track
+geometry the race viewer draws.
 
 `mount_web(app)` adds all of it to the FastAPI app. Each page is a Jinja2 template extending
 league/web/layout.html (the head and header they share), filled with a few facts from the settings; the
@@ -74,6 +75,7 @@ def mount_web(app: FastAPI, directory: Path | None = None) -> None:
     pages.add_api_route("/races/{race_id}", page("race.html"), methods=["GET", "HEAD"])
     pages.add_api_route("/replay", page("race.html"), methods=["GET", "HEAD"])  # the viewer for a replay file saved by `league race`
     pages.add_api_route("/instructor", page("instructor.html"), methods=["GET", "HEAD"])
+    pages.add_api_route("/integrity", page("integrity.html"), methods=["GET", "HEAD"])
     app.include_router(pages)
     app.include_router(router, max_body_size=MAX_TRACK_BYTES)
     app.mount("/static", StaticFiles(directory=directory / "static"), name="static")
