@@ -4,6 +4,7 @@ from __future__ import annotations
 from fastapi import APIRouter, HTTPException, status
 from sqlalchemy.exc import IntegrityError
 
+from league.server import audit
 from league.server.api.deps import CurrentUser, InstructorUser, SessionDep, SettingsDep, user_course
 from league.server.api.routes.users import read_me
 from league.server.db import crud
@@ -22,6 +23,8 @@ def read_privacy_settings(user: CurrentUser, session: SessionDep) -> PrivacySett
 def update_privacy_settings(body: PrivacySettings, instructor: InstructorUser, session: SessionDep) -> PrivacySettings:
     """Choose who sees the course's boards: it applies to the next request of every route and page."""
     course = user_course(session, instructor)
+    audit.record(session, actor=instructor, action=audit.PRIVACY, target_kind="course", target_id=course.id,
+                 course_id=course.id, board_visibility=body.board_visibility, was=course.board_visibility)
     course.board_visibility = body.board_visibility
     session.commit()
     return PrivacySettings(board_visibility=course.board_visibility)

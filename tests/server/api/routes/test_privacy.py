@@ -222,8 +222,11 @@ def test_a_visibility_change_applies_to_the_next_request_and_only_instructors_ma
     assert refused.status_code == 403
     with course.client("instructor") as instructor:
         wrong = instructor.put("/api/settings/privacy", json={"board_visibility": "everyone"})
+        audited = instructor.get("/api/audit").json()["items"][0]
     assert wrong.status_code == 422
     assert "board_visibility" in wrong.json()["detail"]
+    assert (audited["action"], audited["details"]) == ("settings.privacy", {"board_visibility": "members",
+                                                                            "was": "public"})
 
 
 # --------------------------------------------------------------------------- display names
