@@ -91,6 +91,11 @@ class Settings(BaseSettings):
     public_cache_max_age_s: float = Field(5.0, ge=0, description="the oldest leaderboard or standings answer ever "
                                                                  "served: past public_cache_s one is served while "
                                                                  "its successor is computed, up to this age")
+    board_visibility: Literal["public", "members", "instructors"] = Field(
+        "members", description="who sees a new course's boards (leaderboard, races, standings): public (anyone; "
+                               "visitors who are not logged in see display names, never real names), members "
+                               "(its logged-in students and instructors) or instructors; instructors change it "
+                               "with PUT /api/settings/privacy or on the console")
 
     # integrity report (league/server/integrity.py)
     integrity_tolerance: float = Field(1e-3, gt=0, le=2, description="two submissions behave alike when none of "

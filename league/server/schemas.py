@@ -18,6 +18,8 @@ class UserOut(BaseModel):
     course_id: int | None
     email: str | None
     student_id: str | None = Field(description="the school's id of the student (unique in the course), or null")
+    display_name: str | None = Field(description="what public boards show visitors instead of the name (unique in "
+                                                 "the course); null: a \"Student N\" pseudonym")
     created_at: datetime
     active: bool
 
@@ -31,6 +33,19 @@ class QuotaOut(BaseModel):
 
 class UserMe(UserOut):
     upload_quota: QuotaOut | None = Field(description="students' uploads left; null for instructors (no quota)")
+
+
+class UserUpdate(BaseModel):
+    display_name: str | None = Field(max_length=200, description="shown on public boards to visitors instead of "
+                                                                  "your name (names' rules, unique in the course); "
+                                                                  "null or empty: a \"Student N\" pseudonym")
+
+
+class PrivacySettings(BaseModel):
+    board_visibility: Literal["public", "members", "instructors"] = Field(
+        description="who sees the course's boards (leaderboard, races and replays, championships and standings): "
+                    "public (anyone; visitors see display names or pseudonyms, never names), members (its "
+                    "logged-in students and instructors) or instructors (only; a student still sees their own races)")
 
 
 class UserCreated(UserOut):

@@ -51,7 +51,9 @@ def standings_rows(session: Session, championship: Championship) -> list[dict]:
         submission, rating = submissions.get(standing.entrant), ratings[standing.entrant]
         rows.append({"rank": rank, "submission_id": standing.entrant,
                      "name": submission.name if submission else DELETED,
-                     "owner": submission.owner.name if submission else DELETED, "points": standing.points,
+                     "owner": submission.owner.name if submission else DELETED,
+                     "owner_id": submission.owner_id if submission else None,
+                     "owner_role": submission.owner.role if submission else None, "points": standing.points,
                      "wins": standing.wins, "finishes": standing.finishes, "rating": rating.conservative,
                      "mu": rating.mu, "sigma": rating.sigma})
     return rows
@@ -105,7 +107,8 @@ def _score(entry) -> tuple[float, float]:
 
 def _leaderboard_row(rank: int | None, entry, rating: rules.Rating | None) -> dict:
     """`entry`: a row of crud.leaderboard_entries (a submission, its owner, its figures)."""
-    return {"rank": rank, "stale": bool(entry.stale), "owner": entry.owner, "submission_id": entry.id, "name": entry.name,
+    return {"rank": rank, "stale": bool(entry.stale), "owner": entry.owner, "owner_id": entry.owner_id,
+            "owner_role": entry.owner_role, "submission_id": entry.id, "name": entry.name,
             "public": entry.public, "completed": entry.completed, "episodes": entry.episodes_total,
             "mean_return": entry.mean_return, "mean_steps": entry.mean_steps,
             "mean_speed": entry.mean_speed, "rating": rating.conservative if rating else None,

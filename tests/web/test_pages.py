@@ -482,7 +482,7 @@ def test_student_sees_their_agent_on_the_leaderboard(web, web_server, agent_file
     ready_submission(web_server, token, agent_files["driver_0.3"])
     # The public cache first serves what it kept, then refreshes (league/server/api/cache.py): after
     # another test loaded the page, the new row came only with the page's refresh 15 s later.
-    wait_for(lambda: web_server.client().get("/api/leaderboard?page=1&size=50").json()["items"],
+    wait_for(lambda: web_server.client(token).get("/api/leaderboard?page=1&size=50").json()["items"],
              lambda rows: any(row["owner"] == name for row in rows))
     web.login(token)
 
@@ -511,7 +511,7 @@ def test_a_settings_change_shows_every_earlier_result_apart_as_stale(web, web_se
             web.goto("/")
             stale = web.page.locator("#leaderboard tbody tr.apart")
             stale.first.wait_for()
-            board = web_server.client().get("/api/leaderboard?page=1&size=50").json()["items"]
+            board = web_server.client().get("/api/leaderboard?page=1&size=50").json()["items"]  # as the page (a visitor)
             assert board and all(row["stale"] and row["rank"] is None for row in board)
             assert stale.count() == web.page.locator("#leaderboard tbody tr").count() == len(board)
             assert stale.locator("td:first-child .badge.stale").count() == len(board)
@@ -581,7 +581,7 @@ def test_instructor_runs_a_round_opens_a_replay_and_the_standings_break_ties(web
 
     # the standings say what broke each tie on points
     web.goto(f"/?championship={championship_id}")
-    rows = web_server.client().get(f"/api/championships/{championship_id}/standings").json()["items"]
+    rows = web_server.client(web_server.instructor_token).get(f"/api/championships/{championship_id}/standings").json()["items"]
     web.page.wait_for_selector(f"#standings tbody tr[data-key='{rows[-1]['submission_id']}']")
     notes = [tie_break(row, above) for above, row in zip([None] + rows, rows)]
     for row, note in zip(rows, notes):
@@ -656,3 +656,36 @@ def test_instructor_deletes_a_student_after_a_confirmation_and_reads_it_in_the_a
     expect(newest).to_contain_text("user.delete")
     expect(newest).to_contain_text(f"user #{student['id']}")
     expect(web.page.locator("#audit")).not_to_contain_text(name)  # the deleted student's name is not kept
+
+
+def test_a_board_for_members_prompts_a_visitor_to_log_in_and_a_student_picks_a_display_name(web, web_server):
+    token = student_token(web_server, unique("hana"))
+    with web_server.client(web_server.instructor_token) as instructor:
+        assert instructor.put("/api/settings/privacy", json={"board_visibility": "members"}).status_code == 200
+        try:
+            web.goto("/")
+            prompt = web.page.locator("#board-closed")
+            prompt.wait_for()
+            assert prompt.inner_text().startswith("Log in to see the boards. The server says: log in to see this: "
+                                                  "the boards of course 'default' are shown to the course's students")
+            assert web.page.is_hidden("#leaderboard") and web.page.is_hidden("#standings")  # no empty tables
+            web.screenshot("board-login-prompt")
+            prompt.locator("a").click()
+            web.page.wait_for_url("**/login?next=%2F")
+
+            web.login(token)
+            web.goto("/")
+            web.page.locator("#leaderboard").wait_for()
+            assert web.page.is_hidden("#board-closed")
+
+            web.goto("/submissions")
+            expect(web.page.locator("#display-note")).to_contain_text("shown to its students and instructors only")
+            web.page.fill("#display-name", "Student 7")
+            web.page.click("#display-form button[type=submit]")
+            expect(web.page.locator("#display-message")).to_contain_text("Not saved: the display name 'Student 7' "
+                                                                         "looks like the pseudonym")
+            web.page.fill("#display-name", unique("Comet"))
+            web.page.click("#display-form button[type=submit]")
+            expect(web.page.locator("#display-message")).to_contain_text("Saved: visitors of public boards see")
+        finally:
+            assert instructor.put("/api/settings/privacy", json={"board_visibility": "public"}).status_code == 200

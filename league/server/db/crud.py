@@ -12,9 +12,10 @@ from sqlalchemy.orm import Session
 
 from league.server.accounts import clean_email, clean_name, clean_student_id
 from league.server.db.models import (
-    BASELINE, DONE, EVALUATE, FAILED, NORMAL, QUEUED, RACE, READY, REJECTED, RUNNING, STUDENT, VALIDATE, Blob,
+    BASELINE, DONE, EVALUATE, FAILED, MEMBERS, NORMAL, QUEUED, RACE, READY, REJECTED, RUNNING, STUDENT, VALIDATE, Blob,
     Championship, ChampionshipRound, Course, EpisodeResult, Evaluation, Job, Race, Submission, User, utcnow,
 )
+from league.server.privacy import clean_display_name
 from league.server.security import hash_token, new_token
 
 DEFAULT_COURSE = "default"
@@ -35,11 +36,14 @@ class AccountTaken(InvalidAccount):
 # --------------------------------------------------------------------------- courses
 
 
-def get_or_create_course(session: Session, *, name: str, evaluation: dict[str, Any]) -> Course:
+def get_or_create_course(session: Session, *, name: str, evaluation: dict[str, Any],
+                         board_visibility: str | None = None) -> Course:
+    """The course named `name`; a new one takes `evaluation` and `board_visibility` (None: members)."""
     course = session.scalar(select(Course).where(Course.name == name))
     if course is None:
         course = Course(name=name, eval_seed=evaluation["seed"], eval_episodes=evaluation["episodes"],
-                        eval_env_options=dict(evaluation["env_options"]))
+                        eval_env_options=dict(evaluation["env_options"]),
+                        board_visibility=board_visibility or MEMBERS)
         session.add(course)
         session.flush()
     return course
@@ -118,6 +122,30 @@ def user_by_name(session: Session, *, name: str) -> User | None:
 
 def course_users(session: Session, *, course_id: int | None) -> list[User]:
     return list(session.scalars(select(User).where(User.course_id == course_id).order_by(User.id)))
+
+
+def set_display_name(session: Session, *, user: User, display_name: str | None) -> User:
+    """Give the user a display name (privacy.clean_display_name), unless it is any account's name or
+    another display name of the course; None removes it. One message for both: it names nobody."""
+    try:
+        display_name = clean_display_name(display_name)
+    except ValueError as error:
+        raise InvalidAccount(str(error).replace("the name", "the display name", 1)) from None
+    if display_name is not None:
+        folded = func.lower(display_name)  # the database's lower() on both sides: exact matches on any backend
+        taken = session.scalar(select(User.id).where(User.id != user.id, (func.lower(User.name) == folded) | (
+            (User.course_id == user.course_id) & (func.lower(User.display_name) == folded))).limit(1))
+        if taken is not None:
+            raise AccountTaken(f"the display name {display_name!r} is taken: choose another")
+    user.display_name = display_name
+    session.flush()
+    return user
+
+
+def display_names(session: Session, *, course_id: int) -> dict[int, str]:
+    """user id -> display name, of the course's users who chose one."""
+    return dict(session.execute(select(User.id, User.display_name).where(User.course_id == course_id,
+                                                                         User.display_name.is_not(None))).all())
 
 
 def revoke_user(session: Session, *, user: User) -> User:
@@ -398,14 +426,23 @@ def races_started_since(session: Session, *, user: User, since: datetime) -> int
         Race.created_by_id == user.id, Race.championship_id.is_(None), Race.created_at > since)) or 0
 
 
-def races_page(session: Session, *, page: int, size: int, championship_id: int | None) -> tuple[list[Race], int]:
-    """Races, newest first, and how many there are."""
-    query = select(Race)
+def races_page(session: Session, *, course_id: int, page: int, size: int, championship_id: int | None,
+               entrant_ids: set[int] | None = None) -> tuple[list[Race], int]:
+    """The course's races (with a car of `entrant_ids`, when given), newest first, and how many there are."""
+    query = select(Race).where(Race.course_id == course_id)
     if championship_id is not None:
         query = query.where(Race.championship_id == championship_id)
+    if entrant_ids is not None:  # entrants are JSON: picked here, from the course's races' few ids
+        with_car = [race_id for race_id, entrants in session.execute(query.with_only_columns(Race.id, Race.entrants))
+                    if any(entrant["submission_id"] in entrant_ids for entrant in entrants)]
+        query = query.where(Race.id.in_(with_car))
     total = session.scalar(select(func.count()).select_from(query.subquery()))
     races = list(session.scalars(query.order_by(Race.id.desc()).offset((page - 1) * size).limit(size)))
     return races, total
+
+
+def submission_ids_of(session: Session, *, owner_id: int) -> set[int]:
+    return set(session.scalars(select(Submission.id).where(Submission.owner_id == owner_id)))
 
 
 def course_championships(session: Session, *, course_id: int | None) -> list[Championship]:

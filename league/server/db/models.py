@@ -4,6 +4,7 @@ Schema changes go through an Alembic migration (league/server/migrations/version
 """
 from __future__ import annotations
 
+import secrets
 from datetime import datetime, timezone
 from typing import Any
 
@@ -28,6 +29,9 @@ VALIDATE, EVALUATE, RACE, PROBE = "validate", "evaluate", "race", "probe"
 
 # job priorities: a low one is claimed only when no normal one waits
 NORMAL, LOW = 0, 1
+
+# who sees a course's boards (league.server.privacy): anyone, its logged-in users, its instructors
+PUBLIC, MEMBERS, INSTRUCTORS = "public", "members", "instructors"
 
 
 def utcnow() -> datetime:
@@ -65,6 +69,11 @@ class Course(Base):
     eval_seed: Mapped[int] = mapped_column(BigInteger, default=0)
     eval_episodes: Mapped[int] = mapped_column(Integer, default=100)
     eval_env_options: Mapped[dict[str, Any]] = mapped_column(default=dict)
+    # who sees its boards; the server default is what courses older than the setting were (migration 0012)
+    board_visibility: Mapped[str] = mapped_column(String(20), default=MEMBERS, server_default=PUBLIC)
+    # keys the "Student N" pseudonyms of its public boards (league.server.privacy.pseudonym); every row has
+    # one (migration 0012 draws them): nullable in the schema only, as SQLite adds no NOT NULL column without a default
+    pseudonym_key: Mapped[int] = mapped_column(BigInteger, nullable=True, default=lambda: secrets.randbits(62))
     created_at: Mapped[datetime] = mapped_column(default=utcnow)
     updated_at: Mapped[datetime] = mapped_column(default=utcnow, onupdate=utcnow)
 
@@ -77,7 +86,8 @@ class User(Base):
 
     __tablename__ = "users"
     # NULLs differ on both backends: many students without an id, none sharing one
-    __table_args__ = (Index("uq_users_course_student_id", "course_id", "student_id", unique=True),)
+    __table_args__ = (Index("uq_users_course_student_id", "course_id", "student_id", unique=True),
+                      Index("uq_users_course_display_name", "course_id", "display_name", unique=True))
 
     id: Mapped[int] = mapped_column(primary_key=True)
     name: Mapped[str] = mapped_column(String(100), unique=True)
@@ -86,6 +96,8 @@ class User(Base):
     # how gradebook exports (Canvas, Moodle) identify the student; from the roster, optional
     email: Mapped[str | None] = mapped_column(String(254), default=None)
     student_id: Mapped[str | None] = mapped_column(String(64), default=None)
+    # what public boards show instead of the name (league.server.privacy); unique in the course
+    display_name: Mapped[str | None] = mapped_column(String(100), default=None)
     token_hash: Mapped[str | None] = mapped_column(String(64), unique=True)  # sha256 hex of the bearer token
     created_at: Mapped[datetime] = mapped_column(default=utcnow)
     created_by_id: Mapped[int | None] = mapped_column(ForeignKey("users.id"))

@@ -9,7 +9,7 @@ from fastapi import APIRouter, HTTPException, Query, Request, Response, status
 from fastapi.concurrency import run_in_threadpool
 from starlette.datastructures import UploadFile  # what a parsed form holds
 
-from league.server.api.cache import etag_response
+from league.server.api.cache import PRIVATE, etag_response
 from league.server.api.deps import (
     CurrentUser, Id, SessionDep, check_jobs_in_flight, check_upload_quota, lock_account,
 )
@@ -107,7 +107,6 @@ def read_submissions(user: CurrentUser, session: SessionDep, all: bool = False) 
     return [submission_out(s, evaluations.get(s.id), keys[s.owner_id], s.id in active) for s in submissions]
 
 
-PRIVATE = "private, no-cache"  # the browser keeps it, and asks (If-None-Match) before reusing it
 NOT_MODIFIED = {304: {"description": "unchanged since the ETag sent in If-None-Match"}}
 
 

@@ -28,6 +28,8 @@ def course_with_students(league, students: int) -> tuple[str, list[str]]:
     the tokens of `students` students who each have a ready submission."""
     course = unique("course")
     _, instructor = league.user("prof", role=INSTRUCTOR, course_name=course)
+    with league.client(instructor) as client:  # visitors see its boards: their answers are walked too
+        assert client.put("/api/settings/privacy", json={"board_visibility": "public"}).status_code == 200
     tokens = []
     for _ in range(students):
         user, token = league.user("racer", course_name=course)

@@ -1,7 +1,7 @@
 // The instructor console (/instructor): students, evaluation settings, championships, jobs, the audit log.
 
 import { api } from "../api.js";
-import { $, badge, element, onClick, replaceKeepingFocus, say } from "../dom.js";
+import { $, badge, element, onClick, onSubmit, replaceKeepingFocus, say } from "../dom.js";
 import { dateTime } from "../format.js";
 import { setUpAudit } from "../instructor/audit.js";
 import { setUpChampionships } from "../instructor/championships.js";
@@ -28,6 +28,20 @@ async function refreshJobs() {
     element("td", { text: job.error || "" }))));
 }
 
+/** Who sees the course's boards (PUT /api/settings/privacy: the next request of every page follows it). */
+async function setUpPrivacy() {
+  $("board-visibility").value = (await api("/api/settings/privacy")).board_visibility;
+  onSubmit($("privacy-form"), async () => {
+    try {
+      const saved = await api("/api/settings/privacy", { method: "PUT", json: { board_visibility: $("board-visibility").value } });
+      $("board-visibility").value = saved.board_visibility;
+      say($("privacy-message"), "Saved: the boards follow it from now on.", "success");
+    } catch (error) {
+      say($("privacy-message"), `Not saved: ${error.message}`, "error");
+    }
+  });
+}
+
 async function start() {
   let me;
   try {
@@ -40,7 +54,7 @@ async function start() {
   showAccount(me);
   const jobs = new Poller(refreshJobs, JOBS_POLL_MS);
   onClick($("refresh-jobs"), () => jobs.poll());
-  const parts = [setUpStudents(me), setUpEvaluations(), setUpChampionships(), jobs.poll(), setUpAudit()];
+  const parts = [setUpStudents(me), setUpEvaluations(), setUpPrivacy(), setUpChampionships(), jobs.poll(), setUpAudit()];
   const results = await Promise.allSettled(parts);
   const failures = results.filter((r) => r.status === "rejected").map((r) => r.reason.message);
   if (failures.length) say($("page-message"), failures.join(" "), "error");

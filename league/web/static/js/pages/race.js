@@ -34,7 +34,7 @@ async function loadRace() {
     say($("race-message"), `This race failed: ${race.error || "no reason recorded"}`, "error");
     return;
   }
-  const replay = await api(`/api/races/${encodeURIComponent(raceId)}/replay`, { auth: false });
+  const replay = await api(`/api/races/${encodeURIComponent(raceId)}/replay`, { loginOn401: false });
   await show(replay, race);
 }
 
@@ -44,7 +44,7 @@ async function loadRace() {
  */
 async function raceWhenOver() {
   for (;;) {
-    const race = await api(`/api/races/${encodeURIComponent(raceId)}`, { auth: false });
+    const race = await api(`/api/races/${encodeURIComponent(raceId)}`, { loginOn401: false }); // the board's visibility decides
     const over = race.status !== "pending" && race.status !== "running";
     const sealed = race.round !== null && race.seed === null;
     if (over && !sealed) return race;
