@@ -116,7 +116,8 @@ class League:
         self.url = f"http://127.0.0.1:{self.port}"
         self.env = {**os.environ, "LEAGUE_DATA_DIR": str(folder), "PYTHONPATH": str(root),
                     "LEAGUE_BASELINES_DIR": str(folder / "baselines"),  # empty: the heuristic driver only
-                    **(settings or {})}
+                    # the board as the figures have always measured it: visitors' answers, one cached for all
+                    "LEAGUE_BOARD_VISIBILITY": "public", **(settings or {})}
         self.token = self._first_instructor()
         self.workers: list[subprocess.Popen] = []  # running (started and not stopped yet)
         self.workers_started = 0

@@ -11,7 +11,8 @@
     POST .../rounds to the round being done, per worker setup: one `league worker`, one on one
     CPU (`--cpus`), two, and two with their CPU placement off (1 job thread each; two workers
     split the CPUs by themselves, league/server/jobs/placement.py); each on a new championship with
-    the same seed (same heats, same track), the API started with --no-worker; evaluations are
+    the same seed (same heats; each round's track is drawn secretly, so the runs race different
+    tracks and the medians absorb it), the API started with --no-worker; evaluations are
     finished and the workers started before the round is posted, so only racing is timed.
     Target: a speed-up >= 1.7x from one worker to two on a 2-core machine; the speed-up per CPU
     (one worker on one CPU -> two workers, each on a CPU of its own) is printed beside it, since
@@ -273,10 +274,10 @@ def start_workers(league: League, setup: Setup) -> None:
 def compare_workers(league: League, client, students: int, seed: int, repeats: int,
                     timeout: float, per_cpu: bool = False,
                     ceiling: float | None = None) -> tuple[dict[str, float], int]:
-    """Time the same round (a new championship, same seed) with each worker setup, `repeats` times,
-    alternating. Returns the median time per setup and the last championship."""
+    """Time the same heats (a new championship, same seed; each round a track of its own) with each
+    worker setup, `repeats` times, alternating. Returns the median time per setup and the last championship."""
     print(f"(b) a round of {students} students in heats of <= {HEAT_SIZE}, from POST .../rounds to the round done, "
-          f"per worker setup (same seed: same heats, same track):", flush=True)
+          f"per worker setup (same seed: same heats; each round's track drawn secretly):", flush=True)
     times: dict[str, list[float]] = {}
     shapes = set()
     for repeat in range(repeats):
@@ -287,11 +288,11 @@ def compare_workers(league: League, client, students: int, seed: int, repeats: i
             seconds, summary = timed_round(client, championship_id, timeout)
             report, busy = heat_report(client, summary)
             times.setdefault(setup, []).append(seconds)
-            shapes.add((summary["track_seed"], str(summary["heats"])))
+            shapes.add(str(summary["heats"]))
             print(f"    run {repeat + 1}, {setup}: {seconds:.1f} s (the heats ran {busy:.1f} s in all)\n"
                   f"    {report}", flush=True)
     if len(shapes) > 1:
-        print("    warning: the rounds differ in track or heats", flush=True)
+        print("    warning: the rounds differ in heats", flush=True)
     medians = {setup: statistics.median(runs) for setup, runs in times.items()}
     print(f"    {len(summary['heats'])} heats, median over {repeats} run(s) (range):", flush=True)
     for setup, runs in times.items():
@@ -331,7 +332,7 @@ def bench_league(models: list[Path], *, backend_kind: str, eval_episodes: int, r
             league.stop_workers()
             print(f"    {len(models)} submissions ready and evaluated in {time.perf_counter() - begin:.0f} s", flush=True)
 
-            # (b) the same round (same seed: same heats, same track) with one worker, then with two
+            # (b) the same heats (same seed; each round a track of its own) with one worker, then with two
             medians, two_id = compare_workers(league, client, len(models), seed, round_repeats, round_timeout,
                                               per_cpu, ceiling)
             league.stop_workers()

@@ -1,5 +1,5 @@
 """The student's side of a league server from a terminal: `league login`, `check`, `submit`,
-`submissions`, `leaderboard`, `standings`, `race-server`.
+`submissions`, `leaderboard`, `standings`, `race-server`; and the instructor's `integrity`.
 
 A small client of the server's HTTP API (httpx). The server and token come from --server/--token,
 else LEAGUE_SERVER/LEAGUE_TOKEN, else what `league login` stored in the user's config directory
@@ -548,6 +548,24 @@ def run_select(args: argparse.Namespace) -> int:
                           json={"submission_id": args.submission})
     print(f"{answer['name']}: your final submission is {answer['final']['submission_id']} (until "
           f"{local_time(answer['my_closes_at']) or 'no deadline'})")
+def run_integrity(args: argparse.Namespace) -> int:
+    with Api(connection(args)) as api:
+        if args.probe:
+            queued = api.call("POST", "/api/integrity/probe")["queued"]
+            print(f"{len(queued)} submissions queued to be probed (low priority)", file=sys.stderr)
+            return EXIT_OK
+        if args.csv:
+            sys.stdout.write(api.get("/api/integrity.csv"))
+            return EXIT_OK
+        report = api.get("/api/integrity")
+    _print_table(["group", "kind", "distance", "owner", "id", "agent", "file"],
+                 [[number, group["kind"] + (f" ({group['baseline']})" if group["baseline"] else ""),
+                   "" if group["distance"] is None else f"{group['distance']:.1e}", s["owner"], s["id"], s["name"],
+                   s["kind"]] for number, group in enumerate(report["groups"], 1) for s in group["submissions"]],
+                 False)
+    if report["not_compared"]:
+        print(f"{len(report['not_compared'])} submissions compared by file only (not yet probed, or failed on the "
+              "probe set): `league integrity --probe` probes those not yet probed", file=sys.stderr)
     return EXIT_OK
 
 
@@ -675,6 +693,15 @@ def add_commands(subparsers) -> None:
     standings.add_argument("championship", metavar="CHAMPIONSHIP",
                            help="the championship's name (quoted if it has spaces) or its id")
     standings.add_argument("--csv", action="store_true", help="instructors: the grades, as CSV")
+
+    integrity = command("integrity", "instructors: print the integrity report (submissions that look copied)",
+                        run_integrity,
+                        "Submissions of different students with the same file, or the same actions on the league's "
+                        "probe set (one network exported to ONNX and to TorchScript), and copies of the bundled "
+                        "baselines: one line per submission of each group. Nothing is blocked.")
+    integrity.add_argument("--csv", action="store_true", help="print the report as CSV")
+    integrity.add_argument("--probe", action="store_true",
+                           help="queue the submissions not yet probed to be probed, then run the report again")
 
     race = command("race-server", "race submissions on the server (a friendly race) and print the classification",
                    run_race_server)

@@ -18,6 +18,7 @@ from league.server.api.cache import ResponseCache
 from league.server.api.limits import KB, BodyLimits, Limit
 from league.server.api.main import api_router
 from league.server.api.routes.pages import MAX_TRACK_BYTES, mount_web
+from league.server import metrics
 from league.server.bootstrap import bootstrap
 from league.server.clock import Clock
 from league.server.config import Settings, load_settings
@@ -89,6 +90,7 @@ def create_app(settings: Settings | None = None, league_: League | None = None) 
     app.add_exception_handler(StarletteHTTPException, _http_error)
     app.add_exception_handler(RequestValidationError, _validation_error)
     mount_web(app)
+    metrics.install(app, league_.sessions)
     app.add_middleware(BodyLimits, default=Limit.of(64 * KB), limits=body_limits(settings),
                        read_timeout_s=settings.request_body_timeout_s)
     return app

@@ -28,11 +28,13 @@ def ensure_course(sessions: sessionmaker[Session], settings: Settings) -> Course
     try:
         with sessions.begin() as session:
             return crud.get_or_create_course(session, name=crud.DEFAULT_COURSE,
-                                             evaluation=settings.default_evaluation())
+                                             evaluation=settings.default_evaluation(),
+                                             board_visibility=settings.board_visibility)
     except IntegrityError:  # created by another process starting at the same time
         with sessions() as session:
             return crud.get_or_create_course(session, name=crud.DEFAULT_COURSE,
-                                             evaluation=settings.default_evaluation())
+                                             evaluation=settings.default_evaluation(),
+                                             board_visibility=settings.board_visibility)
 
 
 def baseline_files(directory: Path) -> list[Path]:

@@ -56,6 +56,9 @@ def add_commands(subparsers) -> None:
                                        "the sandboxes it starts inherit them. Not needed to share a machine: "
                                        "the workers of one machine split its CPUs by themselves "
                                        "(LEAGUE_CPU_SLOTS_DIR)")
+    worker.add_argument("--check", action="store_true",
+                        help="exit 0 if the worker using this data directory reached the database recently, "
+                             "else 1 with the reason (a container's health check; runs no worker)")
     worker.set_defaults(run=run_worker)
 
     init = subparsers.add_parser("init", parents=[where], help="create a new league's database",
@@ -96,7 +99,7 @@ def add_commands(subparsers) -> None:
     config.set_defaults(run=run_config)
 
     users = subparsers.add_parser("users", help="manage accounts")
-    commands = users.add_subparsers(dest="users_command", required=True, metavar="{add,import,list,revoke}")
+    commands = users.add_subparsers(dest="users_command", required=True, metavar="{add,import,list,revoke,delete}")
     add = commands.add_parser("add", parents=[where], help="add an account and print its API token")
     add.add_argument("name")
     add.add_argument("--role", choices=[INSTRUCTOR, STUDENT], default=STUDENT, help="default: student")
@@ -118,10 +121,29 @@ def add_commands(subparsers) -> None:
     revoke = commands.add_parser("revoke", parents=[where], help="revoke an account (its token stops working)")
     revoke.add_argument("name")
     revoke.set_defaults(run=run_users_revoke)
+    delete = commands.add_parser(
+        "delete", parents=[where], help="delete a student and their data for good",
+        description="Delete a student: their account, token, submissions, model files and evaluations are erased "
+                    "from the database (rows deleted, not hidden); races and championship standings other students "
+                    "took part in keep their results, with the student's cars shown as 'deleted student'. The audit "
+                    "log records the deletion by user id. Backups taken before still hold the student's data "
+                    "(see the server README).")
+    delete.add_argument("name")
+    delete.add_argument("--yes", action="store_true", help="do not ask for confirmation (scripts)")
+    delete.set_defaults(run=run_users_delete)
 
 
-def _logging() -> None:
-    logging.basicConfig(level=logging.INFO, format="%(asctime)s %(levelname)s %(name)s: %(message)s")
+def _logged_setup(args: argparse.Namespace) -> tuple[Settings, dict[str, str]]:
+    """serve's and worker's settings, then their logging as the settings say (league/server/logs.py);
+    the settings' warnings are logged in that format."""
+    from league.server.logs import configure
+
+    warnings: list[str] = []
+    settings, sources = _setup(args, warnings.append)
+    configure(settings)
+    for warning in warnings:
+        log.warning(warning)
+    return settings, sources
 
 
 def _say(text: str) -> None:
@@ -175,9 +197,9 @@ def run_serve(args: argparse.Namespace) -> int:
     from league.server.api.connections import connection_limits, uvicorn_protocols
     from league.server.app import create_app, open_league
     from league.server.db.session import migrate
+    from league.server.logs import log_config
 
-    _logging()
-    settings, sources = _setup(args, log.warning)
+    settings, sources = _logged_setup(args)
     protocols = uvicorn_protocols(connection_limits(settings))
     engine, _ = _open(settings, sources, log.info, create=True)
     before, after = migrate(engine)
@@ -188,8 +210,8 @@ def run_serve(args: argparse.Namespace) -> int:
     # uvicorn raises the SIGTERM or SIGINT it stopped on again once it is done: end here, not die there
     signal.signal(signal.SIGTERM, _exit_on_signal)
     try:
-        uvicorn.run(create_app(settings, league_), host=args.host, port=args.port, log_level="info",
-                    **protocols)
+        uvicorn.run(create_app(settings, league_), host=args.host, port=args.port, log_level=settings.log_level,
+                    log_config=log_config(settings.log_format, settings.log_level), **protocols)
     except KeyboardInterrupt:
         pass
     finally:
@@ -235,8 +257,9 @@ def run_worker(args: argparse.Namespace) -> int:
     from league.server.jobs.runner import lower_session_priority
     from league.server.jobs.worker import Worker, pin_to_cpus, worker_context
 
-    _logging()
-    settings, sources = _setup(args, log.warning)
+    settings, sources = _logged_setup(args)
+    if args.check:
+        return check_worker(settings)
     cpus = args.cpus if args.cpus is not None else settings.worker_cpus
     if cpus:
         try:
@@ -250,6 +273,16 @@ def run_worker(args: argparse.Namespace) -> int:
     context = worker_context(settings, engine)
     log.info("worker: queue %s", type(context.queue.huey).__name__)
     Worker(context, threads=args.threads or settings.worker_threads).run_forever()
+    return 0
+
+
+def check_worker(settings: Settings) -> int:
+    from league.server.jobs.alive import alive_file, stale_reason
+
+    reason = stale_reason(alive_file(settings.data_dir), settings.reaper_interval_s)
+    if reason:
+        print(f"league worker --check: unhealthy: {reason}", file=sys.stderr)
+        return 1
     return 0
 
 
@@ -318,6 +351,7 @@ def run_config(args: argparse.Namespace) -> int:
 
 
 def _add_user(sessions: sessionmaker[Session], name: str, role: str, **identity: str | None) -> int:
+    from league.server import audit
     from league.server.db import crud
 
     with sessions.begin() as session:
@@ -327,6 +361,8 @@ def _add_user(sessions: sessionmaker[Session], name: str, role: str, **identity:
         except crud.InvalidAccount as error:
             print(f"league: error: {error}", file=sys.stderr)
             return 1
+        audit.record(session, actor=None, action=audit.CREATE_USER, target_kind="user", target_id=user.id,
+                     course_id=user.course_id)
         print(token)
     _say(f"created {role} {user.name!r} (id {user.id}); the token above is shown once")
     return 0
@@ -337,6 +373,7 @@ def run_users_add(args: argparse.Namespace) -> int:
 
 
 def run_users_import(args: argparse.Namespace) -> int:
+    from league.server import audit
     from league.server.db import crud
     from league.server.roster import MAX_ROSTER_BYTES, RosterError, import_roster, read_roster
     from league.spreadsheet import csv_text
@@ -348,7 +385,11 @@ def run_users_import(args: argparse.Namespace) -> int:
         print(f"league: error: {args.file}: {error}", file=sys.stderr)
         return 1
     with _sessions(args).begin() as session:
-        report = import_roster(session, course=crud.first_course(session), created_by=None, roster=roster)
+        course = crud.first_course(session)
+        report = import_roster(session, course=course, created_by=None, roster=roster)
+        audit.record(session, actor=None, action=audit.IMPORT_ROSTER, target_kind="roster", course_id=course.id,
+                     created=[user.id for user, _ in report.created], skipped=len(report.skipped),
+                     errors=len(report.errors))
         tokens = csv_text(["name", "email", "student_id", "token"],
                           ([user.name, user.email, user.student_id, token] for user, token in report.created))
     sys.stdout.write(tokens)  # once committed
@@ -378,6 +419,7 @@ def run_users_list(args: argparse.Namespace) -> int:
 
 
 def run_users_revoke(args: argparse.Namespace) -> int:
+    from league.server import audit
     from league.server.db import crud
 
     with _sessions(args).begin() as session:
@@ -386,8 +428,53 @@ def run_users_revoke(args: argparse.Namespace) -> int:
             print(f"league: error: no user {args.name!r}", file=sys.stderr)
             return 1
         crud.revoke_user(session, user=user)
+        audit.record(session, actor=None, action=audit.REVOKE, target_kind="user", target_id=user.id,
+                     course_id=user.course_id)
     _say(f"revoked {args.name!r}")
     return 0
+
+
+def run_users_delete(args: argparse.Namespace) -> int:
+    from league.server import audit
+    from league.server.db import crud
+    from league.server.erasure import DeletionRefused, delete_student
+    from league.server.storage import BlobStore
+
+    sessions = _sessions(args)
+    if not args.yes and not _confirmed(f"delete the student {args.name!r} and all their data for good? "
+                                       "type their name to confirm: ", args.name):
+        print("league: error: not confirmed (type the name, or pass --yes); nothing deleted", file=sys.stderr)
+        return 1
+    with sessions.begin() as session:
+        user = crud.user_by_name(session, name=args.name)
+        if user is None:
+            print(f"league: error: no user {args.name!r}", file=sys.stderr)
+            return 1
+        try:
+            user_id, course_id, erased = user.id, user.course_id, delete_student(session, user=user)
+        except DeletionRefused as refusal:
+            print(f"league: error: {refusal}", file=sys.stderr)
+            return 1
+        audit.record(session, actor=None, action=audit.DELETE_USER, target_kind="user", target_id=user_id,
+                     course_id=course_id, note="student and their data deleted", **erased.summary())
+    store = BlobStore(load_settings(data_dir=args.data_dir).data_dir)
+    for sha256 in erased.blobs:
+        store.remove(sha256)
+    counts = erased.summary()
+    _say(f"deleted the student {args.name!r} (id {user_id}): {_count(counts['submissions'], 'submission')}, "
+         f"{_count(counts['evaluations'], 'evaluation')}, {_count(counts['files'], 'model file')}, "
+         f"{_count(counts['races_deleted'], 'friendly race')} erased; {_count(counts['races_kept'], 'race')} "
+         f"others took part in kept, their cars shown as deleted")
+    return 0
+
+
+def _confirmed(prompt: str, expected: str) -> bool:
+    if not sys.stdin.isatty():
+        return False
+    try:
+        return input(prompt).strip() == expected
+    except EOFError:
+        return False
 
 
 def main(argv: list[str] | None = None) -> int:

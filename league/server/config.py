@@ -15,7 +15,7 @@ import json
 import os
 import tempfile
 from pathlib import Path
-from typing import Any, Mapping
+from typing import Any, Literal, Mapping
 from urllib.parse import urlsplit
 
 from dotenv import dotenv_values
@@ -33,7 +33,6 @@ OTHER_VARIABLES = {
     "LEAGUE_SERVER": "the league server the student commands (`league submit`, ...) talk to",
     "LEAGUE_TOKEN": "the API token of those commands",
     "LEAGUE_DEBUG": "any value: a failing `league` command prints its traceback",
-    "LEAGUE_WEB_DIR": "the folder of the web pages the server serves (default: the package's)",
 }
 OWN_PREFIXES = ("LEAGUE_TEST_", "LEAGUE_BENCH_")  # the test suite's and the benchmarks' own variables
 
@@ -92,6 +91,17 @@ class Settings(BaseSettings):
     public_cache_max_age_s: float = Field(5.0, ge=0, description="the oldest leaderboard or standings answer ever "
                                                                  "served: past public_cache_s one is served while "
                                                                  "its successor is computed, up to this age")
+    board_visibility: Literal["public", "members", "instructors"] = Field(
+        "members", description="who sees a new course's boards (leaderboard, races, standings): public (anyone; "
+                               "visitors who are not logged in see display names, never real names), members "
+                               "(its logged-in students and instructors) or instructors; instructors change it "
+                               "with PUT /api/settings/privacy or on the console")
+
+    # integrity report (league/server/integrity.py)
+    integrity_tolerance: float = Field(1e-3, gt=0, le=2, description="two submissions behave alike when none of "
+                                                                     "their actions on the probe set differ by "
+                                                                     "more (one network exported twice: ~2e-7; "
+                                                                     "different agents here: 0.8 to 2)")
 
     # sandbox limits
     sandbox_memory_mb: int = Field(LIMITS.memory_mb, description="address space a model may use on top of its "
@@ -142,6 +152,16 @@ class Settings(BaseSettings):
     reaper_interval_s: float = Field(10.0, description="how often each worker looks for jobs whose worker stopped")
     requeue_queued_after_s: float = Field(600.0, description="re-send a job left queued this long (lost message)")
     max_job_attempts: int = Field(3, description="a job whose worker dies this many times fails for good")
+
+    # monitoring (league/server/observability.py)
+    metrics_token: SecretStr | None = Field(None, description="a bearer token that reads /metrics (Prometheus' "
+                                                              "`authorization` credentials) and nothing else; "
+                                                              "instructors' tokens read it too")
+    log_format: Literal["text", "json"] = Field("text", description="log lines of the API, uvicorn and the workers: "
+                                                                   "text (timestamp level logger: message) or json "
+                                                                   "(one object a line)")
+    log_level: Literal["debug", "info", "warning", "error"] = Field("info", description="the least severe log "
+                                                                                        "lines written")
 
     def sandbox_limits(self) -> SandboxLimits:
         """What each sandbox may use, in the toolkit's units."""

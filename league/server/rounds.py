@@ -3,17 +3,19 @@ heats and track, and which submission of a student races.
 
 A round is fixed when it is created -- its entrants, its heats and its track seed are stored --
 and each heat is a race job (league.server.jobs.race), so workers share a round's heats, a dead
-worker's heat is raced again by another, and a finished heat is never counted twice.
+worker's heat is raced again by another, and a finished heat is never counted twice. The track
+seed is drawn secretly and kept out of every answer until the round is over (`track_sealed`), so
+no one can rehearse a round's track before its cars have driven it.
 """
 from __future__ import annotations
 
+import secrets
 from typing import Any
 
 import numpy as np
 from sqlalchemy.orm import Session
 
 from league import championship as rules
-from league.evaluation import episode_seeds
 from league.server.db import crud
 from league.server.db.models import (
     BASELINE, DONE, FAILED, PENDING, RACE, RUNNING, Championship, ChampionshipRound, Job, Race, Submission, User,
@@ -76,8 +78,21 @@ def round_summary(championship_round: ChampionshipRound) -> dict:
     races = championship_round.races
     return {"number": championship_round.number, "status": championship_round.status,
             "heats_done": sum(r.status == DONE for r in races), "heats_total": len(championship_round.heats),
-            "race_ids": [r.id for r in races], "track_seed": championship_round.track_seed,
+            "race_ids": [r.id for r in races],
+            "track_seed": None if track_sealed(championship_round) else championship_round.track_seed,
             "heats": championship_round.heats, "created_at": championship_round.created_at}
+
+
+def draw_track_seed() -> int:
+    """A new round's track, drawn secretly: nothing published before the round derives it. Below
+    2**53, so that the pages' JavaScript numbers show it exactly once it is shown."""
+    return secrets.randbelow(2**53)
+
+
+def track_sealed(championship_round: ChampionshipRound) -> bool:
+    """Whether a round's track is still secret: while its heats are being raced, so that no one
+    learns it before every heat's cars have driven it (shown once the round is done or failed)."""
+    return championship_round.status in (PENDING, RUNNING)
 
 
 def round_entrants(session: Session, championship: Championship) -> list[Submission]:
@@ -89,14 +104,10 @@ def round_entrants(session: Session, championship: Championship) -> list[Submiss
     return sorted(picked, key=lambda s: s.id)
 
 
-def round_track_seed(championship: Championship, number: int) -> int:
-    """Round n's track: the n-th number of the championship's seed sequence."""
-    return episode_seeds(championship.seed, number)[number - 1]
-
-
 def start_round(session: Session, *, championship: Championship, created_by: User,
                 max_attempts: int) -> tuple[ChampionshipRound, list[int]]:
-    """Fix the next round (entrants, seeded heats balanced by standing, track) and queue its heats."""
+    """Fix the next round (entrants, heats drawn from the championship's seed and balanced by
+    standing, a secretly drawn track) and queue its heats."""
     for earlier in championship.rounds:
         if earlier.status in (PENDING, RUNNING):
             raise RoundRefused(f"round {earlier.number} is still {earlier.status}: wait for it to finish")
@@ -108,7 +119,7 @@ def start_round(session: Session, *, championship: Championship, created_by: Use
     heats = rules.split_into_heats([s.id for s in entrants], championship.heat_size,
                                    np.random.default_rng([championship.seed, number]), ranking=ranking)
     championship_round = ChampionshipRound(championship_id=championship.id, number=number, heats=heats,
-                                           track_seed=round_track_seed(championship, number))
+                                           track_seed=draw_track_seed())
     session.add(championship_round)
     session.flush()
     by_id = {s.id: s for s in entrants}

@@ -21,6 +21,8 @@ class UserOut(BaseModel):
     course_id: int | None
     email: str | None
     student_id: str | None = Field(description="the school's id of the student (unique in the course), or null")
+    display_name: str | None = Field(description="what public boards show visitors instead of the name (unique in "
+                                                 "the course); null: a \"Student N\" pseudonym")
     created_at: datetime
     active: bool
 
@@ -34,6 +36,19 @@ class QuotaOut(BaseModel):
 
 class UserMe(UserOut):
     upload_quota: QuotaOut | None = Field(description="students' uploads left; null for instructors (no quota)")
+
+
+class UserUpdate(BaseModel):
+    display_name: str | None = Field(max_length=200, description="shown on public boards to visitors instead of "
+                                                                  "your name (names' rules, unique in the course); "
+                                                                  "null or empty: a \"Student N\" pseudonym")
+
+
+class PrivacySettings(BaseModel):
+    board_visibility: Literal["public", "members", "instructors"] = Field(
+        description="who sees the course's boards (leaderboard, races and replays, championships and standings): "
+                    "public (anyone; visitors see display names or pseudonyms, never names), members (its "
+                    "logged-in students and instructors) or instructors (only; a student still sees their own races)")
 
 
 class UserCreated(UserOut):
@@ -267,7 +282,8 @@ class RaceOut(BaseModel):
     id: int
     status: str = Field(description="pending, running, done or failed")
     error: str | None
-    seed: int
+    seed: int | None = Field(description="the track and start; null while the race is a heat of a round still "
+                                         "being raced (a round's track is secret until then)")
     env_options: dict[str, Any]
     versions: dict[str, Any] | None = Field(description="what raced it: {physics, track_format, package}; "
                                                         "null until done")
@@ -291,7 +307,8 @@ class ChampionshipCreate(BaseModel):
     points: list[int] = Field(default_factory=lambda: [25, 18, 15, 12, 10, 8, 6, 4, 2, 1], min_length=1,
                               max_length=100, description="points by finishing position in a heat")
     include_baselines: bool = True
-    seed: int | None = Field(None, ge=0, lt=2**63, description="the rounds' tracks and heats; default: drawn")
+    seed: int | None = Field(None, ge=0, lt=2**63, description="draws the rounds' heats (who races whom); "
+                                                               "default: drawn. Tracks are drawn secretly per round")
 
 
 class RoundOut(BaseModel):
@@ -300,7 +317,8 @@ class RoundOut(BaseModel):
     heats_done: int
     heats_total: int
     race_ids: list[int]
-    track_seed: int
+    track_seed: int | None = Field(description="the round's track, drawn secretly when the round is created; "
+                                               "null until the round is over (done or failed)")
     heats: list[list[int]] = Field(description="submission ids of each heat")
     created_at: datetime
 
@@ -312,7 +330,7 @@ class ChampionshipOut(BaseModel):
     heat_size: int
     points: list[int]
     include_baselines: bool
-    seed: int
+    seed: int = Field(description="draws each round's heats; the tracks do not derive from it")
     created_at: datetime
     rounds: list[RoundOut]
 
@@ -466,3 +484,61 @@ class ExtensionOut(BaseModel):
 
 class AssignmentBoard(LeaderboardPage):
     board: Literal["public", "private"]
+class AuditEventOut(BaseModel):
+    model_config = ConfigDict(from_attributes=True)
+
+    id: int
+    at: datetime
+    actor_id: int | None = Field(description="the instructor's user id; null: an admin command (`league ...`)")
+    actor_name: str
+    action: str = Field(description="user.create, user.import, user.revoke, user.token, user.delete, job.cancel, "
+                                    "evaluation.rerun, settings.evaluation, championship.create, round.run, "
+                                    "round.retry, integrity.probe")
+    target_kind: str = Field(description="user, job, submission, course, championship or roster")
+    target_id: int | None
+    details: dict[str, Any] = Field(description="ids and figures of the action (never a token; never a deleted "
+                                                "student's name)")
+
+
+class AuditPage(Page):
+    items: list[AuditEventOut]
+
+
+class IntegritySubmission(BaseModel):
+    id: int
+    name: str
+    owner: str
+    baseline: bool = Field(description="a submission of the `baselines` account")
+    kind: str = Field(description="onnx or torchscript")
+    sha256: str
+    created_at: datetime
+
+
+class IntegrityGroup(BaseModel):
+    kind: Literal["identical_file", "same_behaviour", "baseline_copy"] = Field(
+        description="identical_file: one file (sha256) uploaded by several students; same_behaviour: the same "
+                    "actions on the probe set within the tolerance (e.g. one network exported to ONNX and to "
+                    "TorchScript); baseline_copy: a bundled baseline's file or behaviour")
+    students: list[str]
+    baseline: str | None = Field(description="the baseline copied (baseline_copy)")
+    distance: float | None = Field(description="the largest difference of an action on the probe set between "
+                                               "two of its submissions (null: fewer than two probed)")
+    submissions: list[IntegritySubmission]
+
+
+class UncomparedSubmission(IntegritySubmission):
+    reason: str = Field(description="not yet probed (POST /api/integrity/probe), or the model failed on the "
+                                    "probe set (its log says why): compared by file only")
+
+
+class IntegrityReport(BaseModel):
+    tolerance: float = Field(description="actions within this of each other (max-abs) are the same behaviour")
+    probes: int = Field(description="observations in the probe set (2 actions each)")
+    submissions: int = Field(description="ready submissions the report covers (the course's and the baselines')")
+    compared: int = Field(description="of them, those whose actions on the probe set are known")
+    groups: list[IntegrityGroup]
+    not_compared: list[UncomparedSubmission]
+
+
+class ProbesQueued(BaseModel):
+    queued: list[int] = Field(description="ids of the submissions queued to be probed (low priority)")

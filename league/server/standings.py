@@ -15,7 +15,7 @@ from league import championship as rules
 from league.server import results
 from league.server.db import crud
 from league.server.db.models import (
-    BASELINE, DONE, PUBLIC, STUDENT, Assignment, Championship, ChampionshipRound,
+    BASELINE, DELETED, DONE, PUBLIC, STUDENT, Assignment, Championship, ChampionshipRound, Course,
 )
 
 
@@ -52,8 +52,10 @@ def standings_rows(session: Session, championship: Championship) -> list[dict]:
     for rank, standing in enumerate(table, start=1):
         submission, rating = submissions.get(standing.entrant), ratings[standing.entrant]
         rows.append({"rank": rank, "submission_id": standing.entrant,
-                     "name": submission.name if submission else "(deleted)",
-                     "owner": submission.owner.name if submission else "", "points": standing.points,
+                     "name": submission.name if submission else DELETED,
+                     "owner": submission.owner.name if submission else DELETED,
+                     "owner_id": submission.owner_id if submission else None,
+                     "owner_role": submission.owner.role if submission else None, "points": standing.points,
                      "wins": standing.wins, "finishes": standing.finishes, "rating": rating.conservative,
                      "mu": rating.mu, "sigma": rating.sigma})
     return rows
@@ -117,7 +119,7 @@ def _score(entry) -> tuple[float, float]:
 def _leaderboard_row(rank: int | None, entry, rating: rules.Rating | None) -> dict:
     """`entry`: a row of crud.leaderboard_entries (a submission, its owner, its figures)."""
     return {"rank": rank, "stale": bool(entry.stale), "owner": entry.owner, "owner_id": entry.owner_id,
-            "submission_id": entry.id, "name": entry.name,
+            "owner_role": entry.owner_role, "submission_id": entry.id, "name": entry.name,
             "public": entry.public, "completed": entry.completed, "episodes": entry.episodes_total,
             "mean_return": entry.mean_return, "mean_steps": entry.mean_steps,
             "mean_speed": entry.mean_speed, "rating": rating.conservative if rating else None,
@@ -143,7 +145,7 @@ def grade_rows(session: Session, rows: list[dict], *, course_id: int | None, col
     enrolled = set(students)
     mine = [{**row, "student": row["owner"], "agent": row["name"], "heats": len(row.get("finishes", ())),
              **(dict.fromkeys(STALE_FIGURES) if row.get("stale") else {}), "stale": "yes" if row.get("stale") else None}
-            for row in rows if row["owner"] in enrolled]
+            for row in rows if row["owner"] in enrolled and row["submission_id"] > 0]  # < 0: a deleted student's
     ranked = {row["student"] for row in mine}
     mine += [{"student": name} for name in students if name not in ranked]
     return [[row.get(column) for column in columns] for row in mine]

@@ -40,6 +40,7 @@ TEST_SETTINGS = {
     "LEAGUE_REAPER_INTERVAL_S": "0.5",
     "LEAGUE_REQUEUE_QUEUED_AFTER_S": "30",
     "LEAGUE_WORKER_THREADS": "2",
+    "LEAGUE_BOARD_VISIBILITY": "public",  # the tests read boards as visitors; tests/server/api/routes/test_privacy.py the rest
 }
 
 

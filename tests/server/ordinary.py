@@ -98,7 +98,6 @@ class OrdinaryLeague:
         self.uid = ordinary_user()
         self.python = environment_for_others(self.root)
         readable_copy(REPO / "league", Path(next(self.root.glob("venv/lib/python3*/site-packages"))) / "league")
-        readable_copy(REPO / "web", self.root / "web")  # the pages are not package data (yet)
         self.home = self.root / "home"
         self.home.mkdir()
         os.chown(self.home, self.uid, pwd.getpwuid(self.uid).pw_gid)
@@ -116,7 +115,7 @@ class OrdinaryLeague:
         self.port = self.port or free_port(self.host)
         env = {"PATH": os.defpath, "HOME": str(self.home), "LANG": "C.UTF-8", "TMPDIR": str(self.home),
                "LEAGUE_DATA_DIR": str(self.home / "data"), "LEAGUE_BASELINES_DIR": str(self.home / "baselines"),
-               "LEAGUE_CPU_SLOTS_DIR": str(self.home / "cpu-slots"), "LEAGUE_WEB_DIR": str(self.root / "web"),
+               "LEAGUE_CPU_SLOTS_DIR": str(self.home / "cpu-slots"),
                **self.settings}
         soft, hard = self.open_files
         command = ["prlimit", f"--nofile={soft}:{hard}", "--", str(self.python), "-m", "league", "serve",

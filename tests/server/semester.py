@@ -85,7 +85,8 @@ def collect(url: str, instructor_token: str, student_tokens: list[str]) -> dict[
         return httpx.Client(base_url=url, timeout=60, headers={"Authorization": f"Bearer {token}"} if token else {})
 
     answers: dict[str, Any] = {}
-    with client() as public, client(instructor_token) as instructor:
+    # the boards as the course's members see them (real names; a visitor of a public board sees display names)
+    with client(instructor_token) as public, client(instructor_token) as instructor:
         answers["/api/leaderboard"] = _pages(public, "/api/leaderboard")
         for path in ("/api/leaderboard.csv", "/api/users", "/api/settings/evaluation"):
             answers[path] = _get(instructor, path)

@@ -114,9 +114,9 @@ def test_0007_keys_existing_results_so_that_the_board_keeps_what_0006_ranked(kin
     from .api.conftest import in_process_league
 
     with in_process_league(kind, tmp_path, prepare=fill_0006, bootstrap=False) as league:
-        with league.client() as public:
-            board = public.get("/api/leaderboard", params={"size": 100}).json()["items"]
-            race = public.get("/api/races/1").json()
+        with league.client(league.instructor_token) as member:  # names: a visitor sees display names
+            board = member.get("/api/leaderboard", params={"size": 100}).json()["items"]
+            race = member.get("/api/races/1").json()
         with league.client(league.instructor_token) as instructor:
             ann_agent = instructor.get("/api/submissions/2").json()["evaluation"]
             bob_agent = instructor.get("/api/submissions/4").json()["evaluation"]
@@ -213,3 +213,81 @@ def test_0010_makes_each_course_one_default_assignment_and_every_answer_stays(ki
         (1, "ann", 2, False), (2, "bob", 4, False), (3, "baselines", 1, False), (None, "cy", 5, True)]
     assert assignment_board == board
     assert tuple(course) == (11, 3)
+# --------------------------------------------------------------------------- 0013: submissions gain probe actions
+
+
+def test_submissions_gain_probe_actions_with_their_data_kept_and_lose_them_on_downgrade(backend):
+    """0013 on a database of 0008 that holds submissions: every row kept, not probed; a downgrade
+    back to 0008 keeps the rows too."""
+    _, (database_url, _, _) = backend
+    engine = make_engine(database_url)
+    config = alembic_config(database_url)
+    with engine.connect() as connection:
+        config.attributes["connection"] = connection
+        command.upgrade(config, "0008")
+        connection.commit()
+    created = datetime(2026, 11, 1)
+    with engine.begin() as connection:
+        connection.execute(text("INSERT INTO users (id, name, role, created_at) VALUES (1, 'Ada', 'student', :now)"),
+                           {"now": created})
+        connection.execute(text("INSERT INTO submissions (id, owner_id, name, filename, kind, sha256, size, status, "
+                                "public, created_at, updated_at) VALUES (:id, 1, :name, 'a.onnx', 'onnx', :sha, 10, "
+                                "'ready', false, :now, :now)"),
+                           [{"id": i, "name": f"agent {i}", "sha": str(i) * 64, "now": created} for i in (1, 2)])
+    migrate(engine)
+    with engine.begin() as connection:
+        rows = connection.execute(text("SELECT id, name, sha256, status, probe_key, probe_actions FROM submissions "
+                                       "ORDER BY id")).all()
+        connection.execute(text("UPDATE submissions SET probe_key = :key, probe_actions = :data WHERE id = 1"),
+                           {"key": "f" * 16, "data": b"\0" * 512})
+    with engine.connect() as connection:
+        config.attributes["connection"] = connection
+        command.downgrade(config, "0008")
+        connection.commit()
+    with engine.connect() as connection:
+        kept = connection.execute(text("SELECT id, name FROM submissions ORDER BY id")).all()
+        columns = {c["name"] for c in inspect(connection).get_columns("submissions")}
+    engine.dispose()
+    assert [tuple(row) for row in rows] == [(1, "agent 1", "1" * 64, "ready", None, None),
+                                            (2, "agent 2", "2" * 64, "ready", None, None)]
+    assert [tuple(row) for row in kept] == [(1, "agent 1"), (2, "agent 2")]
+    assert not {"probe_key", "probe_actions"} & columns
+
+
+# --------------------------------------------------------------------------- 0012: privacy of the boards
+
+
+def test_existing_courses_stay_public_and_get_pseudonym_keys_users_no_display_name(backend):
+    """0012 on a database of the previous schema (0013) with two courses and their users: the
+    courses keep showing their boards to anyone (an upgrade changes nothing silently), each with its
+    own pseudonym key; every user row kept, without a display name, which is then unique in a course."""
+    _, (database_url, _, _) = backend
+    engine = make_engine(database_url)
+    config = alembic_config(database_url)
+    with engine.connect() as connection:
+        config.attributes["connection"] = connection
+        command.upgrade(config, "0013")
+        connection.commit()
+    created = datetime(2026, 11, 1)
+    with engine.begin() as connection:
+        connection.execute(text("INSERT INTO courses (id, name, eval_seed, eval_episodes, eval_env_options, "
+                                "created_at, updated_at) VALUES (:id, :name, 0, 3, '{}', :now, :now)"),
+                           [{"id": 1, "name": "default", "now": created}, {"id": 2, "name": "other", "now": created}])
+        connection.execute(text("INSERT INTO users (id, name, role, course_id, email, created_at) "
+                                "VALUES (:id, :name, :role, :course, :email, :now)"),
+                           [{"id": 1, "name": "prof", "role": "instructor", "course": 1, "email": None, "now": created},
+                            {"id": 2, "name": "Ada", "role": "student", "course": 1, "email": "a@u.edu", "now": created},
+                            {"id": 3, "name": "Bea", "role": "student", "course": 2, "email": None, "now": created}])
+    migrate(engine)
+    with engine.begin() as connection:
+        courses = connection.execute(text("SELECT id, name, board_visibility, pseudonym_key FROM courses "
+                                          "ORDER BY id")).all()
+        users = connection.execute(text("SELECT id, name, course_id, email, display_name FROM users ORDER BY id")).all()
+        connection.execute(text("UPDATE users SET display_name = 'Zed' WHERE id IN (2, 3)"))  # two courses: allowed
+    with pytest.raises(IntegrityError), engine.begin() as connection:
+        connection.execute(text("UPDATE users SET display_name = 'Zed' WHERE id = 1"))
+    engine.dispose()
+    assert [(row[0], row[1], row[2]) for row in courses] == [(1, "default", "public"), (2, "other", "public")]
+    assert all(row[3] is not None for row in courses) and courses[0][3] != courses[1][3]
+    assert [tuple(row) for row in users] == [(1, "prof", 1, None, None), (2, "Ada", 1, "a@u.edu", None),
+                                             (3, "Bea", 2, None, None)]

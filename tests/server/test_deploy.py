@@ -1,86 +1,350 @@
-"""docker-compose.yml and the Dockerfile: no engine runs here, so their structure is checked, and the
-commands they run are the ones the other tests start by hand (`league serve`, `league worker`).
-The server README's nginx front is checked by nginx itself, where it is installed."""
+"""docker-compose.yml, the Dockerfile and deploy/nginx.conf. No container engine runs here, so what
+they say is checked against what they name: their commands are the CLI's (each one's --help runs),
+their LEAGUE_* variables are settings, their images are pinned; the worker's capabilities are given
+to a real sandbox (setpriv), and a real nginx with the proxy's configuration fronts a real
+`league serve`."""
 from __future__ import annotations
 
 import json
+import os
 import re
 import shutil
+import signal
+import socket
+import ssl
 import subprocess
+import sys
+import time
 from pathlib import Path
 
+import httpx
 import pytest
 import yaml
+from packaging.requirements import Requirement
 from sqlalchemy.engine import make_url
 
 from league.cli import build_parser
 from league.server.config import Settings
+from league.server.jobs.alive import alive_file, stale_reason
+
+from .conftest import fresh_backend, free_port, make_server, wait_for
 
 REPO = Path(__file__).resolve().parents[2]
+PINNED_IMAGE = re.compile(r"^[\w./-]+(:\d+(\.\d+)+[\w.-]*|@sha256:[0-9a-f]{64})$")  # a version with a dot, or a digest
+PLACEHOLDER = re.compile(r"\$\{(\w+)(:?[?-][^}]*)?\}")  # compose's ${VAR}, ${VAR:?message}, ${VAR:-default}
+SECRET_NAME = re.compile(r"PASSWORD|SECRET|TOKEN|KEY", re.I)
 
 
 def compose() -> dict:
     return yaml.safe_load((REPO / "docker-compose.yml").read_text())
 
 
+def services() -> dict[str, dict]:
+    return compose()["services"]
+
+
+def interpolated(value: str) -> str:
+    """A compose value with its ${...} filled in as from a .env (a password of hex digits)."""
+    return PLACEHOLDER.sub(lambda match: "0123abcd" if SECRET_NAME.search(match[1]) else match[1].lower(), value)
+
+
 def league_settings(service: dict) -> Settings:
     """The settings a service's container starts with (its LEAGUE_* variables, nothing else)."""
-    environment = service["environment"]
+    environment = {key: interpolated(str(value)) for key, value in service["environment"].items()
+                   if key.startswith("LEAGUE_")}
     unknown = [key for key in environment if key.removeprefix("LEAGUE_").lower() not in Settings.model_fields]
     assert not unknown, f"variables no setting reads (misspelt?): {unknown}"
     return Settings(_env_file=None, **{key.removeprefix("LEAGUE_").lower(): value
                                        for key, value in environment.items()})
 
 
-def test_the_api_and_scalable_workers_share_the_database_and_queue_of_compose_services():
+def dockerfile() -> str:
+    return (REPO / "Dockerfile").read_text()
+
+
+def league_commands() -> list[list[str]]:
+    """Every `league ...` command the compose file and the Dockerfile run, health checks included."""
+    found = []
+    for service in services().values():
+        for command in (service.get("command"), service.get("healthcheck", {}).get("test", [])[1:]):
+            if command and command[0] == "league":
+                found.append(command)
+    cmd = next(line for line in dockerfile().splitlines() if line.startswith("CMD "))
+    return found + [json.loads(cmd[len("CMD "):])]
+
+
+# --------------------------------------------------------------------------- the compose file
+
+
+def test_the_api_and_scalable_workers_share_the_database_of_a_compose_service():
     """What a deployment needs: every LEAGUE_ variable is a real setting, the API and the workers
-    use one PostgreSQL database and one Redis queue, served by services they wait for, and the
-    worker can be scaled (no fixed port or name)."""
-    services = compose()["services"]
-    api, worker = league_settings(services["api"]), league_settings(services["worker"])
-    assert (api.resolved_database_url, api.resolved_queue_url) == (worker.resolved_database_url,
-                                                                   worker.resolved_queue_url)
-    database, queue = make_url(api.resolved_database_url), make_url(api.resolved_queue_url)
-    assert database.get_backend_name() == "postgresql" and queue.drivername == "redis"
+    use one PostgreSQL database (also the queue), served by a service they wait for, and the worker
+    can be scaled (no fixed port or name)."""
+    api, worker = league_settings(services()["api"]), league_settings(services()["worker"])
+    assert api.resolved_database_url == worker.resolved_database_url
+    database = make_url(api.resolved_database_url)
+    assert database.get_backend_name() == "postgresql" and database.host in services()
     for name in ("api", "worker"):
-        waits_for = set(services[name]["depends_on"])
-        assert {database.host, queue.host} <= waits_for <= set(services), name
-        assert all(services[name]["depends_on"][host]["condition"] == "service_healthy" for host in waits_for)
-    assert "ports" not in services["worker"] and "container_name" not in services["worker"]
+        assert services()[name]["depends_on"][database.host]["condition"] == "service_healthy", name
+    assert "ports" not in services()["worker"] and "container_name" not in services()["worker"]
+    assert "ports" not in services()["api"]  # reached through the proxy only
 
 
-def test_compose_and_dockerfile_commands_are_league_commands():
+def test_every_command_is_a_league_command_whose_help_runs():
     parser = build_parser()
-    services = compose()["services"]
-    dockerfile = (REPO / "Dockerfile").read_text()
-    cmd = next(line for line in dockerfile.splitlines() if line.startswith("CMD "))
-    commands = [services["api"]["command"], services["worker"]["command"], json.loads(cmd[len("CMD "):])]
+    commands = league_commands()
+    assert {tuple(command[:2]) for command in commands} >= {("league", "serve"), ("league", "worker")}
+    assert ["league", "worker", "--check"] in commands  # the worker's health check
     for command in commands:
-        assert command[0] == "league"
-        args = parser.parse_args(command[1:])
+        args = parser.parse_args(command[1:])  # its options exist
         assert args.run.__module__ == "league.server.cli"
+        shown = subprocess.run([sys.executable, "-m", "league", command[1], "--help"], capture_output=True, text=True,
+                               timeout=60, env={**os.environ, "PYTHONPATH": str(REPO)})
+        assert shown.returncode == 0 and f"league {command[1]}" in shown.stdout, shown.stderr
 
 
-def test_the_workers_of_one_host_share_a_cpu_slots_volume():
-    compose_file = compose()
-    worker = compose_file["services"]["worker"]
-    slots_dir = worker["environment"]["LEAGUE_CPU_SLOTS_DIR"]
-    volume = next(mount.split(":")[0] for mount in worker["volumes"] if mount.split(":")[1] == slots_dir)
-    assert volume in compose_file["volumes"]  # a named volume: every replica on the host mounts the same one
+def test_every_league_variable_set_or_suggested_is_a_setting():
+    suggested = re.findall(r"^#?\s*(LEAGUE_\w+)=", (REPO / ".env.example").read_text(), re.M)
+    set_here = [key for service in services().values() for key in service.get("environment", {})
+                if key.startswith("LEAGUE_")]
+    assert suggested and set_here
+    unknown = [key for key in suggested + set_here if key.removeprefix("LEAGUE_").lower() not in Settings.model_fields]
+    assert not unknown, f"variables no setting reads (misspelt?): {unknown}"
 
 
-def test_the_readmes_nginx_front_is_a_configuration_nginx_accepts(tmp_path):
-    """The snippet of league/server/README.md, as a file of conf.d, with a certificate made here."""
-    if shutil.which("nginx") is None or shutil.which("openssl") is None:
-        pytest.skip("needs nginx and openssl (Debian: apt-get install nginx-light openssl)")
-    readme = (REPO / "league" / "server" / "README.md").read_text()
-    snippet = re.search(r"```nginx\n(.*?)```", readme, re.S).group(1)
+def test_every_image_is_pinned():
+    for name, service in services().items():
+        if "build" in service:  # built here: the Dockerfile's base image is the one to pin
+            assert ":" in service["image"] and not service["image"].endswith(":latest"), name
+        else:
+            assert PINNED_IMAGE.match(service["image"]), f"{name}: {service['image']} is not an exact version"
+    bases = re.findall(r"^FROM\s+(\S+)", dockerfile(), re.M)
+    assert bases and all(PINNED_IMAGE.match(base) for base in bases), bases
+
+
+def test_every_service_restarts_and_has_a_health_check():
+    for name, service in services().items():
+        assert service.get("restart") in {"always", "unless-stopped", "on-failure"}, name
+        test = service.get("healthcheck", {}).get("test")
+        assert test and test[0] in {"CMD", "CMD-SHELL"} and len(test) > 1, name
+    assert services()["db"]["healthcheck"]["test"][1] == "pg_isready"
+
+
+def test_what_must_persist_is_on_named_volumes():
+    declared = compose()["volumes"]
+    mounts = {name: dict(mount.split(":")[1::-1] for mount in service.get("volumes", []))
+              for name, service in services().items()}
+    assert mounts["db"]["/var/lib/postgresql/data"] in declared  # the league's whole state
+    assert mounts["worker"]["/run/league-cpu-slots"] in declared  # every replica on the host mounts the same one
+    assert services()["worker"]["environment"]["LEAGUE_CPU_SLOTS_DIR"] == "/run/league-cpu-slots"
+
+
+def test_no_password_is_written_in_the_compose_file():
+    text = (REPO / "docker-compose.yml").read_text()
+    for name, service in services().items():
+        for key, value in service.get("environment", {}).items():
+            value = str(value)
+            if SECRET_NAME.search(key):
+                assert PLACEHOLDER.fullmatch(value), f"{name}: {key} is written in the file"
+            credentials = re.search(r"://[^/@:]+:([^@]+)@", value)
+            if credentials:
+                assert PLACEHOLDER.fullmatch(credentials[1]), f"{name}: {key} holds a password"
+    assert "POSTGRES_PASSWORD" in text and "env_file" in text
+    example = dict(re.findall(r"^(\w+)=(.*)$", (REPO / ".env.example").read_text(), re.M))
+    assert example["POSTGRES_PASSWORD"] == ""  # the example holds no secret; the real .env is never committed
+    for ignore in (".gitignore", ".dockerignore"):
+        assert ".env" in (REPO / ignore).read_text().split(), ignore
+
+
+def test_the_worker_keeps_only_the_capabilities_its_sandboxes_need():
+    for name, service in services().items():
+        assert "SYS_ADMIN" not in service.get("cap_add", []) and not service.get("privileged"), name
+        assert not any("unconfined" in option for option in service.get("security_opt", [])), name
+    worker = services()["worker"]
+    assert worker["cap_drop"] == ["ALL"] and "no-new-privileges:true" in worker["security_opt"]
+
+
+SANDBOX_UNDER_CAPABILITIES = """
+import json, sys, tempfile
+from pathlib import Path
+from league.server.sandbox.process import sandbox_isolation
+from league.server.sandbox.validation import validate_model
+from league.validation.limits import SandboxLimits
+isolation = sandbox_isolation()
+report = validate_model(Path(sys.argv[1]), "onnx", SandboxLimits())
+print(json.dumps({"isolation": isolation.to_dict(), "user": isolation.user, "ok": report.ok, "error": report.error,
+                  "left": [str(path) for path in Path(tempfile.gettempdir()).glob("league-*")]}))
+"""
+
+
+def test_with_only_the_workers_capabilities_a_sandbox_is_fully_isolated_and_cleaned_up(tmp_path):
+    """A root process given the compose file's cap_add alone (setpriv's bounding set) and no new
+    privileges, as the worker's container: the probe sandbox takes a user id of its own, and a
+    model is validated, its sandbox killed (KILL) and its directory removed (DAC_OVERRIDE)."""
+    if os.geteuid() != 0 or shutil.which("setpriv") is None:
+        pytest.skip("needs root and setpriv (util-linux)")
+    capabilities = ",".join(f"+{name.lower()}" for name in services()["worker"]["cap_add"])
+    tmp = Path(tmp_path / "tmp")
+    tmp.mkdir(mode=0o755)
+    tmp_path.chmod(0o755)  # sandboxes work in TMPDIR as their own user
+    model = REPO / "league" / "baselines" / "agents" / "sac.onnx"
+    done = subprocess.run(["setpriv", f"--bounding-set=-all,{capabilities}", "--no-new-privs", sys.executable, "-c",
+                           SANDBOX_UNDER_CAPABILITIES, str(model)], capture_output=True, text=True, timeout=300,
+                          env={**os.environ, "PYTHONPATH": str(REPO), "TMPDIR": str(tmp)})
+    assert done.returncode == 0, done.stderr[-3000:]
+    found = json.loads(done.stdout.splitlines()[-1])
+    assert found["isolation"]["full"], found["isolation"]
+    assert found["user"].startswith("uid "), found  # its own, not root's (in or out of a user namespace)
+    assert found["ok"] and found["error"] is None, found
+    assert found["left"] == [], found
+
+
+# --------------------------------------------------------------------------- the Dockerfile
+
+
+def test_the_image_installs_the_tested_cpu_build_of_torch():
+    install = re.search(r"pip install (torch\S*) --index-url (\S+)", dockerfile())
+    assert install and install[2] == "https://download.pytorch.org/whl/cpu"
+    pinned = Requirement(install[1])
+    assert len(pinned.specifier) == 1 and next(iter(pinned.specifier)).operator == "=="
+    version = next(iter(pinned.specifier)).version
+    extra = re.search(r'^torch = \["(.*)"\]', (REPO / "pyproject.toml").read_text(), re.M)[1]
+    assert Requirement(extra).specifier.contains(version)
+    assert f'"torch=={version}"' in (REPO / "README.md").read_text()  # the release the test command installs
+
+
+def test_the_image_runs_as_an_ordinary_user_and_only_the_worker_as_root():
+    users = re.findall(r"^USER\s+(\S+)", dockerfile(), re.M)
+    assert users and users[-1] not in {"root", "0"}
+    assert [name for name, service in services().items() if service.get("user") in {"root", "0"}] == ["worker"]
+
+
+# --------------------------------------------------------------------------- the worker's health check
+
+
+@pytest.fixture(scope="module")
+def league(tmp_path_factory):
+    """A real `league serve` (SQLite, with its worker process)."""
+    tmp_path = tmp_path_factory.mktemp("deploy")
+    with fresh_backend("sqlite", tmp_path) as urls:
+        server = make_server(tmp_path, urls)
+        before = server.command("worker", "--check")
+        server.start_api()
+        try:
+            yield server, before
+        finally:
+            server.stop_all()
+
+
+def test_the_worker_health_check_follows_the_workers_passes(league):
+    """Unhealthy before the worker's first pass, healthy while it passes, unhealthy once it hangs."""
+    server, before = league
+    assert before.returncode == 1 and "no worker has reached the database from here yet" in before.stderr
+    wait_for(lambda: server.command("worker", "--check").returncode, lambda code: code == 0, timeout=60)
+    worker = int(Path(f"/proc/{server.api.pid}/task/{server.api.pid}/children").read_text().split()[0])
+    os.kill(worker, signal.SIGSTOP)  # hung (a controllable clock: its last pass then set an hour back)
+    try:
+        alive = alive_file(server.data_dir)
+        os.utime(alive, (time.time() - 3600, time.time() - 3600))
+        hung = server.command("worker", "--check")
+        assert hung.returncode == 1 and "the worker's last pass that reached the database was" in hung.stderr
+    finally:
+        os.kill(worker, signal.SIGCONT)
+    wait_for(lambda: server.command("worker", "--check").returncode, lambda code: code == 0, timeout=60)
+
+
+def test_a_worker_counts_as_dead_after_three_missed_passes(tmp_path):
+    path = alive_file(tmp_path)
+    assert "does not exist" in stale_reason(path, 10)
+    path.touch()
+    beat_at = path.stat().st_mtime
+    assert stale_reason(path, 10, now=beat_at + 30) is None
+    assert "31 s ago (more than 3 x LEAGUE_REAPER_INTERVAL_S = 30 s" in stale_reason(path, 10, now=beat_at + 31)
+
+
+# --------------------------------------------------------------------------- the proxy
+
+
+def proxy_configuration(tmp_path: Path, api_port: int, http_port: int, https_port: int) -> Path:
+    """deploy/nginx.conf with this machine's addresses, a certificate made here and a 1 s header
+    timeout, included in a main configuration of its own; each replaced line must exist."""
     subprocess.run(["openssl", "req", "-x509", "-newkey", "rsa:2048", "-nodes", "-subj", "/CN=league", "-days", "1",
                     "-keyout", str(tmp_path / "league.key"), "-out", str(tmp_path / "league.pem")],
                    check=True, capture_output=True, timeout=60)
-    (tmp_path / "league.conf").write_text(snippet.replace("/etc/ssl/", f"{tmp_path}/"))
-    (tmp_path / "nginx.conf").write_text(f"pid {tmp_path}/nginx.pid; error_log {tmp_path}/error.log;\n"
-                                         f"events {{}}\nhttp {{ include {tmp_path}/league.conf; }}\n")
-    checked = subprocess.run(["nginx", "-t", "-p", str(tmp_path), "-c", str(tmp_path / "nginx.conf")],
-                             capture_output=True, text=True, timeout=60)
+    text = (REPO / "deploy" / "nginx.conf").read_text()
+    for old, new in [("listen 80;", f"listen 127.0.0.1:{http_port};"),
+                     ("listen 443 ssl;", f"listen 127.0.0.1:{https_port} ssl;"),
+                     ("http://api:8000", f"http://127.0.0.1:{api_port}"),
+                     ("client_header_timeout 10s;", "client_header_timeout 1s;")]:
+        assert text.count(old) == 1, old
+        text = text.replace(old, new)
+    (tmp_path / "league.conf").write_text(text.replace("/etc/nginx/certs/", f"{tmp_path}/"))
+    main = tmp_path / "nginx.conf"
+    main.write_text(f"pid {tmp_path}/nginx.pid; error_log {tmp_path}/error.log;\n"
+                    f"events {{}}\nhttp {{ access_log off; include {tmp_path}/league.conf; }}\n")
+    return main
+
+
+def require_nginx() -> None:
+    if shutil.which("nginx") is None or shutil.which("openssl") is None:
+        pytest.skip("needs nginx and openssl (Debian: apt-get install nginx-light openssl)")
+
+
+def test_the_proxy_configuration_is_one_nginx_accepts(tmp_path):
+    require_nginx()
+    main = proxy_configuration(tmp_path, 8000, 8080, 8443)
+    checked = subprocess.run(["nginx", "-t", "-p", str(tmp_path), "-c", str(main)], capture_output=True, text=True,
+                             timeout=60)
     assert checked.returncode == 0, checked.stderr
+
+
+@pytest.fixture
+def proxy(league, tmp_path):
+    require_nginx()
+    server, _ = league
+    http_port, https_port = free_port(), free_port()
+    main = proxy_configuration(tmp_path, server.port, http_port, https_port)
+    nginx = subprocess.Popen(["nginx", "-p", str(tmp_path), "-c", str(main), "-g", "daemon off;"],
+                             stdout=subprocess.DEVNULL, stderr=subprocess.PIPE)
+    try:
+        wait_for(lambda: listening(https_port) or nginx.poll() is not None, bool, timeout=30)
+        assert nginx.poll() is None, nginx.stderr.read().decode()
+        yield http_port, https_port
+    finally:
+        nginx.terminate()
+        nginx.wait(timeout=30)
+
+
+def listening(port: int) -> bool:
+    with socket.socket() as sock:
+        return sock.connect_ex(("127.0.0.1", port)) == 0
+
+
+def test_nginx_in_front_of_league_serve_answers_over_tls_and_bounds_bodies(league, proxy):
+    server, _ = league
+    http_port, https_port = proxy
+    with httpx.Client(base_url=f"https://127.0.0.1:{https_port}", verify=False, timeout=30) as client:
+        health = client.get("/api/health")
+        assert health.status_code == httpx.get(f"{server.url}/api/health").status_code == 200
+        assert health.json()["status"] == "ok" and health.headers["strict-transport-security"]
+        assert "<main" in client.get("/").text
+        too_big = client.post("/api/submissions", content=b"\0" * (12 * 1024 * 1024),
+                              headers={"Content-Type": "application/octet-stream"})
+        assert too_big.status_code == 413  # refused by nginx before the API reads it
+    plain = httpx.get(f"http://127.0.0.1:{http_port}/api/health")
+    assert plain.status_code == 301 and plain.headers["location"].startswith("https://")
+    assert httpx.get(f"http://127.0.0.1:{http_port}/healthz").text == "ok\n"  # the container's health check
+
+
+def test_nginx_cuts_a_client_whose_request_head_never_ends(proxy):
+    http_port, https_port = proxy
+    watched = subprocess.run([sys.executable, "-m", "tests.server.slow_clients", "127.0.0.1", str(http_port), "3", "30"],
+                             cwd=REPO, capture_output=True, text=True, timeout=120)
+    ends = json.loads(watched.stdout.splitlines()[-1])
+    assert all(end["end"] != "open" for end in ends), ends
+    # over TLS too: the handshake done, half a head, then nothing
+    context = ssl.create_default_context()
+    context.check_hostname, context.verify_mode = False, ssl.CERT_NONE
+    with context.wrap_socket(socket.create_connection(("127.0.0.1", https_port), timeout=30)) as tls:
+        tls.sendall(b"GET /api/health HTTP/1.1\r\nHost: league\r\nX-Wait: ")
+        assert tls.recv(65536) == b""  # closed by nginx (within 30 s: the socket's own timeout would raise)

@@ -39,7 +39,8 @@ def attacked():
     """(the ordinary user's league, listening on this host's end of a link to the attacker's host)."""
     with other_host() as attacker, shared_directory() as root:
         league = OrdinaryLeague(root, host=attacker.local_address,
-                                settings={"LEAGUE_REQUEST_HEAD_TIMEOUT_S": str(HEAD_TIMEOUT_S)})
+                                settings={"LEAGUE_REQUEST_HEAD_TIMEOUT_S": str(HEAD_TIMEOUT_S),
+                                          "LEAGUE_BOARD_VISIBILITY": "public"})  # visitors' answers: the cache attacked
         try:
             league.start()
             yield league, attacker

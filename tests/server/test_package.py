@@ -1,5 +1,5 @@
 """The league as a user installs it: a wheel in a fresh venv, `league serve` started in a folder that
-is not the checkout, the baselines bundled with the package on its leaderboard, and that wheel's
+is not the checkout, its pages and the baselines bundled with the package served, and that wheel's
 files handed out to students (GET /api/package)."""
 from __future__ import annotations
 
@@ -65,7 +65,6 @@ def test_an_installed_server_started_elsewhere_registers_the_bundled_baselines(i
     env = outside_env()
     env.update(TEST_SETTINGS, LEAGUE_EVAL_EPISODES="1", LEAGUE_DATA_DIR=str(elsewhere / "data"),
                LEAGUE_CPU_SLOTS_DIR=str(tmp_path / "cpu-slots"),
-               LEAGUE_WEB_DIR=str(REPO / "web"),  # the pages are not package data (yet)
                # the dependencies come through a .pth path, which sandboxes may not read (by design,
                # sandbox/child.py read_roots): here they run without Landlock
                LEAGUE_SANDBOX_REQUIRE_ISOLATION="false")
@@ -79,6 +78,10 @@ def test_an_installed_server_started_elsewhere_registers_the_bundled_baselines(i
                                   cwd=elsewhere, stdout=open(tmp_path / "api.log", "wb"), stderr=subprocess.STDOUT)
     try:
         server.wait_healthy()
+        # the pages are package data: served from the installation, not from the working directory
+        page = httpx.get(f"{server.url}/", timeout=10)
+        assert page.status_code == 200 and "<main" in page.text, page.text[:500]
+        assert httpx.get(f"{server.url}/static/js/api.js", timeout=10).status_code == 200
 
         def baselines_on_the_board() -> list[str]:
             rows = httpx.get(f"{server.url}/api/leaderboard", params={"size": 100}, timeout=10).json()["items"]

@@ -25,7 +25,7 @@ from .conftest import instructor_of_a_new_course, require_browser, student_token
 require_browser()
 
 # The first cars' colours (the toolkit's, league/render.py) and a finished episode's (Okabe–Ito,
-# web/static/js/palette.js).
+# league/web/static/js/palette.js).
 CAR_COLORS = [tuple(color) for color in render.CAR_COLORS[:4]]
 FINISHED_COLOR = (0x00, 0x9E, 0x73)
 # CIEDE2000 above 10: two colours are clearly different at a glance.
@@ -482,7 +482,7 @@ def test_student_sees_their_agent_on_the_leaderboard(web, web_server, agent_file
     ready_submission(web_server, token, agent_files["driver_0.3"])
     # The public cache first serves what it kept, then refreshes (league/server/api/cache.py): after
     # another test loaded the page, the new row came only with the page's refresh 15 s later.
-    wait_for(lambda: web_server.client().get("/api/leaderboard?page=1&size=50").json()["items"],
+    wait_for(lambda: web_server.client(token).get("/api/leaderboard?page=1&size=50").json()["items"],
              lambda rows: any(row["owner"] == name for row in rows))
     web.login(token)
 
@@ -511,7 +511,7 @@ def test_a_settings_change_shows_every_earlier_result_apart_as_stale(web, web_se
             web.goto("/")
             stale = web.page.locator("#leaderboard tbody tr.apart")
             stale.first.wait_for()
-            board = web_server.client().get("/api/leaderboard?page=1&size=50").json()["items"]
+            board = web_server.client().get("/api/leaderboard?page=1&size=50").json()["items"]  # as the page (a visitor)
             assert board and all(row["stale"] and row["rank"] is None for row in board)
             assert stale.count() == web.page.locator("#leaderboard tbody tr").count() == len(board)
             assert stale.locator("td:first-child .badge.stale").count() == len(board)
@@ -544,7 +544,7 @@ def test_instructor_runs_a_round_opens_a_replay_and_the_standings_break_ties(web
     championship = unique("Cup")
     web.page.fill("#champ-name", championship)
     web.page.fill("#champ-heat", "4")
-    web.page.fill("#champ-seed", "11")  # reproducible tracks and heats
+    web.page.fill("#champ-seed", "11")  # reproducible heats (the track is drawn secretly)
     web.page.fill("#champ-points", "10, 10")  # every heat's first two level on points: ties to break
     web.page.click("#championship-form button[type=submit]")
     card = web.page.locator("[data-championship]", has_text=championship)
@@ -581,7 +581,7 @@ def test_instructor_runs_a_round_opens_a_replay_and_the_standings_break_ties(web
 
     # the standings say what broke each tie on points
     web.goto(f"/?championship={championship_id}")
-    rows = web_server.client().get(f"/api/championships/{championship_id}/standings").json()["items"]
+    rows = web_server.client(web_server.instructor_token).get(f"/api/championships/{championship_id}/standings").json()["items"]
     web.page.wait_for_selector(f"#standings tbody tr[data-key='{rows[-1]['submission_id']}']")
     notes = [tie_break(row, above) for above, row in zip([None] + rows, rows)]
     for row, note in zip(rows, notes):
@@ -628,3 +628,64 @@ def test_student_picks_the_active_submission(web, web_server, agent_files):
     web.page.locator(f"#submissions tr[data-id='{older}'] .badge.active").wait_for()
     assert wait_for(lambda: web_server.client(token).get(f"/api/submissions/{older}").json(),
                     lambda s: s.get("active") is True)
+
+
+def test_instructor_deletes_a_student_after_a_confirmation_and_reads_it_in_the_audit_log(web, web_server):
+    token = instructor_of_a_new_course(web_server)
+    name = unique("dee")
+    with web_server.client(token) as instructor:
+        student = instructor.post("/api/users", json={"name": name}).json()
+    web.login(token)
+    delete = f"#users [data-focus-key='delete-{student['id']}']"
+    expect(web.page.locator(delete)).to_have_accessible_name(f"Delete {name} and their data")
+
+    web.page.click(delete)  # asks first: cancelling keeps the student
+    web.page.wait_for_selector("#delete-dialog[open]")
+    expect(web.page.locator("#delete-title")).to_have_text(f"Delete {name} and their data?")
+    web.page.click("#delete-dialog button[value=cancel]")
+    assert web_server.client(student["token"]).get("/api/users/me").status_code == 200
+
+    web.page.click(delete)
+    web.page.click("#delete-dialog button[value=delete]")
+    expect(web.page.locator("#students-message")).to_have_text(f"{name} and their data are deleted.")
+    expect(web.page.locator(delete)).to_have_count(0)
+    assert web_server.client(student["token"]).get("/api/users/me").status_code == 401
+
+    web.page.click("#refresh-audit")
+    newest = web.page.locator("#audit tbody tr").first
+    expect(newest).to_contain_text("user.delete")
+    expect(newest).to_contain_text(f"user #{student['id']}")
+    expect(web.page.locator("#audit")).not_to_contain_text(name)  # the deleted student's name is not kept
+
+
+def test_a_board_for_members_prompts_a_visitor_to_log_in_and_a_student_picks_a_display_name(web, web_server):
+    token = student_token(web_server, unique("hana"))
+    with web_server.client(web_server.instructor_token) as instructor:
+        assert instructor.put("/api/settings/privacy", json={"board_visibility": "members"}).status_code == 200
+        try:
+            web.goto("/")
+            prompt = web.page.locator("#board-closed")
+            prompt.wait_for()
+            assert prompt.inner_text().startswith("Log in to see the boards. The server says: log in to see this: "
+                                                  "the boards of course 'default' are shown to the course's students")
+            assert web.page.is_hidden("#leaderboard") and web.page.is_hidden("#standings")  # no empty tables
+            web.screenshot("board-login-prompt")
+            prompt.locator("a").click()
+            web.page.wait_for_url("**/login?next=%2F")
+
+            web.login(token)
+            web.goto("/")
+            web.page.locator("#leaderboard").wait_for()
+            assert web.page.is_hidden("#board-closed")
+
+            web.goto("/submissions")
+            expect(web.page.locator("#display-note")).to_contain_text("shown to its students and instructors only")
+            web.page.fill("#display-name", "Student 7")
+            web.page.click("#display-form button[type=submit]")
+            expect(web.page.locator("#display-message")).to_contain_text("Not saved: the display name 'Student 7' "
+                                                                         "looks like the pseudonym")
+            web.page.fill("#display-name", unique("Comet"))
+            web.page.click("#display-form button[type=submit]")
+            expect(web.page.locator("#display-message")).to_contain_text("Saved: visitors of public boards see")
+        finally:
+            assert instructor.put("/api/settings/privacy", json={"board_visibility": "public"}).status_code == 200

@@ -12,13 +12,14 @@ from league.web_geometry import track_geometry
 @pytest.mark.parametrize("path,marker,current", [
     ("/", "pages/leaderboard.js", "/"), ("/login", "pages/login.js", None),
     ("/submissions", "pages/submissions.js", "/submissions"), ("/races/12", "pages/race.js", None),
-    ("/replay", "pages/race.js", None), ("/instructor", "pages/instructor.js", "/instructor")])
+    ("/replay", "pages/race.js", None), ("/instructor", "pages/instructor.js", "/instructor"),
+    ("/integrity", "pages/integrity.js", "/instructor")])
 def test_pages_are_html_that_may_load_from_their_own_server_only(web_server, path, marker, current):
     response = httpx.get(web_server.url + path)
     assert response.status_code == 200
     assert response.headers["content-type"].startswith("text/html")
     assert marker in response.text
-    # the shared header (web/layout.html) marks the page's own link, if it has one
+    # the shared header (league/web/layout.html) marks the page's own link, if it has one
     assert response.text.count('<nav class="site-nav"') == 1
     assert re.findall(r'<a href="([^"]+)" aria-current="page">', response.text) == ([current] if current else [])
     policy = response.headers["content-security-policy"]

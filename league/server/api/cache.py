@@ -29,6 +29,7 @@ from league.server.db import crud
 
 log = logging.getLogger("league.server.cache")
 PUBLIC = "public, no-cache"  # clients and proxies may keep answers, but ask (If-None-Match) before reusing one
+PRIVATE = "private, no-cache"  # the browser keeps it (not a proxy: it is the viewer's), and asks before reusing it
 MAX_BYTES = 16 * 1024 * 1024  # kept answers' bodies and ENTRY_OVERHEAD each: what any page number may cost
 ENTRY_OVERHEAD = 512  # bytes a kept answer costs besides its body (key, Entry, ETag, the LRU's links)
 
@@ -110,8 +111,10 @@ def read_stamp(sessions) -> tuple:
         return crud.public_state_stamp(session)
 
 
-async def cached_json(request: Request, key: Hashable, compute: Callable[[], bytes]) -> Response:
-    """A JSON response from the app's cache (computed in the thread pool when none may be served)."""
+async def cached_json(request: Request, key: Hashable, compute: Callable[[], bytes],
+                      cache_control: str = PUBLIC) -> Response:
+    """A JSON response from the app's cache (computed in the thread pool when none may be served);
+    `key` says whose answer it is (the course, real or public names)."""
     cache: ResponseCache = request.app.state.cache
     stamp = await run_in_threadpool(read_stamp, request.app.state.sessions)
     entry, fresh = cache.lookup(key, stamp)
@@ -119,7 +122,7 @@ async def cached_json(request: Request, key: Hashable, compute: Callable[[], byt
         entry = await run_in_threadpool(cache.compute, key, compute, stamp)
     elif not fresh and cache.claim_refresh(key):
         asyncio.get_running_loop().run_in_executor(None, cache.refresh, key, compute, stamp)
-    return etag_response(request, entry.body, PUBLIC, entry.etag)
+    return etag_response(request, entry.body, cache_control, entry.etag)
 
 
 def body_etag(body: bytes) -> str:

@@ -14,7 +14,8 @@ from league.spreadsheet import csv_text
 from league.server.clock import Clock
 from league.server.config import Settings
 from league.server.db import crud
-from league.server.db.models import INSTRUCTOR, Course, User
+from league.server.db.models import INSTRUCTOR, INSTRUCTORS, PUBLIC, STUDENT, Course, User
+from league.server.privacy import AUDIENCE, Names
 from league.server.storage import BlobStore
 from league.server.jobs.queue import JobQueue
 
@@ -81,6 +82,15 @@ def get_current_user(session: SessionDep,
 CurrentUser = Annotated[User, Depends(get_current_user)]
 
 
+def get_optional_user(session: SessionDep,
+                      credentials: Annotated[HTTPAuthorizationCredentials | None, Depends(bearer)]) -> User | None:
+    """The user of the token, or None without one (a token sent is checked: a refused one is a 401)."""
+    return None if credentials is None else get_current_user(session, credentials)
+
+
+OptionalUser = Annotated[User | None, Depends(get_optional_user)]
+
+
 async def get_instructor(user: CurrentUser) -> User:
     if user.role != INSTRUCTOR:
         raise HTTPException(status.HTTP_403_FORBIDDEN, "only instructors may do this")
@@ -104,6 +114,38 @@ def user_course(session: Session, user: User) -> Course:
     return course
 
 
+def board_course(session: Session, viewer: User | None, course_id: int | None = None) -> Course:
+    """The course whose board is asked for: `course_id`'s (a race's, a championship's), else the
+    viewer's, else (a visitor) the first course."""
+    course = session.get(Course, course_id) if course_id is not None else None
+    if course is None and viewer is not None and viewer.course_id is not None:
+        course = session.get(Course, viewer.course_id)
+    course = course or crud.first_course(session)
+    if course is None:
+        raise HTTPException(status.HTTP_404_NOT_FOUND, "no course yet")
+    return course
+
+
+def board_names(session: Session, viewer: User | None, course: Course, *, owns: bool = False) -> Names:
+    """The check of every route that shows students' names or results (the course's board
+    visibility, league.server.privacy): how `viewer` (None: not logged in) sees the course's
+    boards, or a 401 (log in) / 403 (who may see them). Its instructors, and its students unless
+    the board is for instructors only, see real names; visitors of a public board, and a student
+    who `owns` what is shown (a race with their car), see public names."""
+    visibility = course.board_visibility
+    member = viewer is not None and viewer.course_id == course.id and viewer.role in (STUDENT, INSTRUCTOR)
+    if member and (viewer.role == INSTRUCTOR or visibility != INSTRUCTORS):
+        return Names(real=True)
+    if visibility == PUBLIC or owns:
+        return Names(real=False, key=course.pseudonym_key or 0, viewer_id=viewer.id if viewer else None,
+                     display_names=crud.display_names(session, course_id=course.id))
+    audience = f"the boards of course {course.name!r} are shown to {AUDIENCE[visibility]}"
+    if viewer is None:
+        raise unauthorized(f"log in to see this: {audience} (your token is from your instructor)")
+    raise HTTPException(status.HTTP_403_FORBIDDEN, f"{audience}; you are {viewer.name!r} ({viewer.role}"
+                                                   f"{'' if member else ' of another course'})")
+
+
 def check_env_options(options: dict) -> None:
     """Options of an evaluation, a race or a championship, as the simulator accepts them (422 if not)."""
     if "observation" in options:
@@ -113,6 +155,13 @@ def check_env_options(options: dict) -> None:
         league.RaceOptions.from_kwargs(**options)
     except (TypeError, ValueError) as error:
         raise HTTPException(status.HTTP_422_UNPROCESSABLE_CONTENT, f"invalid env_options: {error}") from error
+
+
+def lock_account(session: Session, user: User) -> None:
+    """Hold the user's row for this transaction (crud.lock_user); 401 if the account was deleted
+    since its token was checked."""
+    if not crud.lock_user(session, user_id=user.id):
+        raise unauthorized("this account was deleted")
 
 
 def check_upload_quota(session: Session, user: User, limit: int) -> None:

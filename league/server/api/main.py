@@ -4,9 +4,11 @@ from __future__ import annotations
 from fastapi import APIRouter
 
 from league.server.api.routes import (
-    assignments, championships, evaluations, health, jobs, leaderboard, package, races, submissions, users,
+    assignments, audit, championships, evaluations, health, integrity, jobs, leaderboard, package, privacy, races,
+    submissions, users,
 )
 
 api_router = APIRouter()
-for module in (health, users, assignments, submissions, evaluations, jobs, races, championships, leaderboard, package):
+for module in (health, audit, users, assignments, submissions, evaluations, privacy, jobs, races, championships,
+               leaderboard, package, integrity):
     api_router.include_router(module.router)

@@ -13,10 +13,11 @@ from sqlalchemy.orm import Session
 
 from league.server.accounts import clean_email, clean_name, clean_student_id
 from league.server.db.models import (
-    BASELINE, DONE, EVALUATE, FAILED, NORMAL, PUBLIC, QUEUED, RACE, READY, REJECTED, RUNNING, STUDENT, VALIDATE,
-    Assignment, Blob, Championship, ChampionshipRound, Course, EpisodeResult, Evaluation, Job, Race, StudentAssignment,
-    Submission, User, utcnow,
+    BASELINE, DONE, EVALUATE, FAILED, MEMBERS, NORMAL, PUBLIC, QUEUED, RACE, READY, REJECTED, RUNNING, STUDENT,
+    VALIDATE, Assignment, Blob, Championship, ChampionshipRound, Course, EpisodeResult, Evaluation, Job, Race,
+    StudentAssignment, Submission, User, utcnow,
 )
+from league.server.privacy import clean_display_name
 from league.server.security import hash_token, new_token
 
 DEFAULT_COURSE = "default"
@@ -38,11 +39,13 @@ class AccountTaken(InvalidAccount):
 # --------------------------------------------------------------------------- courses
 
 
-def get_or_create_course(session: Session, *, name: str, evaluation: dict[str, Any]) -> Course:
-    """The course named `name`; a new one gets its default assignment with the `evaluation` settings."""
+def get_or_create_course(session: Session, *, name: str, evaluation: dict[str, Any],
+                         board_visibility: str | None = None) -> Course:
+    """The course named `name`; a new one takes `board_visibility` (None: members) and gets its default
+    assignment with the `evaluation` settings."""
     course = session.scalar(select(Course).where(Course.name == name))
     if course is None:
-        course = Course(name=name)
+        course = Course(name=name, board_visibility=board_visibility or MEMBERS)
         session.add(course)
         session.flush()
         create_assignment(session, course=course, name=DEFAULT_ASSIGNMENT, seed=evaluation["seed"],
@@ -177,6 +180,30 @@ def course_users(session: Session, *, course_id: int | None) -> list[User]:
     return list(session.scalars(select(User).where(User.course_id == course_id).order_by(User.id)))
 
 
+def set_display_name(session: Session, *, user: User, display_name: str | None) -> User:
+    """Give the user a display name (privacy.clean_display_name), unless it is any account's name or
+    another display name of the course; None removes it. One message for both: it names nobody."""
+    try:
+        display_name = clean_display_name(display_name)
+    except ValueError as error:
+        raise InvalidAccount(str(error).replace("the name", "the display name", 1)) from None
+    if display_name is not None:
+        folded = func.lower(display_name)  # the database's lower() on both sides: exact matches on any backend
+        taken = session.scalar(select(User.id).where(User.id != user.id, (func.lower(User.name) == folded) | (
+            (User.course_id == user.course_id) & (func.lower(User.display_name) == folded))).limit(1))
+        if taken is not None:
+            raise AccountTaken(f"the display name {display_name!r} is taken: choose another")
+    user.display_name = display_name
+    session.flush()
+    return user
+
+
+def display_names(session: Session, *, course_id: int) -> dict[int, str]:
+    """user id -> display name, of the course's users who chose one."""
+    return dict(session.execute(select(User.id, User.display_name).where(User.course_id == course_id,
+                                                                         User.display_name.is_not(None))).all())
+
+
 def revoke_user(session: Session, *, user: User) -> User:
     if user.revoked_at is None:
         user.revoked_at = utcnow()
@@ -205,10 +232,11 @@ class QuotaUsage:
         return self.used >= self.limit
 
 
-def lock_user(session: Session, *, user_id: int) -> None:
+def lock_user(session: Session, *, user_id: int) -> bool:
     """Hold the user's row until the transaction ends (PostgreSQL: a row lock; SQLite: the database's
-    write lock), so that checking a quota and using it are one step for concurrent requests."""
-    session.execute(update(User).where(User.id == user_id).values(id=User.id))
+    write lock), so that checking a quota and using it are one step for concurrent requests.
+    False if the user is gone (deleted meanwhile: league.server.erasure)."""
+    return bool(session.execute(update(User).where(User.id == user_id).values(id=User.id)).rowcount)
 
 
 def jobs_in_flight(session: Session, *, owner_id: int) -> int:
@@ -474,14 +502,23 @@ def races_started_since(session: Session, *, user: User, since: datetime) -> int
         Race.created_by_id == user.id, Race.championship_id.is_(None), Race.created_at > since)) or 0
 
 
-def races_page(session: Session, *, page: int, size: int, championship_id: int | None) -> tuple[list[Race], int]:
-    """Races, newest first, and how many there are."""
-    query = select(Race)
+def races_page(session: Session, *, course_id: int, page: int, size: int, championship_id: int | None,
+               entrant_ids: set[int] | None = None) -> tuple[list[Race], int]:
+    """The course's races (with a car of `entrant_ids`, when given), newest first, and how many there are."""
+    query = select(Race).where(Race.course_id == course_id)
     if championship_id is not None:
         query = query.where(Race.championship_id == championship_id)
+    if entrant_ids is not None:  # entrants are JSON: picked here, from the course's races' few ids
+        with_car = [race_id for race_id, entrants in session.execute(query.with_only_columns(Race.id, Race.entrants))
+                    if any(entrant["submission_id"] in entrant_ids for entrant in entrants)]
+        query = query.where(Race.id.in_(with_car))
     total = session.scalar(select(func.count()).select_from(query.subquery()))
     races = list(session.scalars(query.order_by(Race.id.desc()).offset((page - 1) * size).limit(size)))
     return races, total
+
+
+def submission_ids_of(session: Session, *, owner_id: int) -> set[int]:
+    return set(session.scalars(select(Submission.id).where(Submission.owner_id == owner_id)))
 
 
 def course_championships(session: Session, *, course_id: int | None) -> list[Championship]:

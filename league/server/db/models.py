@@ -4,6 +4,7 @@ Schema changes go through an Alembic migration (league/server/migrations/version
 """
 from __future__ import annotations
 
+import secrets
 from datetime import datetime, timezone
 from typing import Any
 
@@ -15,6 +16,7 @@ from sqlalchemy.types import TypeDecorator
 
 # roles
 INSTRUCTOR, STUDENT, BASELINE = "instructor", "student", "baseline"
+DELETED = "deleted student"  # what races and standings show for a deleted student (league.server.erasure)
 
 # submission statuses (what students see)
 PENDING, VALIDATING, READY, REJECTED, FAILED = "pending", "validating", "ready", "rejected", "failed"
@@ -23,13 +25,16 @@ PENDING, VALIDATING, READY, REJECTED, FAILED = "pending", "validating", "ready",
 QUEUED, RUNNING, DONE = "queued", "running", "done"
 
 # job kinds
-VALIDATE, EVALUATE, RACE = "validate", "evaluate", "race"
+VALIDATE, EVALUATE, RACE, PROBE = "validate", "evaluate", "race", "probe"
 
 # job priorities: a low one is claimed only when no normal one waits
 NORMAL, LOW = 0, 1
 
-# an evaluation's tracks: an assignment's public validation seed, or its private test seed
-PUBLIC, PRIVATE = "public", "private"
+# who sees a course's boards (league.server.privacy): anyone, its logged-in users, its instructors
+PUBLIC, MEMBERS, INSTRUCTORS = "public", "members", "instructors"
+
+# an evaluation's tracks: an assignment's public validation seed (PUBLIC, the same word), or its private test seed
+PRIVATE = "private"
 
 
 def utcnow() -> datetime:
@@ -64,6 +69,11 @@ class Course(Base):
 
     id: Mapped[int] = mapped_column(primary_key=True)
     name: Mapped[str] = mapped_column(String(100), unique=True)
+    # who sees its boards; the server default is what courses older than the setting were (migration 0012)
+    board_visibility: Mapped[str] = mapped_column(String(20), default=MEMBERS, server_default=PUBLIC)
+    # keys the "Student N" pseudonyms of its public boards (league.server.privacy.pseudonym); every row has
+    # one (migration 0012 draws them): nullable in the schema only, as SQLite adds no NOT NULL column without a default
+    pseudonym_key: Mapped[int] = mapped_column(BigInteger, nullable=True, default=lambda: secrets.randbits(62))
     created_at: Mapped[datetime] = mapped_column(default=utcnow)
     updated_at: Mapped[datetime] = mapped_column(default=utcnow, onupdate=utcnow)
 
@@ -131,7 +141,8 @@ class User(Base):
 
     __tablename__ = "users"
     # NULLs differ on both backends: many students without an id, none sharing one
-    __table_args__ = (Index("uq_users_course_student_id", "course_id", "student_id", unique=True),)
+    __table_args__ = (Index("uq_users_course_student_id", "course_id", "student_id", unique=True),
+                      Index("uq_users_course_display_name", "course_id", "display_name", unique=True))
 
     id: Mapped[int] = mapped_column(primary_key=True)
     name: Mapped[str] = mapped_column(String(100), unique=True)
@@ -140,6 +151,8 @@ class User(Base):
     # how gradebook exports (Canvas, Moodle) identify the student; from the roster, optional
     email: Mapped[str | None] = mapped_column(String(254), default=None)
     student_id: Mapped[str | None] = mapped_column(String(64), default=None)
+    # what public boards show instead of the name (league.server.privacy); unique in the course
+    display_name: Mapped[str | None] = mapped_column(String(100), default=None)
     token_hash: Mapped[str | None] = mapped_column(String(64), unique=True)  # sha256 hex of the bearer token
     created_at: Mapped[datetime] = mapped_column(default=utcnow)
     created_by_id: Mapped[int | None] = mapped_column(ForeignKey("users.id"))
@@ -187,6 +200,10 @@ class Submission(Base):
     log: Mapped[str | None] = mapped_column(Text, default=None)  # sandbox output of the validation, truncated
     obs_dim: Mapped[int | None] = mapped_column(Integer, default=None)
     public: Mapped[bool] = mapped_column(default=False)
+    # its actions on the probe set named by probe_key (league.validation.probes), float32 (64, 2) bytes;
+    # None with a key: the model failed on it (why: its log); no key: not probed yet (league.server.integrity)
+    probe_key: Mapped[str | None] = mapped_column(String(16), default=None)
+    probe_actions: Mapped[bytes | None] = mapped_column(LargeBinary, default=None, deferred=True)
     created_at: Mapped[datetime] = mapped_column(default=utcnow)
     updated_at: Mapped[datetime] = mapped_column(default=utcnow, onupdate=utcnow)
 
@@ -295,7 +312,7 @@ class Championship(Base):
     heat_size: Mapped[int] = mapped_column(Integer)
     points: Mapped[list[Any]] = mapped_column()
     include_baselines: Mapped[bool] = mapped_column(default=True)
-    seed: Mapped[int] = mapped_column(BigInteger)  # the rounds' tracks and heat draws come from it
+    seed: Mapped[int] = mapped_column(BigInteger)  # the rounds' heat draws (tracks: drawn secretly per round)
     created_by_id: Mapped[int | None] = mapped_column(ForeignKey("users.id"))
     created_at: Mapped[datetime] = mapped_column(default=utcnow)
 
@@ -303,8 +320,9 @@ class Championship(Base):
 
 
 class ChampionshipRound(Base):
-    """One round: its track seed and its heats (lists of submission ids), fixed when it is created,
-    so the round can be raced again from what is stored. Its status follows from its heats' races."""
+    """One round: its track seed (drawn secretly, shown once the round is over) and its heats (lists
+    of submission ids), fixed when it is created, so the round can be raced again from what is
+    stored. Its status follows from its heats' races."""
 
     __tablename__ = "championship_rounds"
     __table_args__ = (UniqueConstraint("championship_id", "number"),)
@@ -366,3 +384,23 @@ class RaceReplay(Base):
 
     race_id: Mapped[int] = mapped_column(ForeignKey("races.id"), primary_key=True)
     data: Mapped[bytes] = mapped_column(LargeBinary)  # gzip of the replay JSON (a 10-car race: ~60 KB)
+
+
+class AuditEvent(Base):
+    """Who did what to whom (league.server.audit): instructors' actions and admin commands.
+
+    `actor_id` has no foreign key: the record outlives the accounts it names. `actor_name` is the
+    instructor's (an admin command's: "league CLI"); a deleted student's name is never kept here.
+    """
+
+    __tablename__ = "audit_events"
+
+    id: Mapped[int] = mapped_column(primary_key=True)
+    at: Mapped[datetime] = mapped_column(default=utcnow, index=True)
+    course_id: Mapped[int | None] = mapped_column(Integer, default=None, index=True)
+    actor_id: Mapped[int | None] = mapped_column(Integer, default=None)
+    actor_name: Mapped[str] = mapped_column(String(100))
+    action: Mapped[str] = mapped_column(String(40))
+    target_kind: Mapped[str] = mapped_column(String(20))
+    target_id: Mapped[int | None] = mapped_column(BigInteger, default=None)
+    details: Mapped[dict[str, Any]] = mapped_column(default=dict)

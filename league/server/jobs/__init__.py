@@ -5,7 +5,8 @@
     runner.py     running one job: claim, heartbeats while its handler works, the outcome
     worker.py     a worker process: Huey's consumer running jobs on threads, and the reaper
     placement.py  which CPUs a job thread and its sandboxes use
-    handlers.py   every kind of job, by name: validate.py, evaluate.py, race.py
+    alive.py      the worker's sign of life on its machine (`league worker --check`)
+    handlers.py   every kind of job, by name: validate.py, evaluate.py, race.py, probe.py
 
 Why both a queue and leases in the database: Huey is a small, well-kept queue that wakes workers
 on SQLite and on Redis alike, but a message can be lost (a crash after it is taken) or delivered

@@ -11,6 +11,7 @@ import logging
 import os
 import socket
 import threading
+import time
 import uuid
 from dataclasses import dataclass, field
 from datetime import datetime
@@ -27,6 +28,7 @@ from league.server.db.models import Job, Submission, utcnow
 from league.server.jobs import leases
 from league.server.jobs.placement import Placement
 from league.server.jobs.queue import JobQueue
+from league.server.logs import job_outcome, log_job
 from league.server.sandbox.child import set_autogroup_nice
 from league.server.sandbox.process import ForkServer
 from league.server.storage import BlobStore
@@ -152,22 +154,27 @@ def place_thread(context: WorkerContext, handler: JobHandler) -> None:
 
 
 def _work(run: JobRun) -> None:
-    context, job = run.context, run.job
+    context, job, started = run.context, run.job, time.monotonic()
     with Heartbeat(context.sessions, run, context.settings.heartbeat_interval_s):
         try:
             outcome = context.handlers[job.kind].run(run)
         except JobCannotSucceed as error:
             leases.fail(context.sessions, context.handlers, job_id=job.id, attempt_id=run.attempt_id,
                         reason=str(error))
+            log_job(job, "failed", started, str(error))
             return
         except Exception as error:  # a bug or an outage: retried, then failed with the reason
             log.exception("job %s (%s) attempt %s failed", job.id, job.kind, job.attempts)
-            if leases.retry_or_fail(context.sessions, context.handlers, job_id=job.id, attempt_id=run.attempt_id,
-                                    reason=f"{type(error).__name__}: {error}"):
+            retried = leases.retry_or_fail(context.sessions, context.handlers, job_id=job.id,
+                                           attempt_id=run.attempt_id, reason=f"{type(error).__name__}: {error}")
+            log_job(job, "retried" if retried else "failed", started, f"{type(error).__name__}: {error}")
+            if retried:
                 context.queue.enqueue(job.id)
             return
-    for follow_up in leases.complete(context.sessions, context.handlers, job_id=job.id, attempt_id=run.attempt_id,
-                                     outcome=outcome):
+    follow_ups = leases.complete(context.sessions, context.handlers, job_id=job.id, attempt_id=run.attempt_id,
+                                 outcome=outcome)
+    log_job(job, job_outcome(outcome), started, getattr(outcome, "error", None))
+    for follow_up in follow_ups:
         context.queue.enqueue(follow_up)
 
 

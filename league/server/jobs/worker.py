@@ -16,6 +16,7 @@ from sqlalchemy import Engine
 from league.server.config import Settings
 from league.server.db import crud
 from league.server.db.session import make_sessionmaker
+from league.server.jobs.alive import alive_file, beat
 from league.server.jobs.handlers import HANDLERS
 from league.server.jobs.placement import Placement
 from league.server.jobs.queue import JobQueue, build_queue
@@ -49,6 +50,7 @@ class Reaper:
                 if sent:
                     log.info("reaper re-sent jobs %s", sent)
                 sweep_store(self.context.sessions, self.context.store)
+                beat(alive_file(self.context.settings.data_dir))  # `league worker --check`
             except Exception:  # an outage must not end the reaper: it is what recovers from outages
                 log.exception("reaper pass failed")
             if self._stop.wait(self.context.settings.reaper_interval_s):

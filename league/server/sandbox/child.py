@@ -111,16 +111,17 @@ def limit_resources(cpu_seconds: int) -> None:
     resource.setrlimit(resource.RLIMIT_CORE, (0, 0))
 
 
-def isolate_network() -> str:
+def isolate_network(user_namespace: bool = True) -> str:
     """Move into a new network namespace (no interfaces but a down loopback): no connection can be made.
 
-    Needs root or unprivileged user namespaces; where neither is allowed (e.g. a default
-    Docker container), the sandbox runs with proxies unset and reports "unavailable".
+    Needs CAP_SYS_ADMIN, or (`user_namespace`) a user namespace of its own where the kernel allows
+    unprivileged ones. Where neither works (e.g. Docker's default seccomp profile), the sandbox runs
+    with proxies unset, seccomp refusing sockets, and reports "unavailable".
     """
     libc = ctypes.CDLL(None, use_errno=True)
     if libc.unshare(CLONE_NEWNET) == 0:
         return "namespace"
-    if libc.unshare(CLONE_NEWUSER | CLONE_NEWNET) == 0:
+    if user_namespace and libc.unshare(CLONE_NEWUSER | CLONE_NEWNET) == 0:
         return "user-namespace"
     return "unavailable"
 
@@ -543,9 +544,13 @@ def confine(cpu_seconds: int, uid_base: int, server: int) -> dict:
     """Everything the sandbox does to itself before it reads the model, in this order: limits, its own
     network namespace, its own user, the parent-death signal, no new privileges, Landlock, seccomp."""
     limit_resources(cpu_seconds)
-    network = isolate_network()
+    # root without CAP_SYS_ADMIN (a container) enters a user namespace only once it left root: entered
+    # as root, the sandbox would keep root's user id outside it instead of taking its own
+    network = isolate_network(user_namespace=os.geteuid() != 0)
     ruleset, landlock_abi = files_ruleset()  # (before it leaves root)
     user = become_sandbox_user(uid_base)
+    if network == "unavailable":
+        network = isolate_network()
     die_with_the_server(server)
     restrict_files(ruleset)
     restrict_syscalls()

@@ -1,19 +1,23 @@
-"""Championships: instructors create them and run rounds; standings are public."""
+"""Championships: instructors create them and run rounds; their standings are shown as the course's
+board visibility allows (league.server.privacy)."""
 from __future__ import annotations
 
 import secrets
 
 from fastapi import APIRouter, HTTPException, Request, Response, status
+from fastapi.concurrency import run_in_threadpool
 from sqlalchemy.exc import IntegrityError
 from sqlalchemy.orm import Session
 
-from league.server.api.cache import cached_json
+from league.server.api.cache import PRIVATE, PUBLIC, cached_json
+from league.server import audit
 from league.server.api.deps import (
-    Id, InstructorUser, PageNumber, PageSize, QueueDep, SessionDep, SettingsDep, check_env_options, csv_response,
-    user_course,
+    Id, InstructorUser, OptionalUser, PageNumber, PageSize, QueueDep, SessionDep, SettingsDep, board_course,
+    board_names, check_env_options, csv_response, user_course,
 )
 from league.server.db import crud
-from league.server.db.models import Championship, ChampionshipRound
+from league.server.db.models import Championship, ChampionshipRound, User
+from league.server.privacy import Names
 from league.server.rounds import RoundRefused, retry_round, round_summary, start_round
 from league.server.standings import STANDINGS_GRADES, grade_rows, standings_rows
 from league.server.schemas import ChampionshipCreate, ChampionshipOut, RoundOut, StandingsPage
@@ -36,21 +40,26 @@ def create_championship(body: ChampionshipCreate, instructor: InstructorUser, se
                                 include_baselines=body.include_baselines, created_by_id=instructor.id,
                                 seed=body.seed if body.seed is not None else secrets.randbelow(2**31))
     session.add(championship)
+    session.flush()
+    audit.record(session, actor=instructor, action=audit.CREATE_CHAMPIONSHIP, target_kind="championship",
+                 target_id=championship.id, course_id=championship.course_id, name=championship.name)
     session.commit()
     return championship_out(championship)
 
 
 @router.get("", response_model=list[ChampionshipOut])
-def read_championships(session: SessionDep) -> list[ChampionshipOut]:
-    """The course's championships, oldest first (public)."""
-    course = crud.first_course(session)
-    return [championship_out(c) for c in crud.course_championships(session, course_id=course and course.id)]
+def read_championships(session: SessionDep, viewer: OptionalUser) -> list[ChampionshipOut]:
+    """Your course's championships (visitors: the first course's), oldest first, if its board
+    visibility lets you see them."""
+    course = board_course(session, viewer)
+    board_names(session, viewer, course)
+    return [championship_out(c) for c in crud.course_championships(session, course_id=course.id)]
 
 
 @router.get("/{championship_id}", response_model=ChampionshipOut)
-def read_championship(championship_id: Id, session: SessionDep) -> ChampionshipOut:
-    """A championship and its rounds (public)."""
-    return championship_out(existing_championship(session, championship_id))
+def read_championship(championship_id: Id, session: SessionDep, viewer: OptionalUser) -> ChampionshipOut:
+    """A championship and its rounds (by its course's board visibility)."""
+    return championship_out(visible_championship(session, viewer, championship_id)[0])
 
 
 @router.post("/{championship_id}/rounds", response_model=RoundOut, status_code=status.HTTP_202_ACCEPTED)
@@ -63,6 +72,9 @@ def create_round(championship_id: Id, instructor: InstructorUser, session: Sessi
     try:
         championship_round, job_ids = start_round(session, championship=championship, created_by=instructor,
                                                   max_attempts=settings.max_job_attempts)
+        audit.record(session, actor=instructor, action=audit.RUN_ROUND, target_kind="championship",
+                     target_id=championship.id, course_id=championship.course_id, round=championship_round.number,
+                     heats=len(job_ids))
         session.commit()
     except RoundRefused as refusal:
         raise HTTPException(status.HTTP_409_CONFLICT, str(refusal)) from refusal
@@ -74,8 +86,9 @@ def create_round(championship_id: Id, instructor: InstructorUser, session: Sessi
 
 
 @router.get("/{championship_id}/rounds/{number}", response_model=RoundOut)
-def read_round(championship_id: Id, number: Id, session: SessionDep) -> RoundOut:
-    """A round's progress: heats done out of the total, and its races (public)."""
+def read_round(championship_id: Id, number: Id, session: SessionDep, viewer: OptionalUser) -> RoundOut:
+    """A round's progress: heats done out of the total, and its races (by its course's board visibility)."""
+    visible_championship(session, viewer, championship_id)
     return RoundOut(**round_summary(existing_round(session, championship_id, number)))
 
 
@@ -91,6 +104,9 @@ def retry_failed_round(championship_id: Id, number: Id, instructor: InstructorUs
     try:
         job_ids = retry_round(session, championship=championship, championship_round=championship_round,
                               max_attempts=settings.max_job_attempts)
+        audit.record(session, actor=instructor, action=audit.RETRY_ROUND, target_kind="championship",
+                     target_id=championship.id, course_id=championship.course_id, round=championship_round.number,
+                     heats=len(job_ids))
         session.commit()
     except RoundRefused as refusal:
         raise HTTPException(status.HTTP_409_CONFLICT, str(refusal)) from refusal
@@ -107,15 +123,19 @@ def existing_round(session: SessionDep, championship_id: int, number: int) -> Ch
 
 
 @router.get("/{championship_id}/standings", response_model=StandingsPage)
-async def read_standings(championship_id: Id, request: Request, page: PageNumber = 1, size: PageSize = 50) -> Response:
-    """Points (ties: wins, then best finishes) and OpenSkill ratings after the finished rounds (public)."""
+async def read_standings(championship_id: Id, request: Request, session: SessionDep, viewer: OptionalUser,
+                         page: PageNumber = 1, size: PageSize = 50) -> Response:
+    """Points (ties: wins, then best finishes) and OpenSkill ratings after the finished rounds (by its
+    course's board visibility)."""
+    _, names = await run_in_threadpool(visible_championship, session, viewer, championship_id)
 
     def compute() -> bytes:
-        with request.app.state.sessions() as session:
-            rows = standings_rows(session, existing_championship(session, championship_id))
+        with request.app.state.sessions() as compute_session:
+            rows = names.rows(standings_rows(compute_session, existing_championship(compute_session, championship_id)))
         return StandingsPage(items=rows[(page - 1) * size: page * size], total=len(rows)).model_dump_json().encode()
 
-    return await cached_json(request, ("standings", championship_id, page, size), compute)
+    return await cached_json(request, ("standings", championship_id, names.real, page, size), compute,
+                             PRIVATE if names.real else PUBLIC)
 
 
 @router.get("/{championship_id}/standings.csv", response_class=Response, responses={200: {"content": {"text/csv": {}}}})
@@ -128,6 +148,12 @@ def read_standings_csv(championship_id: Id, session: SessionDep, instructor: Ins
     rows = grade_rows(session, standings_rows(session, championship), course_id=championship.course_id,
                       columns=STANDINGS_GRADES)
     return csv_response(STANDINGS_GRADES, rows, f"standings-{championship_id}.csv")
+
+
+def visible_championship(session: Session, viewer: User | None, championship_id: int) -> tuple[Championship, Names]:
+    """The championship and how `viewer` sees its names; or the 401/403/404 that says why not."""
+    championship = existing_championship(session, championship_id)
+    return championship, board_names(session, viewer, board_course(session, viewer, championship.course_id))
 
 
 def existing_championship(session: Session, championship_id: int) -> Championship:

@@ -3,6 +3,7 @@ from __future__ import annotations
 
 from fastapi import APIRouter, HTTPException, status
 
+from league.server import audit
 from league.server.api.deps import (
     CurrentUser, InstructorUser, QueueDep, SessionDep, SettingsDep, check_env_options, user_course,
 )
@@ -37,6 +38,8 @@ def update_evaluation_settings(body: EvaluationSettings, instructor: InstructorU
     assignment = default_assignment(session, instructor)
     change = change_settings(session, assignment=assignment, settings=body.model_dump(),
                              max_attempts=settings.max_job_attempts)
+    audit.record(session, actor=instructor, action=audit.SETTINGS, target_kind="course", target_id=course.id,
+                 course_id=course.id, settings=body.model_dump(), reevaluating=change.reevaluated)
     session.commit()
     for job in change.queued:
         queue.enqueue(job.id)
@@ -64,6 +67,8 @@ def rerun_evaluations(body: RerunRequest, instructor: InstructorUser, session: S
     fallback = default_assignment(session, instructor)
     jobs = [queue_evaluation(session, submission=s, max_attempts=settings.max_job_attempts, priority=priority,
                              assignment=None if s.owner.course_id else fallback) for s in submissions]
+    audit.record(session, actor=instructor, action=audit.RERUN, target_kind="submission",
+                 target_id=None if body.all else body.submission_id, all=body.all, queued=len(jobs))
     session.commit()
     for job in jobs:
         queue.enqueue(job.id)

@@ -5,6 +5,7 @@ from typing import Literal
 
 from fastapi import APIRouter, HTTPException, Query, Request, status
 
+from league.server import audit
 from league.server.api.deps import Id, InstructorUser, SessionDep
 from league.server.db import crud
 from league.server.db.models import Job
@@ -33,4 +34,8 @@ def cancel_job(job_id: Id, instructor: InstructorUser, session: SessionDep, requ
                          reason=f"cancelled by {instructor.name}"):
         raise HTTPException(status.HTTP_409_CONFLICT, f"job {job_id} is already over")
     session.expire_all()
-    return crud.course_job(session, course_id=instructor.course_id, job_id=job_id)
+    job = crud.course_job(session, course_id=instructor.course_id, job_id=job_id)
+    audit.record(session, actor=instructor, action=audit.CANCEL, target_kind="job", target_id=job_id, kind=job.kind,
+                 submission_id=job.submission_id, race_id=job.race_id)
+    session.commit()
+    return job

@@ -1,11 +1,15 @@
-"""The course leaderboard: each student's best evaluated submission, and the baselines (public)."""
+"""The course leaderboard: each student's best evaluated submission, and the baselines (as the
+course's board visibility allows: league.server.privacy)."""
 from __future__ import annotations
 
 from fastapi import APIRouter, Request, Response
+from fastapi.concurrency import run_in_threadpool
 
-from league.server.api.cache import cached_json
-from league.server.api.deps import InstructorUser, PageNumber, PageSize, SessionDep, csv_response, user_course
-from league.server.db import crud
+from league.server.api.cache import PRIVATE, PUBLIC, cached_json
+from league.server.api.deps import (
+    InstructorUser, OptionalUser, PageNumber, PageSize, SessionDep, board_course, board_names, csv_response,
+    user_course,
+)
 from league.server.standings import LEADERBOARD_GRADES, grade_rows, leaderboard_rows
 from league.server.schemas import LeaderboardPage
 
@@ -13,16 +17,24 @@ router = APIRouter(tags=["leaderboard"])
 
 
 @router.get("/leaderboard", response_model=LeaderboardPage)
-async def read_leaderboard(request: Request, page: PageNumber = 1, size: PageSize = 50) -> Response:
-    """Best first: completion rate, then mean return; with each agent's course-wide rating."""
+async def read_leaderboard(request: Request, viewer: OptionalUser, session: SessionDep, page: PageNumber = 1,
+                           size: PageSize = 50) -> Response:
+    """Best first: completion rate, then mean return; with each agent's course-wide rating. Your
+    course's board (visitors: the first course's), if its visibility lets you see it."""
+
+    def check():
+        course = board_course(session, viewer)
+        return course.id, board_names(session, viewer, course)
+
+    course_id, names = await run_in_threadpool(check)
 
     def compute() -> bytes:
-        with request.app.state.sessions() as session:
-            course = crud.first_course(session)
-            rows = leaderboard_rows(session, course_id=course.id if course else None)
+        with request.app.state.sessions() as compute_session:
+            rows = names.rows(leaderboard_rows(compute_session, course_id=course_id))
         return LeaderboardPage(items=rows[(page - 1) * size: page * size], total=len(rows)).model_dump_json().encode()
 
-    return await cached_json(request, ("leaderboard", page, size), compute)
+    return await cached_json(request, ("leaderboard", course_id, names.real, page, size), compute,
+                             PRIVATE if names.real else PUBLIC)
 
 
 @router.get("/leaderboard.csv", response_class=Response, responses={200: {"content": {"text/csv": {}}}})

@@ -1,14 +1,15 @@
-"""The web pages (web/): HTML for the leaderboard, login, submissions, race viewer and instructor
-console, their assets under /static, and the track geometry the race viewer draws.
+"""The web pages (league/web/, package data): HTML for the leaderboard, login, submissions, race
+viewer, instructor console and integrity report, their assets under /static, and the track
+geometry the race viewer draws.
 
 `mount_web(app)` adds all of it to the FastAPI app. Each page is a Jinja2 template extending
-web/layout.html (the head and header they share), filled with a few facts from the settings; the
+league/web/layout.html (the head and header they share), filled with a few facts from the settings; the
 pages are otherwise plain HTML and JavaScript modules talking to the JSON API. They load nothing
 from any other host, which the Content-Security-Policy sent with every page enforces in the browser.
 """
 from __future__ import annotations
 
-import os
+from importlib import resources
 from pathlib import Path
 from typing import Any
 
@@ -34,15 +35,8 @@ router = APIRouter(tags=["web"])
 
 
 def web_dir() -> Path:
-    """The web/ folder: LEAGUE_WEB_DIR, else the repository's (an editable install), else ./web."""
-    configured = os.environ.get("LEAGUE_WEB_DIR")
-    candidates = [Path(configured)] if configured else [Path(__file__).resolve().parents[4] / "web",
-                                                         Path.cwd() / "web"]
-    for candidate in candidates:
-        if (candidate / "index.html").is_file():
-            return candidate
-    raise RuntimeError(f"the web pages were not found (looked in {', '.join(map(str, candidates))}); "
-                       "set LEAGUE_WEB_DIR to the repository's web/ folder")
+    """The pages' folder, package data: found wherever the server runs from."""
+    return Path(str(resources.files("league") / "web"))  # a directory: the package is installed unzipped
 
 
 @router.post("/api/tracks/geometry")
@@ -81,6 +75,7 @@ def mount_web(app: FastAPI, directory: Path | None = None) -> None:
     pages.add_api_route("/races/{race_id}", page("race.html"), methods=["GET", "HEAD"])
     pages.add_api_route("/replay", page("race.html"), methods=["GET", "HEAD"])  # the viewer for a replay file saved by `league race`
     pages.add_api_route("/instructor", page("instructor.html"), methods=["GET", "HEAD"])
+    pages.add_api_route("/integrity", page("integrity.html"), methods=["GET", "HEAD"])
     app.include_router(pages)
     app.include_router(router, max_body_size=MAX_TRACK_BYTES)
     app.mount("/static", StaticFiles(directory=directory / "static"), name="static")

@@ -11,14 +11,15 @@ from fastapi.responses import PlainTextResponse, StreamingResponse
 from sqlalchemy.orm import Session
 
 from league.server.api.deps import (
-    MAX_ID, CurrentUser, Id, InstructorUser, PageNumber, PageSize, QueueDep, SessionDep, SettingsDep, check_env_options,
-    check_jobs_in_flight,
+    MAX_ID, CurrentUser, Id, InstructorUser, OptionalUser, PageNumber, PageSize, QueueDep, SessionDep, SettingsDep,
+    board_course, board_names, check_env_options, check_jobs_in_flight, lock_account,
 )
 from league.server.db import crud
 from league.server.db.models import (
     BASELINE, DONE, FAILED, READY, STUDENT, ChampionshipRound, Race, RaceReplay, Submission, User, utcnow,
 )
-from league.server.rounds import create_race
+from league.server.privacy import Names
+from league.server.rounds import create_race, track_sealed
 from league.server.schemas import RaceCreate, RaceCreated, RaceOut, RacePage
 
 router = APIRouter(prefix="/races", tags=["races"])
@@ -37,7 +38,7 @@ def create_friendly_race(body: RaceCreate, user: CurrentUser, session: SessionDe
         raise HTTPException(status.HTTP_422_UNPROCESSABLE_CONTENT,
                             f"submission {repeated[0]} is listed twice: each car races a different submission")
     entrants = [raceable(session, user, submission_id) for submission_id in body.submission_ids]
-    crud.lock_user(session, user_id=user.id)  # checking the quotas and creating the race: one step
+    lock_account(session, user)  # checking the quotas and creating the race: one step
     if user.role == STUDENT:
         check_friendly_race(session, user, entrants, settings.race_quota_per_day)
         check_jobs_in_flight(session, user, settings.max_jobs_in_flight)
@@ -76,32 +77,71 @@ def check_friendly_race(session: Session, user: User, entrants: list[Submission]
 
 
 @router.get("", response_model=RacePage)
-def read_races(session: SessionDep, page: PageNumber = 1, size: PageSize = 50,
+def read_races(session: SessionDep, viewer: OptionalUser, page: PageNumber = 1, size: PageSize = 50,
                championship_id: Annotated[int | None, Query(ge=1, le=MAX_ID)] = None) -> RacePage:
-    """Races, newest first (public)."""
-    races, total = crud.races_page(session, page=page, size=size, championship_id=championship_id)
-    return RacePage(items=[race_out(session, race) for race in races], total=total)
+    """Your course's races (visitors: the first course's), newest first, if its board visibility lets
+    you see them; else (students) the races with a car of yours."""
+    course = board_course(session, viewer)
+    try:
+        names, entrant_ids = board_names(session, viewer, course), None
+    except HTTPException:
+        if viewer is None or viewer.role != STUDENT or viewer.course_id != course.id:
+            raise
+        names = board_names(session, viewer, course, owns=True)
+        entrant_ids = crud.submission_ids_of(session, owner_id=viewer.id)
+    races, total = crud.races_page(session, course_id=course.id, page=page, size=size,
+                                   championship_id=championship_id, entrant_ids=entrant_ids)
+    owners = entrant_owners(session, races, names)
+    return RacePage(items=[race_out(session, race, names, owners) for race in races], total=total)
 
 
 @router.get("/{race_id}", response_model=RaceOut)
-def read_race(race_id: Id, session: SessionDep) -> RaceOut:
-    """A race: status, entrants and, once done, its classification (public)."""
-    return race_out(session, existing_race(session, race_id))
+def read_race(race_id: Id, session: SessionDep, viewer: OptionalUser) -> RaceOut:
+    """A race: status, entrants and, once done, its classification (as its course's board visibility
+    allows; a race with a car of yours, always)."""
+    race, names, owners = visible_race(session, viewer, race_id)
+    return race_out(session, race, names, owners)
 
 
 @router.get("/{race_id}/replay", responses={200: {"content": {"application/json": {}},
                                                    "description": "the toolkit's replay (microracer-replay v1)"}})
-def read_replay(race_id: Id, request: Request, session: SessionDep) -> Response:
-    """The race's replay, as `league race --replay` writes it: what the race viewer plays (public)."""
-    race = existing_race(session, race_id)
+def read_replay(race_id: Id, request: Request, session: SessionDep, viewer: OptionalUser) -> Response:
+    """The race's replay, as `league race --replay` writes it: what the race viewer plays (as the
+    race's answer, by its course's board visibility)."""
+    race, names, owners = visible_race(session, viewer, race_id)
+    heat_of = heat_round(session, race)
+    if heat_of is not None and track_sealed(heat_of):  # a replay shows the track
+        raise HTTPException(status.HTTP_409_CONFLICT, f"race {race_id} is a heat of round {heat_of.number}, which is "
+                            "still being raced: its replay is shown once every heat of the round is over")
     replay = session.get(RaceReplay, race.id)
     if replay is None and race.status == FAILED:
         raise HTTPException(status.HTTP_409_CONFLICT, f"race {race_id} failed, so it has no replay: {race.error}")
     if replay is None:
         raise HTTPException(status.HTTP_409_CONFLICT, f"race {race_id} is {race.status}: its replay exists once it is done")
+    renamed = names.replay(replay.data, race.entrants, owners)
+    if renamed is not None:
+        return Response(renamed, media_type="application/json")
     if "gzip" in request.headers.get("accept-encoding", ""):  # stored compressed: sent as it is
         return Response(replay.data, media_type="application/json", headers={"Content-Encoding": "gzip"})
     return StreamingResponse(gunzipped(replay.data), media_type="application/json")
+
+
+def visible_race(session: Session, viewer: User | None, race_id: int) -> tuple[Race, Names, dict[int, User]]:
+    """The race, how `viewer` sees its names, its entrants' owners; or the 401/403/404 that says why not."""
+    race = existing_race(session, race_id)
+    owners = {s.id: s.owner for s in crud.submissions_by_id(
+        session, ids=[e["submission_id"] for e in race.entrants]).values()}
+    owns = viewer is not None and any(owner.id == viewer.id for owner in owners.values())
+    names = board_names(session, viewer, board_course(session, viewer, race.course_id), owns=owns)
+    return race, names, owners
+
+
+def entrant_owners(session: Session, races: list[Race], names: Names) -> dict[int, User]:
+    """submission id -> owner, of the races' entrants (needed only to show public names)."""
+    if names.real:
+        return {}
+    ids = {e["submission_id"] for race in races for e in race.entrants}
+    return {s.id: s.owner for s in crud.submissions_by_id(session, ids=list(ids)).values()}
 
 
 def gunzipped(data: bytes, piece_size: int = 256 * 1024) -> Iterator[bytes]:
@@ -135,10 +175,18 @@ def existing_race(session: Session, race_id: int) -> Race:
     return race
 
 
-def race_out(session: Session, race: Race) -> RaceOut:
-    championship_round = session.get(ChampionshipRound, race.round_id) if race.round_id else None
-    return RaceOut(id=race.id, status=race.status, error=race.error, seed=race.seed, env_options=race.env_options,
+def heat_round(session: Session, race: Race) -> ChampionshipRound | None:
+    """The championship round `race` is a heat of, if any."""
+    return session.get(ChampionshipRound, race.round_id) if race.round_id else None
+
+
+def race_out(session: Session, race: Race, names: Names, owners: dict[int, User]) -> RaceOut:
+    championship_round = heat_round(session, race)
+    sealed = championship_round is not None and track_sealed(championship_round)
+    return RaceOut(id=race.id, status=race.status, error=race.error, seed=None if sealed else race.seed,
+                   env_options=race.env_options,
                    versions=race.versions, created_at=race.created_at, finished_at=race.finished_at,
                    championship_id=race.championship_id,
                    round=championship_round.number if championship_round else None, heat=race.heat,
-                   entrants=race.entrants, classification=race.classification)
+                   entrants=names.people(race.entrants, owners),
+                   classification=names.people(race.classification, owners))

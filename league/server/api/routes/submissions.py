@@ -9,12 +9,13 @@ from fastapi import APIRouter, HTTPException, Query, Request, Response, status
 from fastapi.concurrency import run_in_threadpool
 from starlette.datastructures import UploadFile  # what a parsed form holds
 
-from league.server.api.cache import etag_response
+from league.server.api.cache import PRIVATE, etag_response
 from league.server.api.deps import (
-    CurrentUser, Id, SessionDep, check_jobs_in_flight, check_upload_quota, user_course,
+    CurrentUser, Id, SessionDep, check_jobs_in_flight, check_upload_quota, lock_account, user_course,
 )
 from league.server.assignments import UploadRefused, check_upload, private_visible, upload_assignment
 from league.server.db import crud
+from league.server.logs import log_refused_upload
 from league.server.db.models import INSTRUCTOR, PUBLIC, READY, STUDENT, Assignment, Evaluation, Submission, User
 from league.server.results import submissions_current_keys
 from league.server.rounds import active_submission_ids
@@ -50,15 +51,19 @@ async def create_submission(request: Request, user: CurrentUser) -> SubmissionCr
     once the token is accepted."""
     async with request.form(max_files=1, max_fields=2) as form:
         file, name, wanted = form.get("file"), form.get("name"), form.get("assignment")
-        if not isinstance(file, UploadFile) or not file.filename:
-            raise HTTPException(status.HTTP_422_UNPROCESSABLE_CONTENT,
-                                "send the model as the multipart field `file` (with its file name)")
-        if name is not None and (not isinstance(name, str) or len(name) > 100):
-            raise HTTPException(status.HTTP_422_UNPROCESSABLE_CONTENT, "name: at most 100 characters")
-        if wanted is not None and (not isinstance(wanted, str) or len(wanted) > 100):
-            raise HTTPException(status.HTTP_422_UNPROCESSABLE_CONTENT, "assignment: an id or a name")
-        kind = model_kind(file.filename)
-        return await run_in_threadpool(submit, request.app.state.league, user, file, name, kind, wanted)
+        try:
+            if not isinstance(file, UploadFile) or not file.filename:
+                raise HTTPException(status.HTTP_422_UNPROCESSABLE_CONTENT,
+                                    "send the model as the multipart field `file` (with its file name)")
+            if name is not None and (not isinstance(name, str) or len(name) > 100):
+                raise HTTPException(status.HTTP_422_UNPROCESSABLE_CONTENT, "name: at most 100 characters")
+            if wanted is not None and (not isinstance(wanted, str) or len(wanted) > 100):
+                raise HTTPException(status.HTTP_422_UNPROCESSABLE_CONTENT, "assignment: an id or a name")
+            kind = model_kind(file.filename)
+            return await run_in_threadpool(submit, request.app.state.league, user, file, name, kind, wanted)
+        except HTTPException as refusal:
+            log_refused_upload(user.id, str(refusal.detail), getattr(file, "size", None))
+            raise
 
 
 def submit(league_, user: User, file: UploadFile, name: str | None, kind: str,
@@ -76,7 +81,7 @@ def submit(league_, user: User, file: UploadFile, name: str | None, kind: str,
     display_name = (name or "").strip() or PurePath(file.filename).stem
     try:
         with league_.sessions.begin() as session:
-            crud.lock_user(session, user_id=user.id)
+            lock_account(session, user)
             now = league_.clock.now()
             try:
                 assignment = upload_assignment(session, user=user, course=user_course(session, user), wanted=wanted,
@@ -117,7 +122,6 @@ def read_submissions(user: CurrentUser, session: SessionDep, all: bool = False) 
     return [submission_out(s, evaluations.get(s.id), keys[s.id], s.id in active) for s in submissions]
 
 
-PRIVATE = "private, no-cache"  # the browser keeps it, and asks (If-None-Match) before reusing it
 NOT_MODIFIED = {304: {"description": "unchanged since the ETag sent in If-None-Match"}}
 
 

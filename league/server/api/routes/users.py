@@ -6,9 +6,11 @@ from fastapi.concurrency import run_in_threadpool
 from sqlalchemy.exc import IntegrityError
 from starlette.datastructures import UploadFile  # what a parsed form holds
 
-from league.server.api.deps import CurrentUser, Id, InstructorUser, SessionDep, SettingsDep
+from league.server import audit
+from league.server.api.deps import CurrentUser, Id, InstructorUser, SessionDep, SettingsDep, StoreDep
 from league.server.db import crud
 from league.server.db.models import STUDENT, User
+from league.server.erasure import DeletionRefused, delete_student
 from league.server.roster import DELIMITERS, MAX_ROSTER_BYTES, RosterError, import_roster, read_roster
 from league.server.schemas import (
     QuotaOut, RosterCreated, RosterFormat, RosterLine, UserCreate, UserCreated, UserMe, UserOut,
@@ -52,6 +54,7 @@ def create_student(body: UserCreate, session: SessionDep, instructor: Instructor
         raise HTTPException(status.HTTP_409_CONFLICT, str(error)) from error
     except crud.InvalidAccount as error:
         raise HTTPException(status.HTTP_422_UNPROCESSABLE_CONTENT, str(error)) from error
+    audit.record(session, actor=instructor, action=audit.CREATE_USER, target_kind="user", target_id=user.id)
     session.commit()
     return created_out(user, token)
 
@@ -92,6 +95,9 @@ def create_students(sessions, instructor_id: int, data: bytes) -> RosterCreated:
         instructor = session.get(User, instructor_id)
         try:
             report = import_roster(session, course=instructor.course, created_by=instructor, roster=roster)
+            audit.record(session, actor=instructor, action=audit.IMPORT_ROSTER, target_kind="roster",
+                         created=[user.id for user, _ in report.created], skipped=len(report.skipped),
+                         errors=len(report.errors))
             session.commit()
         except IntegrityError as error:  # another instructor's roster named the same students meanwhile
             raise HTTPException(status.HTTP_409_CONFLICT, "another roster was imported at the same time: upload this "
@@ -116,6 +122,7 @@ def revoke_user(user_id: Id, session: SessionDep, instructor: InstructorUser) ->
     """Revoke a student's account: its token stops working; its submissions and results stay."""
     user = course_student(session, instructor, user_id)
     crud.revoke_user(session, user=user)
+    audit.record(session, actor=instructor, action=audit.REVOKE, target_kind="user", target_id=user.id)
     session.commit()
     return user_out(user)
 
@@ -125,5 +132,25 @@ def reissue_token(user_id: Id, session: SessionDep, instructor: InstructorUser) 
     """Give a student a new token (the old one stops working; a revoked account is restored)."""
     user = course_student(session, instructor, user_id)
     token = crud.reissue_token(session, user=user)
+    audit.record(session, actor=instructor, action=audit.TOKEN, target_kind="user", target_id=user.id)
     session.commit()
     return created_out(user, token)
+
+
+@router.delete("/{user_id}", status_code=status.HTTP_204_NO_CONTENT)
+def erase_student(user_id: Id, session: SessionDep, instructor: InstructorUser, store: StoreDep) -> None:
+    """Delete a student and their data for good (league.server.erasure): account, token, submissions,
+    model files, evaluations; races other students took part in keep their results, the student's cars
+    shown as "deleted student". 409 while a championship heat with their car is still to race."""
+    user = course_student(session, instructor, user_id)
+    if not crud.lock_user(session, user_id=user.id):  # no upload or race of theirs starts meanwhile
+        raise HTTPException(status.HTTP_404_NOT_FOUND, "no such student in your course")  # deleted meanwhile
+    try:
+        erased = delete_student(session, user=user)
+    except DeletionRefused as refusal:
+        raise HTTPException(status.HTTP_409_CONFLICT, str(refusal)) from refusal
+    audit.record(session, actor=instructor, action=audit.DELETE_USER, target_kind="user", target_id=user_id,
+                 note="student and their data deleted", **erased.summary())
+    session.commit()
+    for sha256 in erased.blobs:
+        store.remove(sha256)

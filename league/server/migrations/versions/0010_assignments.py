@@ -8,7 +8,7 @@ there), open since ever, no due time, and a private seed drawn now: every submis
 belongs to it (the baselines' to the first course's), so every board ranks what it ranked.
 
 Revision ID: 0010
-Revises: 0008
+Revises: 0012
 Create Date: 2026-11-25 19:00:00
 """
 import secrets
@@ -18,7 +18,7 @@ from alembic import op
 
 
 revision = '0010'
-down_revision = '0008'
+down_revision = '0012'  # re-chained onto main's head at the merge (0008 -> 0015 -> 0013 -> 0012)
 branch_labels = None
 depends_on = None
 

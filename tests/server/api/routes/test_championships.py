@@ -244,7 +244,7 @@ def season(tmp_path_factory, models):
 
 def run_season(server, drivers, models) -> SimpleNamespace:
     s = SimpleNamespace(server=server, files={})
-    instructor, public = server.client(server.instructor_token), server.client()
+    instructor, member = server.client(server.instructor_token), server.client(server.instructor_token)  # member: names
 
     # before anyone has a ready agent
     empty = create(instructor, include_baselines=False).json()
@@ -276,7 +276,7 @@ def run_season(server, drivers, models) -> SimpleNamespace:
     s.friendly = ann.post("/api/races", json={"submission_ids": [s.students["ann"]["id"], s.baseline["id"]]})
     s.over_quota = ann.post("/api/races", json={"submission_ids": [s.students["ann"]["id"], s.baseline["id"]]})
 
-    s.leaderboard_before = get_json(public, "/api/leaderboard")
+    s.leaderboard_before = get_json(member, "/api/leaderboard")
     created = create(instructor, heat_size=HEAT_SIZE, points=POINTS, seed=SEASON_SEED, env_options=SEASON_OPTIONS)
     assert created.status_code == 201, created.text
     s.championship = created.json()
@@ -288,19 +288,19 @@ def run_season(server, drivers, models) -> SimpleNamespace:
         assert response.status_code == 202, response.text
         if number == 1:
             s.second_while_running = instructor.post(f"/api/championships/{cid}/rounds")
-            s.running_standings = get_json(public, f"/api/championships/{cid}/standings")
+            s.running_standings = get_json(member, f"/api/championships/{cid}/standings")
         else:
-            s.standings_during_round_2 = get_json(public, f"/api/championships/{cid}/standings")
-            s.round_2_status_after = get_json(public, f"/api/championships/{cid}/rounds/2")["status"]
-        s.rounds.append({"created": response.json(), "done": wait_round(public, cid, number)})
-        s.races.append([wait_race(public, race_id) for race_id in s.rounds[-1]["done"]["race_ids"]])
-        s.standings.append(get_json(public, f"/api/championships/{cid}/standings"))
+            s.standings_during_round_2 = get_json(member, f"/api/championships/{cid}/standings")
+            s.round_2_status_after = get_json(member, f"/api/championships/{cid}/rounds/2")["status"]
+        s.rounds.append({"created": response.json(), "done": wait_round(member, cid, number)})
+        s.races.append([wait_race(member, race_id) for race_id in s.rounds[-1]["done"]["race_ids"]])
+        s.standings.append(get_json(member, f"/api/championships/{cid}/standings"))
 
-    s.listed = get_json(public, "/api/races", championship_id=cid)
-    s.championship_after = get_json(public, f"/api/championships/{cid}")
-    s.standings_page = get_json(public, f"/api/championships/{cid}/standings", size=2, page=3)
-    s.leaderboard_after = get_json(public, "/api/leaderboard")
-    s.replay = get_json(public, f"/api/races/{s.races[0][0]['id']}/replay")
+    s.listed = get_json(member, "/api/races", championship_id=cid)
+    s.championship_after = get_json(member, f"/api/championships/{cid}")
+    s.standings_page = get_json(member, f"/api/championships/{cid}/standings", size=2, page=3)
+    s.leaderboard_after = get_json(member, "/api/leaderboard")
+    s.replay = get_json(member, f"/api/races/{s.races[0][0]['id']}/replay")
     s.dnf_heat = next(race for race in s.races[0]
                       if s.students["dnf"]["id"] in [e["submission_id"] for e in race["entrants"]])
     log_path = f"/api/races/{s.dnf_heat['id']}/log"
@@ -308,7 +308,7 @@ def run_season(server, drivers, models) -> SimpleNamespace:
     with server.client(add_user_in_new_course(server, "prof2", "another course", role="instructor")) as other:
         s.other_course_reads_log = other.get(log_path)
     instructor.close()
-    public.close()
+    member.close()
     return s
 
 
@@ -360,9 +360,10 @@ def test_a_round_with_students_baselines_and_a_broken_agent_completes(season):
     for number, (round_, races) in enumerate(zip(season.rounds, season.races), start=1):
         created, done = round_["created"], round_["done"]
         assert created["number"] == number and created["status"] in ("pending", "running")
+        assert created["track_seed"] is None  # drawn secretly, shown once the round is over
         assert done["status"] == "done"
         assert done["heats_done"] == done["heats_total"] == 2 == len(done["heats"])
-        assert done["track_seed"] == episode_seeds(SEASON_SEED, number)[number - 1]
+        assert isinstance(done["track_seed"], int) and done["track_seed"] != episode_seeds(SEASON_SEED, number)[number - 1]
         assert sorted(i for heat in done["heats"] for i in heat) == entrant_ids(season)
         assert [len(heat) for heat in done["heats"]] == [3, 3]  # 6 entrants in heats of at most 3
         for k, (heat, race) in enumerate(zip(done["heats"], races), start=1):
@@ -401,6 +402,7 @@ def test_a_round_with_students_baselines_and_a_broken_agent_completes(season):
     assert sorted(r["id"] for r in season.listed["items"]) == sorted(race_ids)
     assert (season.replay["format"], season.replay["version"]) == ("microracer-replay", 1)
     assert len(season.replay["cars"]) == len(season.races[0][0]["entrants"])
+    assert season.replay["seed"] == season.rounds[0]["done"]["track_seed"]  # the round's track, shown now
 
 
 def test_every_heat_raced_again_locally_classifies_the_same(season):

@@ -63,7 +63,7 @@ function championshipCard(championship) {
   run.addEventListener("click", () => runRound(championship, run));
   const facts = [`${championship.heat_size} cars per heat`, `points ${(championship.points || []).join("-")}`,
     championship.include_baselines ? "baselines take part" : "students only", describeOptions(championship.env_options),
-    championship.seed !== null && championship.seed !== undefined ? `seed ${championship.seed}` : null].filter(Boolean);
+    championship.seed !== null && championship.seed !== undefined ? `heats drawn with seed ${championship.seed}` : null].filter(Boolean);
   return element("article", { className: "panel", attrs: { "data-championship": championship.id, "aria-label": championship.name } },
     element("div", { className: "row" },
       element("h3", { text: championship.name, attrs: { tabindex: "-1", "data-focus-key": `championship-${championship.id}` } }), run,

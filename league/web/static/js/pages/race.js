@@ -34,18 +34,24 @@ async function loadRace() {
     say($("race-message"), `This race failed: ${race.error || "no reason recorded"}`, "error");
     return;
   }
-  const replay = await api(`/api/races/${encodeURIComponent(raceId)}/replay`, { auth: false });
+  const replay = await api(`/api/races/${encodeURIComponent(raceId)}/replay`, { loginOn401: false });
   await show(replay, race);
 }
 
-/** The race once it is done or failed; meanwhile, say that it is pending or running. */
+/**
+ * The race once it is done or failed, and its replay shown (a championship heat's once every heat
+ * of its round is over: the replay shows the round's track, secret until then); meanwhile, say why not yet.
+ */
 async function raceWhenOver() {
   for (;;) {
-    const race = await api(`/api/races/${encodeURIComponent(raceId)}`, { auth: false });
-    if (race.status !== "pending" && race.status !== "running") return race;
+    const race = await api(`/api/races/${encodeURIComponent(raceId)}`, { loginOn401: false }); // the board's visibility decides
+    const over = race.status !== "pending" && race.status !== "running";
+    const sealed = race.round !== null && race.seed === null;
+    if (over && !sealed) return race;
     const names = (race.entrants || []).map((e) => e.name).join(", ");
-    $("race-message").replaceChildren(badge(race.status), ` The race is ${race.status}; it plays here when it is over.`,
-      names ? ` Cars: ${names}.` : "");
+    const wait = over ? ` This heat is ${race.status}; it plays here once every heat of round ${race.round} is over.`
+      : ` The race is ${race.status}; it plays here when it is over.`;
+    $("race-message").replaceChildren(badge(race.status), wait, names ? ` Cars: ${names}.` : "");
     await new Promise((resolve) => setTimeout(resolve, RACE_POLL_MS));
   }
 }

@@ -1,9 +1,11 @@
-// The instructor console (/instructor): students, evaluation settings, assignments, championships, jobs.
+// The instructor console (/instructor): students, evaluation settings, assignments, championships, jobs, the
+// audit log.
 
 import { api } from "../api.js";
-import { $, badge, element, onClick, replaceKeepingFocus, say } from "../dom.js";
+import { $, badge, element, onClick, onSubmit, replaceKeepingFocus, say } from "../dom.js";
 import { dateTime } from "../format.js";
 import { setUpAssignments } from "../instructor/assignments.js";
+import { setUpAudit } from "../instructor/audit.js";
 import { setUpChampionships } from "../instructor/championships.js";
 import { setUpEvaluations } from "../instructor/evaluations.js";
 import { setUpStudents } from "../instructor/students.js";
@@ -28,6 +30,20 @@ async function refreshJobs() {
     element("td", { text: job.error || "" }))));
 }
 
+/** Who sees the course's boards (PUT /api/settings/privacy: the next request of every page follows it). */
+async function setUpPrivacy() {
+  $("board-visibility").value = (await api("/api/settings/privacy")).board_visibility;
+  onSubmit($("privacy-form"), async () => {
+    try {
+      const saved = await api("/api/settings/privacy", { method: "PUT", json: { board_visibility: $("board-visibility").value } });
+      $("board-visibility").value = saved.board_visibility;
+      say($("privacy-message"), "Saved: the boards follow it from now on.", "success");
+    } catch (error) {
+      say($("privacy-message"), `Not saved: ${error.message}`, "error");
+    }
+  });
+}
+
 async function start() {
   let me;
   try {
@@ -40,7 +56,8 @@ async function start() {
   showAccount(me);
   const jobs = new Poller(refreshJobs, JOBS_POLL_MS);
   onClick($("refresh-jobs"), () => jobs.poll());
-  const parts = [setUpStudents(me), setUpEvaluations(), setUpAssignments(), setUpChampionships(), jobs.poll()];
+  const parts = [setUpStudents(me), setUpEvaluations(), setUpAssignments(), setUpPrivacy(), setUpChampionships(), jobs.poll(),
+    setUpAudit()];
   const results = await Promise.allSettled(parts);
   const failures = results.filter((r) => r.status === "rejected").map((r) => r.reason.message);
   if (failures.length) say($("page-message"), failures.join(" "), "error");

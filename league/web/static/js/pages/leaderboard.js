@@ -1,5 +1,7 @@
 // The leaderboard page (/): championship standings, the course leaderboard, rounds and races,
-// refreshed every 15 s. Public: the token, when there is one, only highlights the user's rows.
+// refreshed every 15 s. The token, when there is one, is sent: the course's board visibility decides
+// who sees what (a visitor of a public board sees display names); a board closed to the visitor
+// shows a prompt to log in, or the server's word on who may see it, instead of empty tables.
 
 import { api, download } from "../api.js";
 import { $, badge, element, onClick, replaceKeepingFocus, say } from "../dom.js";
@@ -10,6 +12,7 @@ import { optionalUser, showAccount } from "../session.js";
 import { SortableTable } from "../sortable-table.js";
 
 const REFRESH_MS = 15000;
+const BOARD_CALL = { loginOn401: false }; // a 401 here means "log in to see this board", said on the page
 const PAGE_SIZE = 50;
 
 let me = null;
@@ -90,7 +93,7 @@ function ratingCell(row) {
 let championshipId = new URLSearchParams(location.search).get("championship");
 
 async function refreshChampionships() {
-  const list = await api("/api/championships", { auth: false });
+  const list = await api("/api/championships", BOARD_CALL);
   const picker = $("championship");
   const items = Array.isArray(list) ? list : list.items || [];
   standings.emptyText = items.length ? "No standings yet: no round has been run." : "No championship yet.";
@@ -112,14 +115,14 @@ async function refreshChampionships() {
 
 async function refreshStandings() {
   if (!championshipId) return;
-  const page = await api(`/api/championships/${championshipId}/standings?${standingsPager.query()}`, { auth: false });
+  const page = await api(`/api/championships/${championshipId}/standings?${standingsPager.query()}`, BOARD_CALL);
   const byRank = new Map(page.items.map((row) => [row.rank, row]));
   standings.update(page.items.map((row) => ({ ...row, tieBreak: tieBreak(row, byRank.get(row.rank - 1)) })));
   standingsPager.update(page.total);
 }
 
 async function refreshRounds() {
-  const championship = await api(`/api/championships/${championshipId}`, { auth: false });
+  const championship = await api(`/api/championships/${championshipId}`, BOARD_CALL);
   const rounds = championship.rounds || [];
   if (!rounds.length) {
     $("rounds").replaceChildren(element("li", { className: "muted", text: "No rounds yet." }));
@@ -181,13 +184,13 @@ for (const id of ["assignment", "board-kind"]) {
 async function refreshLeaderboard() {
   const path = assignmentId && assignments.length
     ? `/api/assignments/${assignmentId}/board?board=${$("board-kind").value}&` : "/api/leaderboard?";
-  const page = await api(`${path}${leaderboardPager.query()}`, { auth: false });
+  const page = await api(`${path}${leaderboardPager.query()}`, BOARD_CALL);
   leaderboard.update(page.items);
   leaderboardPager.update(page.total);
 }
 
 async function refreshRaces() {
-  const page = await api("/api/races?page=1&size=10", { auth: false });
+  const page = await api("/api/races?page=1&size=10", BOARD_CALL);
   const items = page.items || [];
   if (!items.length) {
     $("races").replaceChildren(element("li", { className: "muted", text: "No races yet." }));
@@ -207,18 +210,36 @@ function raceDescription(race) {
 // --------------------------------------------------------------------------- refresh
 
 const problems = new Map();
+const closed = new Map(); // board ("leaderboard", "races") -> the 401/403 that closed it to this visitor
 
-function showProblem(part) {
-  return (error) => problems.set(part, `${part}: ${error.message}`);
+function showProblem(part, board) {
+  return (error) => {
+    if (board && (error.status === 401 || error.status === 403)) closed.set(board, error);
+    else problems.set(part, `${part}: ${error.message}`);
+  };
+}
+
+/** Hide the boards closed to this visitor; say why, with a log-in link when logging in would help. */
+function showClosedBoards() {
+  document.querySelectorAll("[data-board]").forEach((panel) => { panel.hidden = closed.has(panel.dataset.board); });
+  const reason = closed.get("leaderboard") || closed.get("races");
+  const box = $("board-closed");
+  box.hidden = !reason;
+  if (!reason) return;
+  const login = element("a", { text: "Log in with your token", attrs: { href: `/login?next=${encodeURIComponent("/")}` } });
+  box.replaceChildren(element("strong", { text: reason.status === 401 ? "Log in to see the boards." : "These boards are not shown to you." }),
+    ` The server says: ${reason.message}.`, ...(reason.status === 401 ? [" ", login, "."] : []));
 }
 
 async function refreshAll() {
   problems.clear();
+  closed.clear();
   await Promise.all([
-    refreshChampionships().catch(showProblem("Standings")),
-    refreshLeaderboard().catch(showProblem("Leaderboard")),
-    refreshRaces().catch(showProblem("Races")),
+    refreshChampionships().catch(showProblem("Standings", "leaderboard")),
+    refreshLeaderboard().catch(showProblem("Leaderboard", "leaderboard")),
+    refreshRaces().catch(showProblem("Races", "races")),
   ]);
+  showClosedBoards();
   say($("notice"), [...problems.values()].join(" "), "info");
   $("updated").textContent = `Updated ${new Date().toLocaleTimeString()}`;
   return $("auto-refresh").checked;

@@ -322,7 +322,7 @@ function fillRaceAgents() {
 async function loadOpponents() {
   const box = $("opponents");
   try {
-    const page = await api("/api/leaderboard?page=1&size=100", { auth: false });
+    const page = await api("/api/leaderboard?page=1&size=100");
     // other students' agents can be raced once their owners make them public; the baselines always
     const others = page.items.filter((row) => row.owner !== me.name && (row.public || row.owner === BASELINES_OWNER));
     if (!others.length) {
@@ -355,6 +355,35 @@ onSubmit($("race-form"), async () => {
   }
 });
 
+// --------------------------------------------------------------------------- display name
+
+const VISIBILITY_TEXT = {
+  public: "Your course's boards are public: visitors see your display name (or a pseudonym), members your name.",
+  members: "Your course's boards are shown to its students and instructors only, with names; " +
+    "a display name is shown if your instructor makes them public.",
+  instructors: "Your course's boards are shown to its instructors only; you see your own races and results here.",
+};
+
+async function setUpDisplayName() {
+  $("display-name").value = me.display_name || "";
+  try {
+    const { board_visibility: visibility } = await api("/api/settings/privacy");
+    $("display-note").textContent = VISIBILITY_TEXT[visibility] || $("display-note").textContent;
+  } catch {
+    // the note's general text stays
+  }
+  onSubmit($("display-form"), async () => {
+    try {
+      me = await api("/api/users/me", { method: "PATCH", json: { display_name: $("display-name").value } });
+      $("display-name").value = me.display_name || "";
+      say($("display-message"), me.display_name ? `Saved: visitors of public boards see "${me.display_name}".`
+        : "Saved: visitors of public boards see a pseudonym.", "success");
+    } catch (error) {
+      say($("display-message"), `Not saved: ${error.message}`, "error");
+    }
+  });
+}
+
 // --------------------------------------------------------------------------- start
 
 const poller = new Poller(refresh, FAST_POLL_MS);
@@ -367,6 +396,7 @@ async function start() {
     return;
   }
   showAccount(me);
+  setUpDisplayName();
   await poller.poll();
   loadOpponents();
 }

@@ -109,6 +109,11 @@ async function refreshUsers(me) {
         showTokens([], { revoked: user.id });
         say($("students-message"), `${user.name}'s token no longer works.`, "success");
       }, me, { key: `revoke-${user.id}`, next: tokenKey, ask: () => askToRevoke(user) }));
+      actions.append(actionButton("Delete", `Delete ${user.name} and their data`, "danger", async () => {
+        await api(`/api/users/${user.id}`, { method: "DELETE" });
+        showTokens([], { revoked: user.id });
+        say($("students-message"), `${user.name} and their data are deleted.`, "success");
+      }, me, { key: `delete-${user.id}`, ask: () => askToDelete(user) }));
       const newToken = user.active ? "New token" : "Restore with a new token";
       actions.append(actionButton(newToken, `${newToken} for ${user.name}`, "secondary", async () => {
         const created = await api(`/api/users/${user.id}/token`, { method: "POST" });
@@ -145,6 +150,20 @@ function actionButton(text, label, style, action, me, { key, next = key, ask = a
     }
   });
   return button;
+}
+
+/** Deleting cannot be undone: a dialog says what goes and what stays, its Cancel button focused. */
+function askToDelete(user) {
+  const dialog = $("delete-dialog");
+  $("delete-title").textContent = `Delete ${user.name} and their data?`;
+  $("delete-summary").textContent = `${user.name}'s account, token, submissions, model files and evaluations are ` +
+    "erased for good (backups taken before still hold them). Races and championship standings other students " +
+    "took part in keep their results, with this student shown as “deleted student”. This cannot be undone.";
+  dialog.returnValue = "";
+  dialog.showModal();
+  return new Promise((resolve) => {
+    dialog.addEventListener("close", () => resolve(dialog.returnValue === "delete"), { once: true });
+  });
 }
 
 /** Revoking logs the student out at once: a dialog asks first, its Cancel button focused. */

@@ -1,0 +1,51 @@
+"""The audit log: who revoked, replaced a token, cancelled, re-ran, changed settings, created,
+imported or deleted accounts, created or raced championship rounds, had submissions probed, changed
+who sees the boards.
+
+`record` adds the event to the caller's session, so it is committed with the change it records
+(or not at all). Details hold ids and figures, never tokens; a deleted student's name is personal
+data and is not kept (the event names them by id).
+"""
+from __future__ import annotations
+
+from typing import Any
+
+from sqlalchemy import func, or_, select
+from sqlalchemy.orm import Session
+
+from league.server.db.models import AuditEvent, User
+
+CLI_ACTOR = "league CLI"  # admin commands run on the server's machine: no account
+AUDIT_COLUMNS = ["at", "actor_id", "actor_name", "action", "target_kind", "target_id", "details"]
+
+# actions (one vocabulary for the API, the console and the CSV)
+REVOKE, TOKEN, CANCEL, RERUN, SETTINGS = "user.revoke", "user.token", "job.cancel", "evaluation.rerun", "settings.evaluation"
+CREATE_USER, IMPORT_ROSTER, DELETE_USER = "user.create", "user.import", "user.delete"
+CREATE_CHAMPIONSHIP, RUN_ROUND, RETRY_ROUND = "championship.create", "round.run", "round.retry"
+PROBE = "integrity.probe"
+PRIVACY = "settings.privacy"
+
+
+def record(session: Session, *, actor: User | None, action: str, target_kind: str, target_id: int | None = None,
+           course_id: int | None = None, **details: Any) -> AuditEvent:
+    """Add an event to `session` (committed with the caller's change). actor None: an admin command."""
+    event = AuditEvent(actor_id=actor.id if actor else None, actor_name=actor.name if actor else CLI_ACTOR,
+                       course_id=course_id if course_id is not None else (actor.course_id if actor else None),
+                       action=action, target_kind=target_kind, target_id=target_id, details=details)
+    session.add(event)
+    return event
+
+
+def events_page(session: Session, *, course_id: int | None, offset: int, limit: int) -> tuple[list[AuditEvent], int]:
+    """The course's events and the admin commands', newest first."""
+    where = or_(AuditEvent.course_id == course_id, AuditEvent.course_id.is_(None))
+    total = session.scalar(select(func.count()).select_from(AuditEvent).where(where))
+    events = session.scalars(select(AuditEvent).where(where).order_by(AuditEvent.id.desc())
+                             .offset(offset).limit(limit)).all()
+    return list(events), total
+
+
+def csv_row(event: AuditEvent) -> list:
+    details = "; ".join(f"{key}={value}" for key, value in sorted(event.details.items()))
+    return [event.at.isoformat(timespec="seconds"), event.actor_id, event.actor_name, event.action,
+            event.target_kind, event.target_id, details]

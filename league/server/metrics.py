@@ -1,0 +1,191 @@
+"""Prometheus metrics at /metrics (prometheus-client's text format).
+
+What the database holds is read from it at scrape time by `DatabaseCollector`: every API process
+answers the same, and the figures of jobs that workers (other processes, other machines) ran need
+no multiprocess mode, no shared directory and no push. Durations come from the jobs' own
+`started_at`/`finished_at` columns as a histogram computed in SQL, so they survive restarts and
+count each job's last (successful) attempt once. Only the API's own request latency is measured in
+this process (`RequestLatency`), labelled by route template so that its series stay bounded.
+
+/metrics takes `Authorization: Bearer` with the `metrics_token` setting (what Prometheus is given:
+it reads nothing else) or an instructor's token.
+"""
+from __future__ import annotations
+
+import hmac
+import time
+from collections.abc import Iterator
+
+from fastapi import APIRouter, HTTPException, Request, Response, status
+from fastapi.concurrency import run_in_threadpool
+from prometheus_client import (
+    CONTENT_TYPE_LATEST, CollectorRegistry, Histogram, disable_created_metrics, generate_latest,
+)
+from prometheus_client.core import CounterMetricFamily, GaugeMetricFamily, HistogramMetricFamily
+from prometheus_client.registry import Collector
+from sqlalchemy import Float, case, cast, func, select
+from sqlalchemy.orm import Session, sessionmaker
+from starlette.routing import Mount
+
+from league.server.db import crud
+from league.server.db.models import DONE, INSTRUCTOR, RUNNING, EpisodeResult, Job, Submission
+
+# job durations (seconds): a validation takes seconds, an evaluation of 100 episodes minutes, a race about one
+JOB_BUCKETS = (1, 2, 5, 10, 20, 30, 60, 120, 300, 600, 1200, 1800, 3600)
+REQUEST_BUCKETS = (0.005, 0.01, 0.025, 0.05, 0.1, 0.25, 0.5, 1, 2.5, 5, 10, 30)
+UNMATCHED = "unmatched"  # the route label of a path no route serves (bounded: not the raw path)
+# the validation of an upload, by the submission's status: what its sandbox made of it
+VALIDATION_OUTCOMES = {"ready": "ok", "rejected": "rejected", "failed": "failed"}
+
+router = APIRouter()
+
+
+def seconds_between(start, end, dialect: str):
+    """end - start in seconds, in SQL (SQLite keeps datetimes as text; PostgreSQL as timestamps)."""
+    if dialect == "postgresql":
+        return func.extract("epoch", end - start)
+    return (func.julianday(end) - func.julianday(start)) * 86400.0
+
+
+class DatabaseCollector(Collector):
+    """The league's figures from its database, read when Prometheus scrapes."""
+
+    def __init__(self, sessions: sessionmaker[Session]):
+        self.sessions = sessions
+
+    def collect(self) -> Iterator:
+        with self.sessions() as session:
+            yield from jobs_by_state(session)
+            yield job_durations(session)
+            yield validation_outcomes(session)
+            yield episode_outcomes(session)
+            yield worker_heartbeats(session)
+
+
+def jobs_by_state(session: Session) -> Iterator:
+    jobs = GaugeMetricFamily("league_jobs", "Jobs in the database by kind and status", labels=["kind", "status"])
+    for kind, state, count in session.execute(select(Job.kind, Job.status, func.count()).group_by(Job.kind, Job.status)):
+        jobs.add_metric([kind, state], count)
+    yield jobs
+
+
+def job_durations(session: Session) -> HistogramMetricFamily:
+    """Finished jobs' last attempt, claim to completion, by kind (evaluate, race, validate)."""
+    seconds = seconds_between(Job.started_at, Job.finished_at, session.get_bind().dialect.name)
+    buckets = [func.sum(case((seconds <= bound, 1), else_=0)) for bound in JOB_BUCKETS]
+    rows = session.execute(select(Job.kind, func.count(), func.sum(cast(seconds, Float)), *buckets)
+                           .where(Job.status == DONE, Job.started_at.is_not(None)).group_by(Job.kind))
+    durations = HistogramMetricFamily("league_job_duration_seconds", "Duration of finished jobs, by kind",
+                                      labels=["kind"])
+    for kind, count, total, *cumulative in rows:
+        durations.add_metric([kind], [(str(float(b)), int(c or 0)) for b, c in zip(JOB_BUCKETS, cumulative)]
+                             + [("+Inf", count)], float(total or 0.0))
+    return durations
+
+
+def validation_outcomes(session: Session) -> CounterMetricFamily:
+    """Uploads by what their validation sandbox decided: ok, rejected (the model's fault) or failed
+    (the sandbox or the worker could not run it)."""
+    outcomes = CounterMetricFamily("league_validations", "Validated uploads by outcome", labels=["outcome"])
+    counts = dict(session.execute(select(Submission.status, func.count()).group_by(Submission.status)).all())
+    for state, outcome in VALIDATION_OUTCOMES.items():
+        outcomes.add_metric([outcome], counts.get(state, 0))
+    return outcomes
+
+
+def episode_outcomes(session: Session) -> CounterMetricFamily:
+    """Evaluation episodes by how they ended: finished, off_road, too_slow, timeout, dnf (the agent's
+    sandbox failed: crashed, over its limits)."""
+    outcomes = CounterMetricFamily("league_evaluation_episodes", "Evaluation episodes by outcome", labels=["outcome"])
+    for outcome, count in session.execute(select(EpisodeResult.outcome, func.count()).group_by(EpisodeResult.outcome)):
+        outcomes.add_metric([outcome], count)
+    return outcomes
+
+
+def worker_heartbeats(session: Session) -> GaugeMetricFamily:
+    """Each worker process (host/pid) running a job, and its newest lease renewal: a worker whose
+    time falls behind by more than the lease timeout has stopped (its jobs are given to others)."""
+    beats = GaugeMetricFamily("league_worker_heartbeat_timestamp_seconds",
+                              "Newest heartbeat of each worker process running jobs (unix time)", labels=["worker"])
+    newest: dict[str, float] = {}
+    for attempt, beat in session.execute(select(Job.worker_id, Job.heartbeat_at).where(
+            Job.status == RUNNING, Job.heartbeat_at.is_not(None))):
+        worker = (attempt or "").rpartition("/")[0] or attempt or "unknown"  # host/pid/attempt -> host/pid
+        newest[worker] = max(newest.get(worker, 0.0), beat.timestamp())
+    for worker, beat in sorted(newest.items()):
+        beats.add_metric([worker], beat)
+    return beats
+
+
+class RequestLatency:
+    """ASGI middleware: the API's answer times by method, route template and status."""
+
+    def __init__(self, app, histogram: Histogram):
+        self.app, self.histogram = app, histogram
+
+    async def __call__(self, scope, receive, send):
+        if scope["type"] != "http":
+            return await self.app(scope, receive, send)
+        started, answered = time.perf_counter(), {"status": 500}
+
+        async def sending(message):
+            if message["type"] == "http.response.start":
+                answered["status"] = message["status"]
+            await send(message)
+
+        try:
+            await self.app(scope, receive, sending)
+        finally:
+            self.histogram.labels(scope["method"], route_template(scope),
+                                  str(answered["status"])).observe(time.perf_counter() - started)
+
+
+def route_template(scope) -> str:
+    """"/api/races/{race_id}" for /api/races/12: the matched route's path (relative to the prefix its
+    router was included with, which is the concrete path's leading segments), or UNMATCHED."""
+    route = scope.get("route")
+    if route is None:
+        return UNMATCHED
+    if isinstance(route, Mount):  # static files: one label for the mount
+        return route.path
+    segments = scope["path"].split("/")
+    return "/".join(segments[:len(segments) - route.path.count("/")]) + route.path
+
+
+def install(app, sessions: sessionmaker[Session]) -> None:
+    """The app's registry (its own: apps in one process do not mix), its collector and middleware."""
+    disable_created_metrics()  # no *_created series: Prometheus needs none, and they double the output
+    registry = CollectorRegistry(auto_describe=False)
+    registry.register(DatabaseCollector(sessions))
+    latency = Histogram("league_http_request_duration_seconds", "API answer time by method, route template "
+                        "and status", ["method", "route", "status"], registry=registry, buckets=REQUEST_BUCKETS)
+    app.state.metrics = registry
+    app.add_middleware(RequestLatency, histogram=latency)
+    app.include_router(router)
+
+
+@router.get("/metrics", response_class=Response, include_in_schema=True, tags=["monitoring"],
+            responses={200: {"content": {CONTENT_TYPE_LATEST: {}}}})
+async def read_metrics(request: Request) -> Response:
+    """Prometheus metrics (text format): the metrics_token or an instructor's token, as a bearer token."""
+    await run_in_threadpool(check_scraper, request)
+    body = await run_in_threadpool(generate_latest, request.app.state.metrics)
+    return Response(body, media_type=CONTENT_TYPE_LATEST)
+
+
+def check_scraper(request: Request) -> None:
+    scheme, _, token = request.headers.get("authorization", "").partition(" ")
+    if scheme.lower() != "bearer" or not token:
+        raise HTTPException(status.HTTP_401_UNAUTHORIZED, "send the metrics_token or an instructor's token: "
+                            "Authorization: Bearer TOKEN", headers={"WWW-Authenticate": "Bearer"})
+    expected = request.app.state.settings.metrics_token
+    secret = expected.get_secret_value() if expected is not None else ""
+    if secret and hmac.compare_digest(token.encode(), secret.encode()):
+        return
+    with request.app.state.sessions() as session:
+        user = crud.user_by_token(session, token=token)
+    if user is None or not user.active:
+        raise HTTPException(status.HTTP_401_UNAUTHORIZED, "unknown token: send the metrics_token or an "
+                            "instructor's token", headers={"WWW-Authenticate": "Bearer"})
+    if user.role != INSTRUCTOR:
+        raise HTTPException(status.HTTP_403_FORBIDDEN, "only instructors and the metrics_token read the metrics")

@@ -1,0 +1,93 @@
+"""Who sees a course's boards, and under which names.
+
+A course's `board_visibility` says who sees its boards (the leaderboard, its races and replays,
+its championships and standings): `public` (anyone), `members` (its logged-in students and
+instructors) or `instructors`. Members who may see a board see real names; anyone else who may
+(a visitor of a public board, or a student looking at a race of their own car on a board closed to
+them) sees each student as their display name, else as a "Student N" pseudonym; baselines keep
+their names. The check itself is `league.server.api.deps.board_names`, the one every board route calls.
+
+Pseudonyms are a keyed permutation of user ids (the course's random `pseudonym_key`): distinct, stable
+for the course's life, and in no relation to the roster's order, which is often alphabetical.
+"""
+from __future__ import annotations
+
+import gzip
+import json
+import re
+from dataclasses import dataclass, field
+from typing import Any
+
+from league.server.accounts import clean_name
+from league.server.db.models import BASELINE, INSTRUCTORS, MEMBERS, PUBLIC
+
+VISIBILITIES = (PUBLIC, MEMBERS, INSTRUCTORS)
+AUDIENCE = {PUBLIC: "anyone", MEMBERS: "the course's students and instructors, logged in",
+            INSTRUCTORS: "the course's instructors only"}
+PSEUDONYM_MODULUS = 999_983  # a prime: user ids below it get distinct pseudonyms
+PSEUDONYM = re.compile(r"student\s*\d+", re.IGNORECASE)
+
+
+def pseudonym(key: int, user_id: int) -> str:
+    """"Student N" of the user in a course of `key` (N = a * id + b mod a prime, a and b from the key)."""
+    a = 1 + key % (PSEUDONYM_MODULUS - 1)
+    b = key // PSEUDONYM_MODULUS % PSEUDONYM_MODULUS
+    return f"Student {1 + (a * user_id + b) % PSEUDONYM_MODULUS}"
+
+
+def clean_display_name(text: str | None) -> str | None:
+    """A display name cleaned as names are (accounts.clean_name); None for an empty one (unset)."""
+    if text is None or not text.strip():
+        return None
+    name = clean_name(text)
+    if PSEUDONYM.fullmatch(name):
+        raise ValueError(f"the display name {name!r} looks like the pseudonym of a student who has none: "
+                         "choose another")
+    return name
+
+
+@dataclass(frozen=True)
+class Names:
+    """How one viewer sees the owners on a course's boards: `real` names, or public ones (display
+    names, else pseudonyms) for everyone but the baselines and the viewer."""
+
+    real: bool
+    key: int = 0  # the course's pseudonym key
+    viewer_id: int | None = None
+    display_names: dict[int, str] = field(default_factory=dict)  # user id -> display name (public view)
+
+    def owner(self, owner_id: int | None, name: str, role: str | None) -> str:
+        if self.real or role == BASELINE or owner_id is None or owner_id == self.viewer_id:
+            return name
+        return self.display_names.get(owner_id) or pseudonym(self.key, owner_id)
+
+    def rows(self, rows: list[dict]) -> list[dict]:
+        """Board rows (with "owner", "owner_id", "owner_role") with their owners renamed."""
+        if self.real:
+            return rows
+        return [{**row, "owner": self.owner(row["owner_id"], row["owner"], row["owner_role"])} for row in rows]
+
+    def people(self, people: list[dict] | None, owners: dict[int, Any]) -> list[dict] | None:
+        """A race's entrants or classification (rows with "submission_id" and "owner"), renamed;
+        `owners`: submission id -> its owner (a User)."""
+        if self.real or people is None:
+            return people
+        return [{**row, "owner": self._entrant_owner(row, owners)} for row in people]
+
+    def replay(self, data: bytes, entrants: list[dict], owners: dict[int, Any]) -> bytes | None:
+        """A stored replay (gzip JSON) with its car names ("agent (owner)") renamed; None: as stored."""
+        if self.real:
+            return None
+        replay = json.loads(gzip.decompress(data))
+        shown = [self._entrant_owner(entrant, owners) for entrant in entrants]
+        replay["names"] = [f"{entrant['name']} ({owner})" for entrant, owner in zip(entrants, shown)]
+        for row in replay.get("classification", []):
+            car = int(row["car"].removeprefix("car_"))
+            row.update({"name": replay["names"][car]}, **({"owner": shown[car]} if "owner" in row else {}))
+        return json.dumps(replay, separators=(",", ":")).encode()
+
+    def _entrant_owner(self, row: dict, owners: dict[int, Any]) -> str:
+        owner = owners.get(row["submission_id"])
+        if owner is None:  # the submission is gone: its owner is not named
+            return "(unknown)"
+        return self.owner(owner.id, owner.name, owner.role)

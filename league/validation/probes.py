@@ -1,0 +1,86 @@
+"""The probe set: a fixed set of realistic observations on which agents' actions are compared.
+
+Two uploads that answer the probe set with the same actions (within a tolerance) are one policy,
+whatever their files: one network exported to ONNX and to TorchScript differs by float rounding
+(~2e-7), two trained agents by far more (0.8 to 2: benchmarks/bench_integrity.py). The server records each submission's actions on it in
+the sandbox that validates it (league.server.sandbox.validation) and its integrity report
+compares them (league.server.integrity).
+
+The observations are drawn once from PROBE_SEED on real tracks: a driver with a target speed of
+its own per track and noisy steering goes round, and every SAMPLE_EVERY-th observation is kept,
+so the set holds straights, curves, obstacles ahead, slow and fast cars. The compact set is the
+lidar set's compact form (the same states). A new simulator (tracks, physics) may draw another
+set: its `probe_key` names it, and only actions on the same set are compared.
+"""
+from __future__ import annotations
+
+import functools
+import hashlib
+from dataclasses import dataclass
+
+import numpy as np
+
+from league.agents import compact_from_lidar, heuristic_actions
+from league.constants import COMPACT_DIM, LIDAR_DIM
+
+PROBE_SEED = 20260401
+PROBES = 64  # observations: enough to tell trained agents apart, small to store (512 bytes of actions)
+SAMPLE_EVERY = 9  # steps between kept observations (consecutive ones are near-duplicates)
+MAX_STEPS = 300  # per track, so the set spans several tracks
+STEER_NOISE = 0.35  # standard deviation added to the steering, which takes the car off the ideal line
+
+
+@dataclass(frozen=True)
+class Probe:
+    """An agent's answer to the probe set `key`: its actions (probe_actions_bytes), or why it gave none."""
+
+    key: str
+    actions: bytes | None
+    error: str | None = None
+
+
+def probe_observations(obs_dim: int) -> np.ndarray:
+    """The probe set for agents of `obs_dim` (5 or 20 values), float32 (PROBES, obs_dim) (a copy)."""
+    if obs_dim not in (COMPACT_DIM, LIDAR_DIM):
+        raise ValueError(f"no probe set for {obs_dim} observation values (5 or 20)")
+    lidar = _lidar_probes()
+    return lidar.copy() if obs_dim == LIDAR_DIM else compact_from_lidar(lidar)
+
+
+@functools.lru_cache(maxsize=2)
+def probe_key(obs_dim: int) -> str:
+    """Names the probe set (16 hex digits of the sha256 of its values)."""
+    return hashlib.sha256(probe_observations(obs_dim).tobytes()).hexdigest()[:16]
+
+
+@functools.lru_cache(maxsize=1)
+def _lidar_probes() -> np.ndarray:  # drawn once per process (~0.2 s)
+    from league.env import MicroRacerEnv  # the simulator, only when a probe set is first needed
+
+    rng = np.random.default_rng(PROBE_SEED)
+    env, kept = MicroRacerEnv(observation="lidar"), []
+    while len(kept) < PROBES:
+        obs, _ = env.reset(seed=int(rng.integers(2**31)))
+        target_speed = rng.uniform(0.1, 0.5)
+        for step in range(MAX_STEPS):
+            if step % SAMPLE_EVERY == 0:
+                kept.append(obs)
+            action = heuristic_actions(compact_from_lidar(obs[None]))[0]
+            action[0] = 0.5 if obs[-1] < target_speed else -0.3
+            action[1] += rng.normal(0, STEER_NOISE)
+            obs, _, terminated, truncated, _ = env.step(np.clip(action, -1, 1))
+            if terminated or truncated or len(kept) == PROBES:
+                break
+    return np.asarray(kept, dtype=np.float32)
+
+
+def probe_actions_bytes(actions: np.ndarray) -> bytes:
+    """Actions on the probe set as stored: float32 (PROBES, 2), row-major."""
+    actions = np.asarray(actions, dtype=np.float32)
+    if actions.shape != (PROBES, 2):
+        raise ValueError(f"expected {PROBES} actions of 2 values, got shape {actions.shape}")
+    return actions.tobytes()
+
+
+def probe_actions_from_bytes(data: bytes) -> np.ndarray:
+    return np.frombuffer(data, dtype=np.float32).reshape(PROBES, 2)

@@ -1,0 +1,100 @@
+"""/metrics: parsed with Prometheus' own text parser, every figure equal to what the database holds
+after jobs ran through their leases (in process, on both backends); who may scrape; API latency
+labelled by route template, not by the raw path."""
+from __future__ import annotations
+
+from datetime import timedelta
+
+import pytest
+from prometheus_client.parser import text_string_to_metric_families
+from sqlalchemy import func, select
+
+from league.server.db.models import DONE, EpisodeResult, Job, Submission
+from league.server.jobs.handlers import HANDLERS
+from league.server.jobs.leases import claim
+from league.server.metrics import JOB_BUCKETS
+from league.validation.report import ValidationReport
+
+from .api.conftest import evaluation_outcome, in_process_league
+from .conftest import BACKENDS
+
+
+def scrape(client) -> dict[str, dict[tuple, float]]:
+    """name -> {sorted label items: value}, for every sample."""
+    response = client.get("/metrics")
+    assert response.status_code == 200, response.text
+    samples: dict[str, dict[tuple, float]] = {}
+    for family in text_string_to_metric_families(response.text):
+        for sample in family.samples:
+            samples.setdefault(sample.name, {})[tuple(sorted(sample.labels.items()))] = sample.value
+    return samples
+
+
+def run_validation(league, job_id: int, ok: bool) -> None:
+    report = ValidationReport(ok=ok, error=None if ok else "the model returned NaN or infinite actions",
+                              obs_dim=5 if ok else None, log="")
+    league.finish_job(job_id, report)
+
+
+@pytest.mark.parametrize("kind", BACKENDS)
+def test_metrics_equal_the_database_after_jobs_ran(kind, tmp_path):
+    with in_process_league(kind, tmp_path, bootstrap=False, metrics_token="scrape-me") as league:
+        student, _ = league.student("mo")
+        good, bad, waiting = (league.submission(student, status="pending") for _ in range(3))
+        with league.sessions() as session:
+            validation = {s.id: session.scalar(select(Job.id).where(Job.submission_id == s.id)) for s in
+                          (good, bad, waiting)}
+        run_validation(league, validation[good.id], ok=True)  # queues its evaluation
+        run_validation(league, validation[bad.id], ok=False)
+        with league.sessions() as session:
+            evaluation = session.scalar(select(Job.id).where(Job.submission_id == good.id, Job.kind == "evaluate",
+                                                             Job.status == "queued"))
+        league.finish_job(evaluation, evaluation_outcome(completed=2, episodes=3))
+        assert claim(league.sessions, HANDLERS, job_id=validation[waiting.id], attempt_id="box-7/4242/ab12cd34")
+        with league.sessions.begin() as session:  # durations across the buckets (the jobs above took ms)
+            finished = session.scalars(select(Job).where(Job.status == DONE).order_by(Job.id)).all()
+            for job, seconds in zip(finished, (3.5, 700.25, 45.0)):
+                job.started_at = job.finished_at - timedelta(seconds=seconds)
+
+        with league.client("scrape-me") as prometheus:
+            prometheus.get("/api/races/987654")  # a 404 through a templated route
+            samples = scrape(prometheus)
+        with league.sessions() as session:
+            jobs = session.execute(select(Job.kind, Job.status, func.count()).group_by(Job.kind, Job.status)).all()
+            done = session.execute(select(Job.kind, Job.started_at, Job.finished_at).where(Job.status == DONE)).all()
+            statuses = dict(session.execute(select(Submission.status, func.count()).group_by(Submission.status)).all())
+            episodes = dict(session.execute(select(EpisodeResult.outcome, func.count())
+                                            .group_by(EpisodeResult.outcome)).all())
+            beat = session.get(Job, validation[waiting.id]).heartbeat_at
+
+    assert samples["league_jobs"] == {(("kind", k), ("status", s)): n for k, s, n in jobs}
+    durations = {}
+    for job_kind, started, finished in done:
+        durations.setdefault(job_kind, []).append((finished - started).total_seconds())
+    assert sorted(s for seconds in durations.values() for s in seconds) == [3.5, 45.0, 700.25]
+    assert {dict(labels)["kind"] for labels in samples["league_job_duration_seconds_count"]} == set(durations)
+    for job_kind, seconds in durations.items():
+        assert samples["league_job_duration_seconds_count"][(("kind", job_kind),)] == len(seconds)
+        assert samples["league_job_duration_seconds_sum"][(("kind", job_kind),)] == pytest.approx(sum(seconds), abs=1e-3)
+        for bound in JOB_BUCKETS:
+            assert samples["league_job_duration_seconds_bucket"][(("kind", job_kind), ("le", str(float(bound))))] == \
+                sum(s <= bound for s in seconds)
+    assert samples["league_validations_total"] == {
+        (("outcome", "ok"),): statuses.get("ready", 0), (("outcome", "rejected"),): statuses.get("rejected", 0),
+        (("outcome", "failed"),): statuses.get("failed", 0)}
+    assert statuses.get("rejected") == 1 and statuses.get("ready", 0) >= 1
+    assert samples["league_evaluation_episodes_total"] == {(("outcome", o),): n for o, n in episodes.items()}
+    assert samples["league_worker_heartbeat_timestamp_seconds"] == {(("worker", "box-7/4242"),): beat.timestamp()}
+    routes = {dict(labels)["route"] for labels in samples["league_http_request_duration_seconds_count"]}
+    assert "/api/races/{race_id}" in routes and not any("987654" in route for route in routes)
+
+
+def test_only_the_metrics_token_and_instructors_scrape(tmp_path):
+    with in_process_league("sqlite", tmp_path, bootstrap=False, metrics_token="scrape-me") as league:
+        _, student = league.student()
+        with league.client() as anonymous, league.client("wrong") as stranger, \
+                league.client(league.instructor_token) as instructor:
+            answers = [anonymous.get("/metrics"), stranger.get("/metrics"), student.get("/metrics"),
+                       instructor.get("/metrics")]
+    assert [a.status_code for a in answers] == [401, 401, 403, 200]
+    assert answers[0].headers["www-authenticate"] == "Bearer"

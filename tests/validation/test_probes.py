@@ -1,0 +1,47 @@
+"""The probe set the integrity report compares agents on: fixed, realistic, and telling agents apart."""
+from __future__ import annotations
+
+import numpy as np
+
+from league.agents import compact_from_lidar, export_onnx, export_torchscript, load_agent
+from league.constants import COMPACT_DIM, LIDAR_DIM
+from league.validation.probes import (
+    PROBES, probe_actions_bytes, probe_actions_from_bytes, probe_key, probe_observations,
+)
+
+from ..toolkit_models import thesis_driver
+
+
+def test_the_probe_set_is_fixed_and_the_compact_one_is_the_lidar_one_seen_compactly():
+    lidar, compact = probe_observations(LIDAR_DIM), probe_observations(COMPACT_DIM)
+    assert lidar.shape == (PROBES, LIDAR_DIM) and compact.shape == (PROBES, COMPACT_DIM)
+    assert lidar.dtype == compact.dtype == np.float32
+    np.testing.assert_array_equal(lidar, probe_observations(LIDAR_DIM))  # the same set at every call
+    np.testing.assert_array_equal(compact, compact_from_lidar(lidar))
+    assert len(probe_key(LIDAR_DIM)) == 16 and probe_key(LIDAR_DIM) != probe_key(COMPACT_DIM)
+
+
+def test_the_probe_set_holds_varied_situations():
+    compact = probe_observations(COMPACT_DIM)
+    speeds, directions = compact[:, 4], compact[:, 0]
+    assert speeds.min() < 0.2 and speeds.max() > 0.35  # slow and fast cars
+    assert (directions > 0.1).sum() >= 5 and (directions < -0.1).sum() >= 5  # curves both ways
+    assert len(np.unique(compact, axis=0)) == PROBES
+
+
+def test_one_network_exported_twice_agrees_and_another_does_not(tmp_path):
+    net = thesis_driver(seed=3, target_speed=0.22)
+    onnx_agent = load_agent(export_onnx(net, tmp_path / "a.onnx"))
+    torchscript_agent = load_agent(export_torchscript(net, tmp_path / "a.pt"))
+    other = load_agent(export_onnx(thesis_driver(seed=3, target_speed=0.27), tmp_path / "b.onnx"))
+    obs = probe_observations(COMPACT_DIM)
+    same = np.abs(onnx_agent(obs) - torchscript_agent(obs)).max()
+    different = np.abs(onnx_agent(obs) - other(obs)).max()
+    assert same < 1e-5 and different > 0.5, (same, different)
+
+
+def test_actions_round_trip_through_their_stored_bytes():
+    actions = np.random.default_rng(0).uniform(-1, 1, (PROBES, 2)).astype(np.float32)
+    data = probe_actions_bytes(actions)
+    assert len(data) == PROBES * 2 * 4
+    np.testing.assert_array_equal(probe_actions_from_bytes(data), actions)
