@@ -548,6 +548,9 @@ def run_select(args: argparse.Namespace) -> int:
                           json={"submission_id": args.submission})
     print(f"{answer['name']}: your final submission is {answer['final']['submission_id']} (until "
           f"{local_time(answer['my_closes_at']) or 'no deadline'})")
+    return EXIT_OK
+
+
 def run_integrity(args: argparse.Namespace) -> int:
     with Api(connection(args)) as api:
         if args.probe:

@@ -189,9 +189,8 @@ def test_0010_makes_each_course_one_default_assignment_and_every_answer_stays(ki
     from .api.conftest import in_process_league
 
     with in_process_league(kind, tmp_path, prepare=fill_0006, bootstrap=False) as league:
-        with league.client() as public:
-            board = public.get("/api/leaderboard", params={"size": 100}).json()["items"]
-        with league.client(league.instructor_token) as instructor:
+        with league.client(league.instructor_token) as instructor:  # (visitors see pseudonyms)
+            board = instructor.get("/api/leaderboard", params={"size": 100}).json()["items"]
             settings = instructor.get("/api/settings/evaluation").json()
             assignments = instructor.get("/api/assignments").json()
             assignment_board = instructor.get(f"/api/assignments/{assignments[0]['id']}/board",

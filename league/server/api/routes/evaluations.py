@@ -38,8 +38,9 @@ def update_evaluation_settings(body: EvaluationSettings, instructor: InstructorU
     assignment = default_assignment(session, instructor)
     change = change_settings(session, assignment=assignment, settings=body.model_dump(),
                              max_attempts=settings.max_job_attempts)
-    audit.record(session, actor=instructor, action=audit.SETTINGS, target_kind="course", target_id=course.id,
-                 course_id=course.id, settings=body.model_dump(), reevaluating=change.reevaluated)
+    audit.record(session, actor=instructor, action=audit.SETTINGS, target_kind="course",
+                 target_id=assignment.course_id, course_id=assignment.course_id, assignment_id=assignment.id,
+                 settings=body.model_dump(), reevaluating=change.reevaluated)
     session.commit()
     for job in change.queued:
         queue.enqueue(job.id)
