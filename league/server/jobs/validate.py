@@ -30,11 +30,11 @@ class ValidateSubmission:
             crud.forget_blob_unless_used(session, sha256=submission.sha256)  # the stores sweep their copies
             return []
         submission.status, submission.error, submission.obs_dim = READY, None, report.obs_dim
+        if report.probe is not None:
+            submission.probe_key, submission.probe_actions = report.probe.key, report.probe.actions
         if submission.owner.role == BASELINE:  # a reference on every assignment's board
             return [queue_evaluation(session, submission=submission, max_attempts=job.max_attempts, assignment=a).id
                     for a in crud.all_assignments(session)]
-        if report.probe is not None:
-            submission.probe_key, submission.probe_actions = report.probe.key, report.probe.actions
         return [queue_evaluation(session, submission=submission, max_attempts=job.max_attempts).id]
 
     def give_up(self, session: Session, job: Job, reason: str) -> None:
