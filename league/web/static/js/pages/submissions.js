@@ -61,6 +61,7 @@ async function refreshAssignments() {
   picker.replaceChildren(...open.map((a) => element("option", { text: `${a.name}${a.state === "late" ? " (late)" : ""}`,
     attrs: { value: a.id } })));
   if (open.some((a) => String(a.id) === kept)) picker.value = kept;
+  picker.closest(".field").hidden = open.length < 2; // one open: the server takes it, nothing to choose
   replaceKeepingFocus($("assignments").tBodies[0], ...assignments.map((a) => {
     const final = a.final || {};
     const result = final.evaluation && final.evaluation.status === "done"
@@ -286,7 +287,7 @@ onSubmit($("upload-form"), async () => {
   form.append("file", chosenFile, chosenFile.name);
   const name = $("submission-name").value.trim();
   if (name) form.append("name", name);
-  if ($("upload-assignment").value) form.append("assignment", $("upload-assignment").value);
+  if (!$("upload-assignment").closest(".field").hidden) form.append("assignment", $("upload-assignment").value);
   $("upload-button").disabled = true;
   say(message, `Uploading ${chosenFile.name}…`, "info");
   try {
