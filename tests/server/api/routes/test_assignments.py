@@ -349,3 +349,18 @@ def test_the_cli_creates_extends_lists_and_selects(league, clock, monkeypatch, c
     assert f"your final submission is {agent}" in selected
     monkeypatch.setenv("LEAGUE_TOKEN", league.instructor_token)
     assert main(["assignments", "publish", name]) == cli_client.EXIT_REFUSED  # students may still upload
+
+
+def test_an_assignments_board_is_shown_as_the_courses_board_visibility_allows(league):
+    """Members only: a visitor is asked to log in, a member sees the board; public: visitors see it too."""
+    hw = create(league)
+    with league.client(league.instructor_token) as instructor, league.client() as visitor:
+        before = instructor.get("/api/settings/privacy").json()
+        instructor.put("/api/settings/privacy", json={**before, "board_visibility": "members"}).raise_for_status()
+        try:
+            assert visitor.get(f"/api/assignments/{hw['id']}/board").status_code == 401
+            _, student = league.student()
+            assert student.get(f"/api/assignments/{hw['id']}/board").status_code == 200
+        finally:
+            instructor.put("/api/settings/privacy", json=before).raise_for_status()
+        assert visitor.get(f"/api/assignments/{hw['id']}/board").status_code == 200
