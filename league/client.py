@@ -270,6 +270,8 @@ def run_submit(args: argparse.Namespace) -> int:
         if upload is None:
             return EXIT_REJECTED
         data = {"name": args.name} if args.name else {}
+        if args.assignment:
+            data["assignment"] = args.assignment
         created = api.call("POST", "/api/submissions", files={"file": (upload.name, upload.data)}, data=data)
         print(f"submission {created['id']}: {created['status']}", file=sys.stderr)
         if not args.wait:
@@ -392,11 +394,16 @@ def _figures(evaluation: dict | None) -> list:
 
 
 def run_leaderboard(args: argparse.Namespace) -> int:
-    with Api(connection(args, need_token=args.csv)) as api:
+    with Api(connection(args, need_token=args.csv or bool(args.assignment))) as api:
+        path = "/api/leaderboard"
+        params = {}
+        if args.assignment:
+            path = f"/api/assignments/{find_assignment(api, args.assignment)['id']}/board"
+            params = {"board": "private" if args.private else "public"}
         if args.csv:  # instructors: the grades
-            sys.stdout.write(api.get("/api/leaderboard.csv"))
+            sys.stdout.write(api.get(f"{path}.csv", **params))
             return EXIT_OK
-        rows = api.get("/api/leaderboard", size=100)["items"]
+        rows = api.get(path, size=100, **params)["items"]
     _print_table(["rank", "student", "agent", "id", "completed", "mean return", "mean speed", "rating"],
                  [["stale" if r.get("stale") else r["rank"], r["owner"], r["name"], r["submission_id"],
                    f"{r['completed']}/{r['episodes']}",
@@ -432,6 +439,116 @@ def championship_id(api: Api, wanted: str) -> int:
         raise ClientError(f"{len(found)} championships are named {wanted!r}: give the id of one of "
                           f"{', '.join(str(c['id']) for c in found)}", EXIT_USAGE)
     raise ClientError(f"no championship named {wanted!r}; the championships: {listing}", EXIT_USAGE)
+
+
+# --------------------------------------------------------------------------- assignments
+
+
+def find_assignment(api: Api, wanted: str) -> dict:
+    """The assignment `wanted` names (its name, any case, or its id)."""
+    assignments = api.get("/api/assignments")
+    found = [a for a in assignments if a["name"] == wanted or str(a["id"]) == wanted] or [
+        a for a in assignments if a["name"].casefold() == wanted.casefold()]
+    if len(found) == 1:
+        return found[0]
+    listing = ", ".join(a["name"] for a in assignments) or "none yet"
+    raise ClientError(f"no assignment named {wanted!r}; the assignments: {listing}", EXIT_USAGE)
+
+
+def local_time(text: str | None) -> str:
+    """A UTC time of the API in this machine's time zone, with the zone: 2026-12-02 00:59 CET."""
+    if not text:
+        return ""
+    from datetime import datetime
+
+    return datetime.fromisoformat(text).astimezone().strftime("%Y-%m-%d %H:%M %Z")
+
+
+def time_left(until: str | None, now: str) -> str:
+    if not until:
+        return "no deadline"
+    from datetime import datetime
+
+    seconds = (datetime.fromisoformat(until) - datetime.fromisoformat(now)).total_seconds()
+    if seconds <= 0:
+        return "closed"
+    days, rest = divmod(int(seconds), 86400)
+    return f"{days}d {rest // 3600}h {rest % 3600 // 60}m" if days else f"{rest // 3600}h {rest % 3600 // 60}m"
+
+
+def parse_time(text: str) -> str:
+    """An ISO time given on the command line; without a zone, this machine's."""
+    from datetime import datetime
+
+    try:
+        moment = datetime.fromisoformat(text)
+    except ValueError:
+        raise ClientError(f"{text!r} is not a time such as 2026-12-01T23:59 or 2026-12-01T23:59+01:00",
+                          EXIT_USAGE) from None
+    return (moment if moment.tzinfo else moment.astimezone()).isoformat()
+
+
+def run_assignments(args: argparse.Namespace) -> int:
+    with Api(connection(args)) as api:
+        if args.action == "list":
+            return list_assignments(api.get("/api/assignments"), args.csv)
+        if not args.names:
+            raise ClientError(f"league assignments {args.action} NAME: which assignment?", EXIT_USAGE)
+        if args.action == "create":
+            created = api.call("POST", "/api/assignments", json={"name": args.names[0], **assignment_fields(args)})
+            print(f"assignment {created['id']}: {created['name']} created")
+            return EXIT_OK
+        assignment = find_assignment(api, args.names[0])
+        where = f"/api/assignments/{assignment['id']}"
+        if args.action == "edit":
+            api.call("PATCH", where, json=assignment_fields(args))
+        elif args.action == "publish":
+            api.call("POST", f"{where}/publish")
+        elif args.action == "extend":
+            if len(args.names) != 2 or not args.due:
+                raise ClientError("league assignments extend NAME STUDENT --due TIME", EXIT_USAGE)
+            student = [u for u in api.get("/api/users") if u["name"] == args.names[1]]
+            if not student:
+                raise ClientError(f"no student named {args.names[1]!r} in your course", EXIT_USAGE)
+            api.call("PUT", f"{where}/extensions/{student[0]['id']}", json={"due_at": parse_time(args.due)})
+        print(f"{args.action}: {assignment['name']} done")
+    return EXIT_OK
+
+
+def assignment_fields(args: argparse.Namespace) -> dict:
+    fields = {"description": args.description, "seed": args.seed, "episodes": args.episodes,
+              "late_penalty": args.late_penalty, "daily_quota": args.daily_quota, "auto_publish": args.auto_publish}
+    for name, text in (("opens_at", args.opens), ("due_at", args.due), ("late_until", args.late_until)):
+        if text is not None:
+            fields[name] = parse_time(text)
+    return {name: value for name, value in fields.items() if value is not None}
+
+
+def list_assignments(assignments: list[dict], as_csv: bool) -> int:
+    rows = []
+    for a in assignments:
+        final = a.get("final") or {}
+        mine = f"{final.get('submission_id') or ''}{' (selected)' if final.get('selected') else ''}"
+        rows.append([a["id"], a["name"], a["state"], local_time(a["opens_at"]),
+                     local_time(a["my_due_at"]) + (" (extension)" if a["extended"] else ""),
+                     time_left(a["my_due_at"], a["now"]), local_time(a["late_until"]), mine,
+                     "yes" if a["published_at"] else "no"])
+    _print_table(["id", "assignment", "state", "opens", "due (yours)", "time left", "late until", "final",
+                  "published"], rows, as_csv)
+    return EXIT_OK
+
+
+def run_select(args: argparse.Namespace) -> int:
+    with Api(connection(args)) as api:
+        if args.assignment:
+            assignment_id = find_assignment(api, args.assignment)["id"]
+        else:
+            assignment_id = api.get(f"/api/submissions/{args.submission}")["assignment_id"]
+        answer = api.call("POST", f"/api/assignments/{assignment_id}/selection",
+                          json={"submission_id": args.submission})
+    print(f"{answer['name']}: your final submission is {answer['final']['submission_id']} (until "
+          f"{local_time(answer['my_closes_at']) or 'no deadline'})")
+    return EXIT_OK
 
 
 def run_integrity(args: argparse.Namespace) -> int:
@@ -525,6 +642,8 @@ def add_commands(subparsers) -> None:
                      "in), and with --wait follow its validation and evaluation and print the result.")
     submit.add_argument("file", metavar="FILE", help="an ONNX (.onnx) or TorchScript (.pt) file")
     submit.add_argument("--name", help="the submission's name (default: the file name)")
+    submit.add_argument("--assignment", metavar="NAME",
+                        help="the assignment it is for, by name or id (default: the only one open to you)")
     submit.add_argument("--wait", action="store_true", help="wait until it is validated and evaluated")
     submit.add_argument("--no-check", action="store_true", help="upload without checking the file here first")
     submit.add_argument("--timeout", type=float, default=600, help="seconds --wait waits at most (default 600)")
@@ -534,8 +653,44 @@ def add_commands(subparsers) -> None:
     listing = command("submissions", "list your submissions and their results", run_submissions)
     listing.add_argument("--csv", action="store_true", help="print CSV")
 
-    board = command("leaderboard", "print the course leaderboard", run_leaderboard)
+    board = command("leaderboard", "print the course leaderboard (or an assignment's board)", run_leaderboard)
     board.add_argument("--csv", action="store_true", help="instructors: the grades, as CSV")
+    board.add_argument("--assignment", metavar="NAME", help="that assignment's board (default: the default one's)")
+    board.add_argument("--private", action="store_true",
+                       help="with --assignment: the private board (once published; instructors: always)")
+
+    assignments = command(
+        "assignments", "list the course's assignments with your due times; instructors: create, edit, extend, publish",
+        run_assignments,
+        "Without an action: each assignment, its state for you (upcoming, open, late, closed), when it opens,\n"
+        "your due time (an extension if you have one) in this machine's time zone, the time left, the late\n"
+        "window's end, your final submission (the one you selected, else your best on the public board),\n"
+        "and whether its private results are published. Instructors:\n"
+        "  league assignments create NAME --due 2026-12-01T23:59 [--opens T] [--late-until T --late-penalty 0.5]\n"
+        "                             [--episodes 20] [--seed 0] [--daily-quota 5] [--auto-publish]\n"
+        "  league assignments edit NAME [any of those options]\n"
+        "  league assignments extend NAME STUDENT --due T     (that student's own due time)\n"
+        "  league assignments publish NAME                    (show the private board to the students)\n"
+        "Times without a zone are this machine's.")
+    assignments.add_argument("action", nargs="?", default="list", choices=["list", "create", "edit", "extend", "publish"])
+    assignments.add_argument("names", nargs="*", metavar="NAME", help="the assignment (extend: and the student)")
+    assignments.add_argument("--description")
+    assignments.add_argument("--seed", type=int, help="the public tracks' seed")
+    assignments.add_argument("--episodes", type=int, help="episodes of each evaluation (public and private)")
+    assignments.add_argument("--opens", metavar="TIME", help="uploads open (ISO time)")
+    assignments.add_argument("--due", metavar="TIME", help="the due time (ISO time)")
+    assignments.add_argument("--late-until", metavar="TIME", help="late uploads are taken until then")
+    assignments.add_argument("--late-penalty", type=float, metavar="FACTOR", help="a late final's score factor")
+    assignments.add_argument("--daily-quota", type=int, metavar="N", help="uploads per student per UTC day")
+    assignments.add_argument("--auto-publish", action="store_true", default=None,
+                             help="publish the private board once every final is evaluated")
+    assignments.add_argument("--csv", action="store_true", help="print the list as CSV")
+
+    select = command("select", "choose the submission that counts as your final one in its assignment", run_select,
+                     "Your final submission is evaluated on the assignment's private tracks at your due time;\n"
+                     "without a selection it is your best on the public board.")
+    select.add_argument("submission", type=int, metavar="SUBMISSION", help="the submission's id")
+    select.add_argument("--assignment", metavar="NAME", help="default: the submission's assignment")
 
     standings = command("standings", "print a championship's standings", run_standings)
     standings.add_argument("championship", metavar="CHAMPIONSHIP",

@@ -2,7 +2,7 @@
 from __future__ import annotations
 
 from contextlib import asynccontextmanager
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 from fastapi import FastAPI, Request
 from fastapi.exceptions import RequestValidationError
@@ -20,9 +20,11 @@ from league.server.api.main import api_router
 from league.server.api.routes.pages import MAX_TRACK_BYTES, mount_web
 from league.server import metrics
 from league.server.bootstrap import bootstrap
+from league.server.clock import Clock
 from league.server.config import Settings, load_settings
 from league.server.db.session import check_schema, make_engine, make_sessionmaker, revision_of
 from league.server.jobs.queue import JobQueue, build_queue
+from league.server.jobs.runner import close_due_now
 from league.server.jobs.worker import sweep_store
 from league.server.roster import MAX_ROSTER_BYTES
 from league.server.sandbox.process import ForkServer, sandbox_isolation
@@ -40,6 +42,7 @@ class League:
     sessions: sessionmaker[Session]
     queue: JobQueue
     store: BlobStore
+    clock: Clock = field(default_factory=Clock)  # what upload windows and due times are decided by
 
 
 def open_league(settings: Settings, engine: Engine | None = None) -> League:
@@ -54,9 +57,17 @@ def prepare_league(league_: League) -> None:
         check_schema(revision_of(connection))
     league_.store.ensure()
     bootstrap(league_.settings, league_.sessions, league_.queue, league_.store)
+    catch_up(league_)
     sweep_store(league_.sessions, league_.store)
     sandbox_isolation(league_.settings.sandbox_uid_base)  # logged, and shown by /api/health
     ForkServer.release_this_thread()  # (the probe's: the API runs no sandbox)
+
+
+def catch_up(league_: League) -> list[int]:
+    """Freeze and queue the private tests of the due times that passed while the league was down (the
+    reaper's passes do it while it runs)."""
+    return close_due_now(league_.sessions, league_.queue, max_attempts=league_.settings.max_job_attempts,
+                         now=league_.clock.now())
 
 
 @asynccontextmanager

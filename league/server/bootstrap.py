@@ -69,10 +69,12 @@ def _register(sessions: sessionmaker[Session], store: BlobStore, files: list[Pat
     job_ids = []
     with sessions.begin() as session:
         owner, _ = crud.create_user(session, name=crud.BASELINES_USER, role=BASELINE, course=None, with_token=False)
+        # evaluated with the first course's default assignment; other assignments queue their own (results)
+        assignment = crud.default_assignment(session, course_id=crud.first_course(session).id)
         for path in files:
             sha256, size = store.add_file(path)
             crud.save_blob(session, sha256=sha256, data=path.read_bytes())
-            submission, job = crud.create_submission(session, owner=owner, name=path.stem, filename=path.name,
+            submission, job = crud.create_submission(session, owner=owner, assignment=assignment, name=path.stem, filename=path.name,
                                                      kind=model_kind_of(path.name), sha256=sha256, size=size,
                                                      max_attempts=max_attempts)
             submission.public = True

@@ -1,12 +1,12 @@
 """Which evaluation results count: those of the current settings.
 
 An evaluation's `result_key` (league.evaluation.result_key) names the settings and the simulator
-version that produced it. Boards and grades rank only results of the current key: the course's
-evaluation settings on this server's simulator. Any other result is stale, shown apart, until the
+version that produced it. Boards and grades rank only results of the current key: the settings of
+the submission's assignment on this server's simulator. Any other result is stale, shown apart, until the
 submission is evaluated again; a change of the settings queues those re-evaluations at low priority.
 
-This module is the one home of "the current settings" (today a course's) and of what a change of
-them queues.
+This module is the one home of "the current settings" (an assignment's public ones) and of what a
+change of them queues.
 """
 from __future__ import annotations
 
@@ -20,7 +20,7 @@ from sqlalchemy.orm import Session
 
 from league.evaluation import result_key
 from league.server.db import crud
-from league.server.db.models import LOW, NORMAL, READY, Course, Job, Submission, User
+from league.server.db.models import LOW, NORMAL, PUBLIC, READY, Assignment, Job, Submission
 
 log = logging.getLogger("league.server.results")
 SUPERSEDED = "superseded: the evaluation settings changed before it ran, to settings its submission has an evaluation of"
@@ -36,32 +36,27 @@ def settings_key(settings: dict[str, Any]) -> str:
         return hashlib.sha256(text.encode()).hexdigest()[:16]
 
 
-def evaluation_course(session: Session, owner: User) -> Course | None:
-    """The course whose settings evaluate a submission: its owner's, or the first course for the baselines."""
-    if owner.course is not None:
-        return owner.course
-    return crud.first_course(session)
+def current_key(assignment: Assignment | None) -> str | None:
+    """The key that results must have to count on the assignment's public board (None: nothing counts)."""
+    return None if assignment is None else settings_key(assignment.evaluation_settings())
 
 
-def current_key(course: Course | None) -> str | None:
-    """The key that results must have to count in the course (None: no course, nothing counts)."""
-    return None if course is None else settings_key(course.evaluation_settings())
+def submissions_current_keys(session: Session, submissions: list[Submission]) -> dict[int, str | None]:
+    """Each submission's current key, by submission id: that of its assignment."""
+    keys: dict[int | None, str | None] = {}
+    for assignment_id in {s.assignment_id for s in submissions}:
+        keys[assignment_id] = current_key(session.get(Assignment, assignment_id) if assignment_id else None)
+    return {s.id: keys[s.assignment_id] for s in submissions}
 
 
-def owners_current_keys(session: Session, owners: list[User]) -> dict[int, str | None]:
-    """Each owner's current key, by user id: that of the course evaluating their submissions."""
-    courses = {owner.id: evaluation_course(session, owner) for owner in owners}
-    keys = {course.id: current_key(course) for course in courses.values() if course is not None}
-    return {owner_id: None if course is None else keys[course.id] for owner_id, course in courses.items()}
-
-
-def queue_evaluation(session: Session, *, submission: Submission, max_attempts: int, course: Course | None = None,
-                     priority: int = NORMAL) -> Job:
-    """A new evaluation with the course's current settings (by default the owner's course)."""
-    course = course or evaluation_course(session, submission.owner)
-    settings = course.evaluation_settings()
-    _, job = crud.create_evaluation(session, submission=submission, course=course, settings=settings,
-                                    result_key=settings_key(settings), max_attempts=max_attempts, priority=priority)
+def queue_evaluation(session: Session, *, submission: Submission, max_attempts: int,
+                     assignment: Assignment | None = None, priority: int = NORMAL) -> Job:
+    """A new public evaluation with the assignment's current settings (by default the submission's)."""
+    assignment = assignment or session.get(Assignment, submission.assignment_id)
+    settings = assignment.evaluation_settings()
+    _, job = crud.create_evaluation(session, submission=submission, assignment=assignment, settings=settings,
+                                    result_key=settings_key(settings), max_attempts=max_attempts, priority=priority,
+                                    track=PUBLIC)
     return job
 
 
@@ -78,23 +73,26 @@ class SettingsChange:
         return sorted([job.submission_id for job in self.queued] + self.retargeted)
 
 
-def change_settings(session: Session, *, course: Course, settings: dict[str, Any], max_attempts: int) -> SettingsChange:
-    """Give the course new evaluation settings and queue what they call for (in the caller's transaction).
+def change_settings(session: Session, *, assignment: Assignment, settings: dict[str, Any], max_attempts: int,
+                    unchanged: str | None = None) -> SettingsChange:
+    """Give the assignment new public settings and queue what they call for (in the caller's transaction).
 
-    Evaluations of the course still queued take the new settings (a new upload keeps its place in
-    the queue), unless their submission has a result of them already (they are superseded). Every
-    other ready submission of the course, and every baseline, without a result of the new settings
-    (done, running or queued) is queued for re-evaluation at LOW priority. Settings with the
-    current key (the same, perhaps written otherwise) queue nothing.
+    Evaluations of the assignment still queued take the new settings (a new upload keeps its place
+    in the queue), unless their submission has a result of them already (they are superseded). Every
+    other ready submission of the assignment, and every baseline, without a result of the new
+    settings (done, running or queued) is queued for re-evaluation at LOW priority. Settings with the
+    current key (the same, perhaps written otherwise) queue nothing; a new assignment passes
+    `unchanged=""` (its baselines are evaluated).
     """
-    key, unchanged = settings_key(settings), settings_key(course.evaluation_settings())
-    crud.set_evaluation_settings(session, course=course, seed=settings["seed"], episodes=settings["episodes"],
-                                 env_options=settings["env_options"])
+    key = settings_key(settings)
+    unchanged = settings_key(assignment.evaluation_settings()) if unchanged is None else unchanged
+    crud.set_evaluation_settings(session, assignment=assignment, seed=settings["seed"],
+                                 episodes=settings["episodes"], env_options=settings["env_options"])
     change = SettingsChange()
     if key == unchanged:
         return change
     covered = crud.submissions_with_results(session, result_key=key)
-    for evaluation_id, submission_id, job_id in crud.queued_evaluations(session, course_id=course.id,
+    for evaluation_id, submission_id, job_id in crud.queued_evaluations(session, assignment_id=assignment.id,
                                                                          other_than=key):
         if submission_id in covered:
             if crud.supersede_evaluation(session, evaluation_id=evaluation_id, job_id=job_id, reason=SUPERSEDED):
@@ -104,10 +102,11 @@ def change_settings(session: Session, *, course: Course, settings: dict[str, Any
             covered.add(submission_id)
     # each owner's newest submission first: the fair queue serves owners in turn, so every student's
     # latest agent is back on the board before anyone's older ones
-    for submission in reversed(crud.course_submissions(session, course_id=course.id, status=READY)):
+    for submission in reversed(crud.course_submissions(session, course_id=assignment.course_id, status=READY,
+                                                       assignment_id=assignment.id)):
         if submission.id not in covered:
             change.queued.append(queue_evaluation(session, submission=submission, max_attempts=max_attempts,
-                                                  course=course, priority=LOW))
-    log.info("course %s: new evaluation settings %s; %d re-evaluations queued, %d queued evaluations retargeted, "
-             "%d superseded", course.name, key, len(change.queued), len(change.retargeted), len(change.superseded))
+                                                  assignment=assignment, priority=LOW))
+    log.info("assignment %s: new evaluation settings %s; %d re-evaluations queued, %d queued evaluations "
+             "retargeted, %d superseded", assignment.id, key, len(change.queued), len(change.retargeted), len(change.superseded))
     return change

@@ -1,12 +1,15 @@
 """Request and response bodies of the API (they make the OpenAPI page at /docs)."""
 from __future__ import annotations
 
-from datetime import datetime
+from datetime import datetime, timezone
 from typing import Annotated, Any, Literal
 
-from pydantic import BaseModel, ConfigDict, Field
+from pydantic import AwareDatetime, BaseModel, ConfigDict, Field, PlainSerializer, model_validator
 
 DbId = Annotated[int, Field(ge=1, le=2**63 - 1)]  # a row's id: a 64-bit integer
+# a UTC time shown with its zone as "+00:00" (assignments' times); taken with any zone, never without one
+UtcTime = Annotated[AwareDatetime, PlainSerializer(lambda t: t.astimezone(timezone.utc).isoformat(timespec="seconds"),
+                                                   return_type=str, when_used="json")]
 
 
 class UserOut(BaseModel):
@@ -141,6 +144,8 @@ class SubmissionOut(BaseModel):
     status: str = Field(description="pending, validating, ready, rejected or failed")
     error: str | None = Field(description="why the submission was rejected or failed")
     obs_dim: int | None
+    assignment_id: int | None
+    late: bool = Field(description="uploaded after its owner's due time, in the late window")
     created_at: datetime
     updated_at: datetime
     public: bool = Field(description="other students may race against it")
@@ -388,6 +393,97 @@ class PackageOut(BaseModel):
     files: list[PackageFileOut]
 
 
+# --------------------------------------------------------------------------- assignments
+
+
+class AssignmentTimes(BaseModel):
+    opens_at: UtcTime | None = Field(None, description="uploads open (null: at once)")
+    due_at: UtcTime | None = Field(None, description="uploads are on time before it (null: no deadline)")
+    late_until: UtcTime | None = Field(None, description="late uploads are taken until then (after due_at)")
+    late_penalty: float | None = Field(None, gt=0, le=1, description="a late final's score is multiplied by it")
+    daily_quota: int | None = Field(None, ge=1, le=10_000, description="uploads per student per UTC day")
+    auto_publish: bool = Field(False, description="publish the private board once every final is evaluated")
+
+    @model_validator(mode="after")
+    def _in_order(self):
+        if self.opens_at and self.due_at and self.due_at <= self.opens_at:
+            raise ValueError("due_at must be after opens_at")
+        if self.late_until and (self.due_at is None or self.late_until <= self.due_at):
+            raise ValueError("late_until needs a due_at before it")
+        return self
+
+
+class AssignmentCreate(AssignmentTimes):
+    name: str = Field(min_length=1, max_length=100, pattern=r"^[^\s/][^/]*$")
+    description: str = Field("", max_length=10_000)
+    seed: int = Field(0, ge=0, lt=2**63, description="the public tracks (shown; the private ones are drawn)")
+    episodes: int = Field(100, ge=1, le=10_000)
+    env_options: dict[str, Any] = Field(default_factory=dict)
+
+
+class AssignmentUpdate(BaseModel):
+    """Only the fields sent change (times: null removes one)."""
+
+    name: str | None = Field(None, min_length=1, max_length=100, pattern=r"^[^\s/][^/]*$")
+    description: str | None = Field(None, max_length=10_000)
+    seed: int | None = Field(None, ge=0, lt=2**63)
+    episodes: int | None = Field(None, ge=1, le=10_000)
+    env_options: dict[str, Any] | None = None
+    opens_at: UtcTime | None = None
+    due_at: UtcTime | None = None
+    late_until: UtcTime | None = None
+    late_penalty: float | None = Field(None, gt=0, le=1)
+    daily_quota: int | None = Field(None, ge=1, le=10_000)
+    auto_publish: bool | None = None
+
+
+class FinalOut(BaseModel):
+    submission_id: int | None = Field(description="the final submission: selected, else the best on the public board")
+    selected: bool = Field(description="the student selected it (else: their best on the public board)")
+    frozen_at: UtcTime | None = Field(description="when it was frozen (the student's close time); null before")
+    evaluation: EvaluationOut | None = Field(None, description="its private test: once published (instructors: "
+                                                               "always)")
+
+
+class AssignmentOut(BaseModel):
+    id: int
+    name: str
+    description: str
+    seed: int = Field(description="the public tracks: `league evaluate FILE --seed S --episodes N` reproduces them")
+    episodes: int
+    env_options: dict[str, Any]
+    private_seed: int | None = Field(description="the private tracks: null until published (instructors: always)")
+    opens_at: UtcTime | None
+    due_at: UtcTime | None = Field(description="the assignment's due time (yours: my_due_at)")
+    late_until: UtcTime | None
+    late_penalty: float | None
+    daily_quota: int | None
+    auto_publish: bool
+    published_at: UtcTime | None
+    my_due_at: UtcTime | None = Field(None, description="your own due time (your extension, if any)")
+    my_closes_at: UtcTime | None = Field(None, description="when you can no longer upload (late window included)")
+    extended: bool = Field(False, description="your due time is an extension")
+    state: str = Field("open", description="for you now: upcoming, open, late or closed")
+    now: UtcTime = Field(description="the server's clock when answered (time left: my_due_at - now)")
+    final: FinalOut | None = Field(None, description="yours (students)")
+
+
+class SelectionIn(BaseModel):
+    submission_id: DbId | None = Field(description="a ready submission of yours in the assignment; null: your best")
+
+
+class ExtensionIn(BaseModel):
+    due_at: UtcTime
+
+
+class ExtensionOut(BaseModel):
+    assignment_id: int
+    user_id: int
+    due_at: UtcTime | None
+
+
+class AssignmentBoard(LeaderboardPage):
+    board: Literal["public", "private"]
 class AuditEventOut(BaseModel):
     model_config = ConfigDict(from_attributes=True)
 

@@ -14,7 +14,9 @@ from sqlalchemy.orm import Session
 from league import championship as rules
 from league.server import results
 from league.server.db import crud
-from league.server.db.models import BASELINE, DELETED, DONE, STUDENT, Championship, ChampionshipRound, Course
+from league.server.db.models import (
+    BASELINE, DELETED, DONE, PUBLIC, STUDENT, Assignment, Championship, ChampionshipRound, Course,
+)
 
 
 def finished_heats(rounds: list[ChampionshipRound]) -> list[list[dict]]:
@@ -73,19 +75,28 @@ def course_ratings(session: Session, *, course_id: int | None) -> dict[int, rule
 
 
 def leaderboard_rows(session: Session, *, course_id: int | None) -> list[dict]:
-    """Each student's best evaluated submission (completion rate, then mean return), and every
-    bundled baseline as a reference row; best first, with the course-wide rating. Only results of
-    the course's current settings rank (league.server.results); a student or baseline whose results
-    are all of other settings follows the ranked rows, stale and unranked, by name."""
-    course = session.get(Course, course_id) if course_id is not None else None
+    """The public board of the course's default assignment (its oldest: /api/leaderboard)."""
+    assignment = crud.default_assignment(session, course_id=course_id) if course_id is not None else None
+    return [] if assignment is None else assignment_board(session, assignment)
+
+
+def assignment_board(session: Session, assignment: Assignment, track: str = PUBLIC) -> list[dict]:
+    """Each student's best evaluated submission of the assignment (completion rate, then mean return),
+    and every bundled baseline as a reference row; best first, with the course-wide rating. Only
+    results of the assignment's current settings rank (league.server.results); a student or baseline
+    whose results are all of other settings follows the ranked rows, stale and unranked, by name.
+    The private board (`track` PRIVATE; show it only once published) ranks the students' finals on
+    the private tracks."""
+    settings = assignment.evaluation_settings() if track == PUBLIC else assignment.private_settings()
     ranked: dict[tuple[str, int], Any] = {}
     stale: dict[tuple[str, int], Any] = {}
     # the newest finished evaluation: a re-run in progress does not take an agent off the board
-    for entry in crud.leaderboard_entries(session, course_id=course_id, result_key=results.current_key(course)):
+    for entry in crud.leaderboard_entries(session, assignment=assignment, result_key=results.settings_key(settings),
+                                          track=track):
         best, key = stale if entry.stale else ranked, leaderboard_key(entry)
         if key not in best or _score(entry) > _score(best[key]):
             best[key] = entry
-    ratings = course_ratings(session, course_id=course_id)
+    ratings = course_ratings(session, course_id=assignment.course_id)
     ordered = sorted(ranked.values(), key=lambda entry: (_score(entry), -entry.id), reverse=True)
     unranked = sorted((entry for key, entry in stale.items() if key not in ranked),
                       key=lambda entry: (entry.owner, entry.name, entry.id))

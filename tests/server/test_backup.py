@@ -147,15 +147,19 @@ def _replay_the_uploads_after_the_backup(original: LeagueServer, restored: Leagu
 
 
 def league_with_a_user(url: str, revision: str = "head") -> None:
-    """A league at `revision` holding a course and a student, written with SQL (as that revision's code would)."""
+    """A league at `revision` holding a course and a student, written with SQL (as that revision's code would;
+    head's: written at 0008, then migrated, which gives the course its default assignment)."""
     engine = create_engine(url)
     with engine.connect() as connection:
-        upgrade(connection, revision)
+        upgrade(connection, "0008" if revision == "head" else revision)
     with engine.begin() as connection:
         connection.execute(text("INSERT INTO courses (id, name, eval_seed, eval_episodes, eval_env_options, created_at,"
                                 " updated_at) VALUES (1, 'default', 0, 3, '{}', '2026-01-05', '2026-01-05')"))
         connection.execute(text("INSERT INTO users (id, name, role, course_id, token_hash, created_at) VALUES "
                                 "(1, 'ann', 'student', 1, :hash, '2026-01-05 10:00:00')"), {"hash": "ab" * 32})
+    if revision == "head":
+        with engine.connect() as connection:
+            upgrade(connection, revision)
     engine.dispose()
 
 

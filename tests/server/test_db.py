@@ -177,6 +177,41 @@ def test_users_gain_email_and_student_id_with_their_data_kept(backend):
                                             (3, "Bea", "student", 2, None, None, None)]
 
 
+# --------------------------------------------------------------------------- 0010: a course becomes its default assignment
+
+
+@pytest.mark.parametrize("kind", BACKENDS)
+def test_0010_makes_each_course_one_default_assignment_and_every_answer_stays(kind, tmp_path):
+    """Upgraded by the server's own start from a league of the older schema: the course's settings are its
+    default assignment's (no due time, open), every submission and evaluation belongs to it, the
+    assignment's public board is the leaderboard, which ranks as before; down to 0008, the course's
+    settings are back."""
+    from .api.conftest import in_process_league
+
+    with in_process_league(kind, tmp_path, prepare=fill_0006, bootstrap=False) as league:
+        with league.client(league.instructor_token) as instructor:  # (visitors see pseudonyms)
+            board = instructor.get("/api/leaderboard", params={"size": 100}).json()["items"]
+            settings = instructor.get("/api/settings/evaluation").json()
+            assignments = instructor.get("/api/assignments").json()
+            assignment_board = instructor.get(f"/api/assignments/{assignments[0]['id']}/board",
+                                              params={"size": 100}).json()["items"]
+            submissions = instructor.get("/api/submissions", params={"all": True}).json()
+        engine = make_engine(league.settings.database_url)
+        with engine.connect() as connection:
+            config = alembic_config(league.settings.database_url)
+            config.attributes["connection"] = connection
+            command.downgrade(config, "0008")
+            course = connection.execute(text("SELECT eval_seed, eval_episodes FROM courses")).one()
+            assert connection.execute(text("SELECT count(*) FROM submissions")).scalar() == 6
+        engine.dispose()
+    assert settings == COURSE_SETTINGS
+    assert [(a["name"], a["seed"], a["episodes"], a["due_at"], a["opens_at"], a["state"]) for a in assignments] == [
+        ("default", 11, 3, None, None, "open")]
+    assert {s["assignment_id"] for s in submissions} == {assignments[0]["id"]}
+    assert [(row["rank"], row["owner"], row["submission_id"], row["stale"]) for row in board] == [
+        (1, "ann", 2, False), (2, "bob", 4, False), (3, "baselines", 1, False), (None, "cy", 5, True)]
+    assert assignment_board == board
+    assert tuple(course) == (11, 3)
 # --------------------------------------------------------------------------- 0013: submissions gain probe actions
 
 

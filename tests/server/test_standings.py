@@ -2,7 +2,7 @@
 from __future__ import annotations
 
 from league.server.db import crud
-from league.server.db.models import BASELINE, DONE, READY, STUDENT
+from league.server.db.models import BASELINE, DONE, READY, STUDENT, Assignment
 from league.server.db.session import make_engine, make_sessionmaker, migrate
 from league.server.results import settings_key
 from league.server.standings import leaderboard_rows
@@ -13,7 +13,8 @@ def add_evaluated(session, owner, name: str, completed: int) -> int:
                                            sha256=name.ljust(64, "0"), size=1, max_attempts=1)
     submission.status = READY
     settings = {"seed": 0, "episodes": 10, "env_options": {}}
-    evaluation, _ = crud.create_evaluation(session, submission=submission, course=owner.course, settings=settings,
+    evaluation, _ = crud.create_evaluation(session, submission=submission, assignment=session.get(Assignment, submission.assignment_id),
+                                           settings=settings,
                                            result_key=settings_key(settings), max_attempts=1)
     evaluation.status, evaluation.completed, evaluation.episodes_total = DONE, completed, 10
     evaluation.mean_return, evaluation.mean_steps, evaluation.mean_speed = float(completed), 500.0, 0.3

@@ -11,6 +11,7 @@ from sqlalchemy.orm import Session
 
 import league
 from league.spreadsheet import csv_text
+from league.server.clock import Clock
 from league.server.config import Settings
 from league.server.db import crud
 from league.server.db.models import INSTRUCTOR, INSTRUCTORS, PUBLIC, STUDENT, Course, User
@@ -36,6 +37,10 @@ async def get_session(request: Request) -> AsyncIterator[Session]:
         yield session
 
 
+async def get_clock(request: Request) -> Clock:
+    return request.app.state.league.clock
+
+
 async def get_queue(request: Request) -> JobQueue:
     return request.app.state.queue
 
@@ -46,6 +51,7 @@ async def get_store(request: Request) -> BlobStore:
 
 SettingsDep = Annotated[Settings, Depends(get_settings)]
 SessionDep = Annotated[Session, Depends(get_session)]
+ClockDep = Annotated[Clock, Depends(get_clock)]
 QueueDep = Annotated[JobQueue, Depends(get_queue)]
 StoreDep = Annotated[BlobStore, Depends(get_store)]
 

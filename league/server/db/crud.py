@@ -1,6 +1,7 @@
 """Database functions (keyword-only arguments). They add and flush; callers commit."""
 from __future__ import annotations
 
+import secrets
 from dataclasses import dataclass
 from datetime import datetime, timedelta
 from typing import Any
@@ -12,13 +13,15 @@ from sqlalchemy.orm import Session
 
 from league.server.accounts import clean_email, clean_name, clean_student_id
 from league.server.db.models import (
-    BASELINE, DONE, EVALUATE, FAILED, MEMBERS, NORMAL, QUEUED, RACE, READY, REJECTED, RUNNING, STUDENT, VALIDATE, Blob,
-    Championship, ChampionshipRound, Course, EpisodeResult, Evaluation, Job, Race, Submission, User, utcnow,
+    BASELINE, DONE, EVALUATE, FAILED, MEMBERS, NORMAL, PUBLIC, QUEUED, RACE, READY, REJECTED, RUNNING, STUDENT,
+    VALIDATE, Assignment, Blob, Championship, ChampionshipRound, Course, EpisodeResult, Evaluation, Job, Race,
+    StudentAssignment, Submission, User, utcnow,
 )
 from league.server.privacy import clean_display_name
 from league.server.security import hash_token, new_token
 
 DEFAULT_COURSE = "default"
+DEFAULT_ASSIGNMENT = "default"  # a new course's first assignment (migration 0010 made one per course)
 BASELINES_USER = "baselines"
 QUOTA_WINDOW = timedelta(hours=24)
 NOT_COUNTED = (REJECTED, FAILED)  # a student's quota is not eaten by uploads the league refused or lost
@@ -38,14 +41,15 @@ class AccountTaken(InvalidAccount):
 
 def get_or_create_course(session: Session, *, name: str, evaluation: dict[str, Any],
                          board_visibility: str | None = None) -> Course:
-    """The course named `name`; a new one takes `evaluation` and `board_visibility` (None: members)."""
+    """The course named `name`; a new one takes `board_visibility` (None: members) and gets its default
+    assignment with the `evaluation` settings."""
     course = session.scalar(select(Course).where(Course.name == name))
     if course is None:
-        course = Course(name=name, eval_seed=evaluation["seed"], eval_episodes=evaluation["episodes"],
-                        eval_env_options=dict(evaluation["env_options"]),
-                        board_visibility=board_visibility or MEMBERS)
+        course = Course(name=name, board_visibility=board_visibility or MEMBERS)
         session.add(course)
         session.flush()
+        create_assignment(session, course=course, name=DEFAULT_ASSIGNMENT, seed=evaluation["seed"],
+                          episodes=evaluation["episodes"], env_options=evaluation["env_options"])
     return course
 
 
@@ -53,11 +57,63 @@ def first_course(session: Session) -> Course | None:
     return session.scalar(select(Course).order_by(Course.id).limit(1))
 
 
-def set_evaluation_settings(session: Session, *, course: Course, seed: int, episodes: int,
-                            env_options: dict[str, Any]) -> Course:
-    course.eval_seed, course.eval_episodes, course.eval_env_options = seed, episodes, dict(env_options)
+def set_evaluation_settings(session: Session, *, assignment: Assignment, seed: int, episodes: int,
+                            env_options: dict[str, Any]) -> Assignment:
+    assignment.seed, assignment.episodes, assignment.env_options = seed, episodes, dict(env_options)
     session.flush()
-    return course
+    return assignment
+
+
+# --------------------------------------------------------------------------- assignments
+
+
+def create_assignment(session: Session, *, course: Course, name: str, seed: int, episodes: int,
+                      env_options: dict[str, Any], **fields: Any) -> Assignment:
+    """A new assignment; its private seed drawn here (secrets: nothing a student reads predicts it)."""
+    assignment = Assignment(course_id=course.id, name=name, seed=seed, episodes=episodes,
+                            env_options=dict(env_options), private_seed=secrets.randbits(32), **fields)
+    session.add(assignment)
+    session.flush()
+    return assignment
+
+
+def all_assignments(session: Session) -> list[Assignment]:
+    return list(session.scalars(select(Assignment).order_by(Assignment.id)))
+
+
+def course_assignments(session: Session, *, course_id: int) -> list[Assignment]:
+    return list(session.scalars(select(Assignment).where(Assignment.course_id == course_id).order_by(Assignment.id)))
+
+
+def default_assignment(session: Session, *, course_id: int) -> Assignment | None:
+    """The course's oldest assignment: the one /api/settings/evaluation and /api/leaderboard show."""
+    return session.scalar(select(Assignment).where(Assignment.course_id == course_id)
+                          .order_by(Assignment.id).limit(1))
+
+
+def student_assignment(session: Session, *, assignment_id: int, user_id: int,
+                       create: bool = False) -> StudentAssignment | None:
+    """The student's row of the assignment (made, when `create`, on first need)."""
+    row = session.scalar(select(StudentAssignment).where(StudentAssignment.assignment_id == assignment_id,
+                                                         StudentAssignment.user_id == user_id))
+    if row is None and create:
+        row = StudentAssignment(assignment_id=assignment_id, user_id=user_id)
+        session.add(row)
+        session.flush()
+    return row
+
+
+def student_assignments(session: Session, *, assignment_id: int) -> dict[int, StudentAssignment]:
+    """The assignment's student rows, by user id."""
+    return {row.user_id: row for row in session.scalars(
+        select(StudentAssignment).where(StudentAssignment.assignment_id == assignment_id))}
+
+
+def uploads_since(session: Session, *, owner_id: int, assignment_id: int, since: datetime) -> int:
+    """The owner's uploads to the assignment since `since` that count in a quota."""
+    return session.scalar(select(func.count(Submission.id)).where(
+        Submission.owner_id == owner_id, Submission.assignment_id == assignment_id, Submission.created_at >= since,
+        Submission.status.not_in(NOT_COUNTED))) or 0
 
 
 # --------------------------------------------------------------------------- users
@@ -232,10 +288,14 @@ def blob_data(session: Session, *, sha256: str) -> bytes | None:
     return None if blob is None else blob.data
 
 
-def create_submission(session: Session, *, owner: User, name: str, filename: str, kind: str, sha256: str,
-                      size: int, max_attempts: int) -> tuple[Submission, Job]:
-    """A new submission and its validation job (both queued in this transaction)."""
-    submission = Submission(owner_id=owner.id, name=name, filename=filename, kind=kind, sha256=sha256, size=size)
+def create_submission(session: Session, *, owner: User, name: str, filename: str, kind: str, sha256: str, size: int,
+                      max_attempts: int, assignment: Assignment | None = None, late: bool = False,
+                      created_at: datetime | None = None) -> tuple[Submission, Job]:
+    """A new submission of `assignment` (default: the default one of its owner's course, or of the
+    first course for the baselines) and its validation job (both queued in this transaction)."""
+    assignment = assignment or default_assignment(session, course_id=(owner.course or first_course(session)).id)
+    submission = Submission(owner_id=owner.id, assignment_id=assignment.id, name=name, filename=filename, kind=kind,
+                            sha256=sha256, size=size, late=late, created_at=created_at or utcnow())
     session.add(submission)
     session.flush()
     job = create_job(session, kind=VALIDATE, owner_id=owner.id, submission_id=submission.id,
@@ -253,10 +313,11 @@ def create_job(session: Session, *, kind: str, owner_id: int | None, submission_
     return job
 
 
-def create_evaluation(session: Session, *, submission: Submission, course: Course | None, settings: dict[str, Any],
-                      result_key: str, max_attempts: int, priority: int = NORMAL) -> tuple[Evaluation, Job]:
-    evaluation = Evaluation(submission_id=submission.id, course_id=course.id if course else None,
-                            settings=settings, result_key=result_key, status=QUEUED)
+def create_evaluation(session: Session, *, submission: Submission, assignment: Assignment, settings: dict[str, Any],
+                      result_key: str, max_attempts: int, priority: int = NORMAL,
+                      track: str = PUBLIC) -> tuple[Evaluation, Job]:
+    evaluation = Evaluation(submission_id=submission.id, course_id=assignment.course_id, assignment_id=assignment.id,
+                            track=track, settings=settings, result_key=result_key, status=QUEUED)
     session.add(evaluation)
     session.flush()
     job = create_job(session, kind=EVALUATE, owner_id=submission.owner_id, submission_id=submission.id,
@@ -265,8 +326,9 @@ def create_evaluation(session: Session, *, submission: Submission, course: Cours
 
 
 def latest_evaluation(session: Session, *, submission_id: int, result_key: str | None) -> Evaluation | None:
-    """The submission's newest evaluation of `result_key` if it has one, else its newest."""
-    return session.scalar(select(Evaluation).where(Evaluation.submission_id == submission_id)
+    """The submission's newest public evaluation of `result_key` if it has one, else its newest public one."""
+    return session.scalar(select(Evaluation).where(Evaluation.submission_id == submission_id,
+                                                   Evaluation.track == PUBLIC)
                           .order_by((Evaluation.result_key == result_key).desc(), Evaluation.id.desc()).limit(1))
 
 
@@ -281,11 +343,12 @@ def episode_page(session: Session, *, evaluation_id: int, offset: int, limit: in
 
 def latest_evaluations(session: Session, *, submission_ids: list[int],
                        result_keys: dict[int, str | None]) -> dict[int, Evaluation]:
-    """Each submission's newest evaluation of its key in `result_keys` (submission id -> key) if it
-    has one, else its newest."""
+    """Each submission's newest public evaluation of its key in `result_keys` (submission id -> key) if it
+    has one, else its newest public one."""
     if not submission_ids:
         return {}
-    newest = (select(func.max(Evaluation.id)).where(Evaluation.submission_id.in_(submission_ids))
+    newest = (select(func.max(Evaluation.id)).where(Evaluation.submission_id.in_(submission_ids),
+                                                    Evaluation.track == PUBLIC)
               .group_by(Evaluation.submission_id, Evaluation.result_key))
     shown: dict[int, Evaluation] = {}
     for evaluation in session.scalars(select(Evaluation).where(Evaluation.id.in_(newest)).order_by(Evaluation.id)):
@@ -296,18 +359,18 @@ def latest_evaluations(session: Session, *, submission_ids: list[int],
 
 
 def submissions_with_results(session: Session, *, result_key: str) -> set[int]:
-    """Submissions with an evaluation of `result_key` done, running or queued."""
+    """Submissions with a public evaluation of `result_key` done, running or queued."""
     return set(session.scalars(select(Evaluation.submission_id).distinct().where(
-        Evaluation.result_key == result_key, Evaluation.status.in_((DONE, RUNNING, QUEUED)))))
+        Evaluation.result_key == result_key, Evaluation.track == PUBLIC, Evaluation.status.in_((DONE, RUNNING, QUEUED)))))
 
 
-def queued_evaluations(session: Session, *, course_id: int, other_than: str) -> list[Any]:
-    """(evaluation id, submission id, job id) of the course's queued evaluations whose key is not
-    `other_than`: normal priority first, then the oldest."""
+def queued_evaluations(session: Session, *, assignment_id: int, other_than: str) -> list[Any]:
+    """(evaluation id, submission id, job id) of the assignment's queued public evaluations whose key is
+    not `other_than`: normal priority first, then the oldest."""
     return list(session.execute(
         select(Evaluation.id, Evaluation.submission_id, Job.id).join(Job, Job.evaluation_id == Evaluation.id)
-        .where(Evaluation.course_id == course_id, Evaluation.status == QUEUED, Job.status == QUEUED,
-               Evaluation.result_key != other_than)
+        .where(Evaluation.assignment_id == assignment_id, Evaluation.track == PUBLIC, Evaluation.status == QUEUED,
+               Job.status == QUEUED, Evaluation.result_key != other_than)
         .order_by(Job.priority, Evaluation.id)))
 
 
@@ -333,10 +396,15 @@ def submissions_of(session: Session, *, owner_ids: list[int]) -> list[Submission
     return list(session.scalars(query))
 
 
-def course_submissions(session: Session, *, course_id: int | None, status: str | None = None) -> list[Submission]:
-    """Submissions of a course's users and of the baselines (they race in every course)."""
+def course_submissions(session: Session, *, course_id: int | None, status: str | None = None,
+                       assignment_id: int | None = None) -> list[Submission]:
+    """Submissions of a course's users (of one assignment, if given) and of the baselines (they race
+    in every course and are a reference on every board)."""
     owners = select(User.id).where((User.course_id == course_id) | (User.name == BASELINES_USER))
     query = select(Submission).where(Submission.owner_id.in_(owners))
+    if assignment_id is not None:
+        query = query.where((Submission.assignment_id == assignment_id) | (User.role == BASELINE)).join(
+            User, Submission.owner_id == User.id)
     if status:
         query = query.where(Submission.status == status)
     return list(session.scalars(query.order_by(Submission.id)))
@@ -377,17 +445,22 @@ def active_students(session: Session, *, course_id: int | None) -> list[User]:
                                                    User.revoked_at.is_(None)).order_by(User.id)))
 
 
-def leaderboard_entries(session: Session, *, course_id: int | None, result_key: str | None) -> list[Any]:
-    """Every ready submission of the course's active students and of the baselines' account with a
-    finished evaluation, newest first, with its owner and the figures of its newest finished
+def leaderboard_entries(session: Session, *, assignment: Assignment, result_key: str | None,
+                        track: str = PUBLIC) -> list[Any]:
+    """Every ready submission of the assignment's active students and of the baselines' account with a
+    finished evaluation of `track` (private: of the finals' evaluations only), newest first, with its owner and the figures of its newest finished
     evaluation of `result_key`, else (`stale`) of its newest finished one: plain rows (one query,
     no objects: the board is recomputed after every evaluation of a deadline rush)."""
     # joined to a derived table of the newest ids, of the key and of any, from one pass over the
     # finished evaluations (not `id IN (subquery)`, which SQLite's planner ran 50x slower: 111 ms
     # against 2 ms for 600 evaluations)
+    evaluations = Evaluation.track == track
+    if track != PUBLIC:
+        evaluations &= Evaluation.id.in_(select(StudentAssignment.final_evaluation_id).where(
+            StudentAssignment.assignment_id == assignment.id))
     newest = (select(Evaluation.submission_id, func.max(Evaluation.id).label("any_id"),
                      func.max(case((Evaluation.result_key == result_key, Evaluation.id))).label("current_id"))
-              .where(Evaluation.status == DONE).group_by(Evaluation.submission_id).subquery())
+              .where(Evaluation.status == DONE, evaluations).group_by(Evaluation.submission_id).subquery())
     query = (select(Submission.id, Submission.name, Submission.public, Submission.owner_id,
                     User.name.label("owner"), User.role.label("owner_role"), Evaluation.completed,
                     Evaluation.episodes_total, Evaluation.mean_return, Evaluation.mean_steps, Evaluation.mean_speed,
@@ -395,8 +468,9 @@ def leaderboard_entries(session: Session, *, course_id: int | None, result_key: 
              .join(User, Submission.owner_id == User.id)
              .join(newest, newest.c.submission_id == Submission.id)
              .join(Evaluation, Evaluation.id == func.coalesce(newest.c.current_id, newest.c.any_id))
-             .where(((User.course_id == course_id) & (User.role == STUDENT) & User.revoked_at.is_(None))
-                    | (User.role == BASELINE), Submission.status == READY)
+             .where(((User.course_id == assignment.course_id) & (User.role == STUDENT) & User.revoked_at.is_(None)
+                     & (Submission.assignment_id == assignment.id)) | (User.role == BASELINE),
+                    Submission.status == READY)
              .order_by(Submission.id.desc()))
     return list(session.execute(query))
 
@@ -405,7 +479,8 @@ def public_state_stamp(session: Session) -> tuple:
     """What the public answers (leaderboard, standings) are computed from changes with this, each
     part read from one index (or the few rows of courses): the newest finished evaluation and heat
     (their results are written as their job ends), revocations (the board's students) and the
-    courses' last change (their evaluation settings decide which results rank). Uploads and
+    assignments' last change (their settings decide which results rank; a publication shows the
+    private board). Uploads and
     validations change no public answer (a submission shows once an evaluation of it is done), nor
     does this stamp; a public flag or a roster change shows within the cache's maximum age."""
     def newest_finished(kind: str):
@@ -414,7 +489,8 @@ def public_state_stamp(session: Session) -> tuple:
         newest_finished(EVALUATE), newest_finished(RACE),
         select(func.max(User.revoked_at)).scalar_subquery(),
         select(func.count(User.revoked_at)).scalar_subquery(),
-        select(func.max(Course.updated_at)).scalar_subquery())).one())
+        select(func.max(Course.updated_at)).scalar_subquery(),
+        select(func.max(Assignment.updated_at)).scalar_subquery())).one())
 
 
 # --------------------------------------------------------------------------- races and championships

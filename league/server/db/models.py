@@ -33,6 +33,9 @@ NORMAL, LOW = 0, 1
 # who sees a course's boards (league.server.privacy): anyone, its logged-in users, its instructors
 PUBLIC, MEMBERS, INSTRUCTORS = "public", "members", "instructors"
 
+# an evaluation's tracks: an assignment's public validation seed (PUBLIC, the same word), or its private test seed
+PRIVATE = "private"
+
 
 def utcnow() -> datetime:
     return datetime.now(timezone.utc)
@@ -60,15 +63,12 @@ class Base(DeclarativeBase):
 
 
 class Course(Base):
-    """A class of students with its evaluation settings (the same tracks for everyone)."""
+    """A class of students and its assignments (the oldest is the default one: /api/settings/evaluation)."""
 
     __tablename__ = "courses"
 
     id: Mapped[int] = mapped_column(primary_key=True)
     name: Mapped[str] = mapped_column(String(100), unique=True)
-    eval_seed: Mapped[int] = mapped_column(BigInteger, default=0)
-    eval_episodes: Mapped[int] = mapped_column(Integer, default=100)
-    eval_env_options: Mapped[dict[str, Any]] = mapped_column(default=dict)
     # who sees its boards; the server default is what courses older than the setting were (migration 0012)
     board_visibility: Mapped[str] = mapped_column(String(20), default=MEMBERS, server_default=PUBLIC)
     # keys the "Student N" pseudonyms of its public boards (league.server.privacy.pseudonym); every row has
@@ -77,8 +77,63 @@ class Course(Base):
     created_at: Mapped[datetime] = mapped_column(default=utcnow)
     updated_at: Mapped[datetime] = mapped_column(default=utcnow, onupdate=utcnow)
 
+
+class Assignment(Base):
+    """A piece of coursework: its tracks, its upload window and its private test.
+
+    The public board ranks on `seed` (shown: `league evaluate FILE --seed S` reproduces it); at each
+    student's own close time their final submission is evaluated on `private_seed` (drawn by the
+    server, never shown before `published_at`) with the same episodes and options. Uploads are
+    open from `opens_at` (None: at once) to the student's due time (`due_at`, or their extension;
+    None: no deadline), then late until `late_until` (their score times `late_penalty`).
+    """
+
+    __tablename__ = "assignments"
+    __table_args__ = (UniqueConstraint("course_id", "name"),)
+
+    id: Mapped[int] = mapped_column(primary_key=True)
+    course_id: Mapped[int] = mapped_column(ForeignKey("courses.id"), index=True)
+    name: Mapped[str] = mapped_column(String(100))
+    description: Mapped[str] = mapped_column(Text, default="")
+    seed: Mapped[int] = mapped_column(BigInteger)
+    episodes: Mapped[int] = mapped_column(Integer)
+    env_options: Mapped[dict[str, Any]] = mapped_column(default=dict)
+    private_seed: Mapped[int] = mapped_column(BigInteger)
+    opens_at: Mapped[datetime | None] = mapped_column(default=None)
+    due_at: Mapped[datetime | None] = mapped_column(default=None)
+    late_until: Mapped[datetime | None] = mapped_column(default=None)
+    late_penalty: Mapped[float | None] = mapped_column(Float, default=None)  # a late final's score factor
+    daily_quota: Mapped[int | None] = mapped_column(Integer, default=None)  # uploads per student per UTC day
+    auto_publish: Mapped[bool] = mapped_column(default=False)
+    published_at: Mapped[datetime | None] = mapped_column(default=None)
+    created_at: Mapped[datetime] = mapped_column(default=utcnow)
+    updated_at: Mapped[datetime] = mapped_column(default=utcnow, onupdate=utcnow)
+
     def evaluation_settings(self) -> dict[str, Any]:
-        return {"seed": self.eval_seed, "episodes": self.eval_episodes, "env_options": dict(self.eval_env_options)}
+        """The public tracks' settings."""
+        return {"seed": self.seed, "episodes": self.episodes, "env_options": dict(self.env_options)}
+
+    def private_settings(self) -> dict[str, Any]:
+        return {"seed": self.private_seed, "episodes": self.episodes, "env_options": dict(self.env_options)}
+
+
+class StudentAssignment(Base):
+    """A student's own state in an assignment, one row made when first needed: the extension an
+    instructor gave, the submission they selected, and their final, frozen at their close time
+    (`final_at`; then `final_submission_id` is what the private test evaluates, None if they had
+    no ready submission, and `final_evaluation_id` that evaluation)."""
+
+    __tablename__ = "student_assignments"
+    __table_args__ = (UniqueConstraint("assignment_id", "user_id"),)
+
+    id: Mapped[int] = mapped_column(primary_key=True)
+    assignment_id: Mapped[int] = mapped_column(ForeignKey("assignments.id"))
+    user_id: Mapped[int] = mapped_column(ForeignKey("users.id"), index=True)
+    extension_due_at: Mapped[datetime | None] = mapped_column(default=None)
+    selected_submission_id: Mapped[int | None] = mapped_column(ForeignKey("submissions.id"), default=None)
+    final_at: Mapped[datetime | None] = mapped_column(default=None)
+    final_submission_id: Mapped[int | None] = mapped_column(ForeignKey("submissions.id"), default=None)
+    final_evaluation_id: Mapped[int | None] = mapped_column(ForeignKey("evaluations.id"), default=None)
 
 
 class User(Base):
@@ -132,6 +187,9 @@ class Submission(Base):
 
     id: Mapped[int] = mapped_column(primary_key=True)
     owner_id: Mapped[int] = mapped_column(ForeignKey("users.id"))
+    # every row has one (crud.create_submission); nullable in the schema only, as evaluations.result_key
+    assignment_id: Mapped[int] = mapped_column(ForeignKey("assignments.id"), nullable=True, index=True)
+    late: Mapped[bool] = mapped_column(default=False, server_default=text("false"))  # after the owner's due time
     name: Mapped[str] = mapped_column(String(100))
     filename: Mapped[str] = mapped_column(String(255))
     kind: Mapped[str] = mapped_column(String(20))  # "onnx" or "torchscript", from the file name
@@ -153,7 +211,10 @@ class Submission(Base):
 
 
 class Evaluation(Base):
-    """One `metrics_run` of a submission with a course's settings; re-runs add new rows.
+    """One `metrics_run` of a submission with an assignment's settings; re-runs add new rows.
+
+    `track` PRIVATE: the assignment's private test of a final (league.server.assignments); no answer
+    a student can obtain shows one before the assignment is published.
 
     `result_key` (league.evaluation.result_key: the settings and the simulator's version) is what
     its results compare by: the requested one while it waits, the one its worker's simulator
@@ -166,6 +227,8 @@ class Evaluation(Base):
     id: Mapped[int] = mapped_column(primary_key=True)
     submission_id: Mapped[int] = mapped_column(ForeignKey("submissions.id"), index=True)
     course_id: Mapped[int | None] = mapped_column(ForeignKey("courses.id"))
+    assignment_id: Mapped[int | None] = mapped_column(ForeignKey("assignments.id"), default=None)  # whose settings
+    track: Mapped[str] = mapped_column(String(10), default=PUBLIC, server_default=PUBLIC)
     settings: Mapped[dict[str, Any]] = mapped_column()  # {"seed", "episodes", "env_options"} as requested
     status: Mapped[str] = mapped_column(String(20), default=QUEUED)
     error: Mapped[str | None] = mapped_column(Text, default=None)

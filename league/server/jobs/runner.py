@@ -14,14 +14,17 @@ import threading
 import time
 import uuid
 from dataclasses import dataclass, field
+from datetime import datetime
 from pathlib import Path
 from typing import Any, Mapping, Protocol
 
+from sqlalchemy.exc import IntegrityError, OperationalError
 from sqlalchemy.orm import Session, sessionmaker
 
+from league.server.assignments import close_due
 from league.server.config import Settings
 from league.server.db import crud
-from league.server.db.models import Job, Submission
+from league.server.db.models import Job, Submission, utcnow
 from league.server.jobs import leases
 from league.server.jobs.placement import Placement
 from league.server.jobs.queue import JobQueue
@@ -188,14 +191,31 @@ def release_active(context: WorkerContext) -> list[int]:
 
 
 def reap(context: WorkerContext, requeue_queued_after_s: float | None = None) -> list[int]:
-    """One reaper pass (league.server.jobs.leases.reap), sending what it freed to the queue."""
+    """One reaper pass (league.server.jobs.leases.reap), sending what it freed to the queue; and the
+    private tests of the due times that passed (league.server.assignments.close_due)."""
     settings = context.settings
     resend = settings.requeue_queued_after_s if requeue_queued_after_s is None else requeue_queued_after_s
     sent = leases.reap(context.sessions, context.handlers, lease_timeout_s=settings.lease_timeout_s,
                        requeue_queued_after_s=resend)
     for job_id in sent:
         context.queue.enqueue(job_id)
-    return sent
+    return sent + close_due_now(context.sessions, context.queue, max_attempts=settings.max_job_attempts)
+
+
+def close_due_now(sessions: sessionmaker[Session], queue: JobQueue, *, max_attempts: int,
+                  now: datetime | None = None) -> list[int]:
+    """Freeze the finals that came due and send their private tests to the queue. Another process
+    doing the same at the same moment (a worker's reaper, the API starting) may win a student's row
+    first: this pass then gives way, and the next one finds it done."""
+    try:
+        with sessions.begin() as session:
+            job_ids = close_due(session, now=now or utcnow(), max_attempts=max_attempts)
+    except (IntegrityError, OperationalError) as error:
+        log.warning("due-time pass gave way to another process: %s", error)
+        return []
+    for job_id in job_ids:
+        queue.enqueue(job_id)
+    return job_ids
 
 
 class Heartbeat:

@@ -4,7 +4,7 @@ from __future__ import annotations
 from sqlalchemy.orm import Session
 
 from league.server.db import crud
-from league.server.db.models import FAILED, READY, REJECTED, VALIDATING, Job, Submission
+from league.server.db.models import BASELINE, FAILED, READY, REJECTED, VALIDATING, Job, Submission
 from league.server.jobs.runner import JobRun
 from league.server.results import queue_evaluation
 from league.server.sandbox.validation import validate_model
@@ -32,6 +32,9 @@ class ValidateSubmission:
         submission.status, submission.error, submission.obs_dim = READY, None, report.obs_dim
         if report.probe is not None:
             submission.probe_key, submission.probe_actions = report.probe.key, report.probe.actions
+        if submission.owner.role == BASELINE:  # a reference on every assignment's board
+            return [queue_evaluation(session, submission=submission, max_attempts=job.max_attempts, assignment=a).id
+                    for a in crud.all_assignments(session)]
         return [queue_evaluation(session, submission=submission, max_attempts=job.max_attempts).id]
 
     def give_up(self, session: Session, job: Job, reason: str) -> None:

@@ -71,7 +71,8 @@ class InProcessLeague:
         """A submission as its jobs leave it: ready with a finished evaluation, or rejected."""
         with self.sessions.begin() as session:
             digest, owner = uuid.uuid4().hex.ljust(64, "0"), session.get(User, owner.id)
-            submission, _ = crud.create_submission(session, owner=owner, name=unique("agent"),
+            assignment = crud.default_assignment(session, course_id=(owner.course or crud.first_course(session)).id)
+            submission, _ = crud.create_submission(session, owner=owner, assignment=assignment, name=unique("agent"),
                                                    filename="agent.onnx", kind="onnx", sha256=digest, size=1,
                                                    max_attempts=1)
             submission.status, submission.public, submission.obs_dim = status, public, 5
@@ -79,8 +80,7 @@ class InProcessLeague:
                 submission.error = "the model returned NaN or infinite actions"
             if status == READY and evaluated:
                 settings = self.settings.default_evaluation()
-                evaluation, _ = crud.create_evaluation(session, submission=submission,
-                                                       course=owner.course or crud.first_course(session),
+                evaluation, _ = crud.create_evaluation(session, submission=submission, assignment=assignment,
                                                        settings=settings, result_key=settings_key(settings),
                                                        max_attempts=1)
                 evaluation.status, evaluation.completed, evaluation.episodes_total = DONE, completed, 3

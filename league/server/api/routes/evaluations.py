@@ -8,7 +8,7 @@ from league.server.api.deps import (
     CurrentUser, InstructorUser, QueueDep, SessionDep, SettingsDep, check_env_options, user_course,
 )
 from league.server.db import crud
-from league.server.db.models import LOW, NORMAL, READY, Submission, User
+from league.server.db.models import LOW, NORMAL, READY, Assignment, Submission, User
 from league.server.results import change_settings, queue_evaluation
 from league.server.schemas import EvaluationSettings, EvaluationSettingsChange, RerunOut, RerunRequest, UploadLimits
 
@@ -17,8 +17,9 @@ router = APIRouter(tags=["evaluations"])
 
 @router.get("/settings/evaluation", response_model=EvaluationSettings)
 def read_evaluation_settings(user: CurrentUser, session: SessionDep) -> EvaluationSettings:
-    """The seed, episode count and environment options every submission is evaluated with."""
-    return EvaluationSettings(**user_course(session, user).evaluation_settings())
+    """The public seed, episode count and environment options of the course's default assignment (its
+    oldest; every assignment's: /api/assignments)."""
+    return EvaluationSettings(**default_assignment(session, user).evaluation_settings())
 
 
 @router.get("/settings/limits", response_model=UploadLimits)
@@ -30,33 +31,43 @@ def read_upload_limits(settings: SettingsDep) -> UploadLimits:
 @router.put("/settings/evaluation", response_model=EvaluationSettingsChange)
 def update_evaluation_settings(body: EvaluationSettings, instructor: InstructorUser, session: SessionDep,
                                queue: QueueDep, settings: SettingsDep) -> EvaluationSettingsChange:
-    """Change the evaluation settings: results of other settings no longer rank (stale) and every ready
-    submission without a result of these settings is evaluated again, after the students' own jobs."""
+    """Change the default assignment's settings: results of other settings no longer rank (stale) and
+    every ready submission without a result of these settings is evaluated again, after the students'
+    own jobs (PATCH /api/assignments/{id} does the same for any assignment)."""
     check_env_options(body.env_options)
-    course = user_course(session, instructor)
-    change = change_settings(session, course=course, settings=body.model_dump(),
+    assignment = default_assignment(session, instructor)
+    change = change_settings(session, assignment=assignment, settings=body.model_dump(),
                              max_attempts=settings.max_job_attempts)
-    audit.record(session, actor=instructor, action=audit.SETTINGS, target_kind="course", target_id=course.id,
-                 course_id=course.id, settings=body.model_dump(), reevaluating=change.reevaluated)
+    audit.record(session, actor=instructor, action=audit.SETTINGS, target_kind="course",
+                 target_id=assignment.course_id, course_id=assignment.course_id, assignment_id=assignment.id,
+                 settings=body.model_dump(), reevaluating=change.reevaluated)
     session.commit()
     for job in change.queued:
         queue.enqueue(job.id)
-    return EvaluationSettingsChange(**course.evaluation_settings(), reevaluating=change.reevaluated)
+    return EvaluationSettingsChange(**assignment.evaluation_settings(), reevaluating=change.reevaluated)
+
+
+def default_assignment(session: SessionDep, user: User) -> Assignment:
+    assignment = crud.default_assignment(session, course_id=user_course(session, user).id)
+    if assignment is None:
+        raise HTTPException(status.HTTP_404_NOT_FOUND, "the course has no assignment")
+    return assignment
 
 
 @router.post("/evaluations/rerun", response_model=RerunOut, status_code=status.HTTP_202_ACCEPTED)
 def rerun_evaluations(body: RerunRequest, instructor: InstructorUser, session: SessionDep, queue: QueueDep,
                       settings: SettingsDep) -> RerunOut:
-    """Evaluate again, with the current settings, one ready submission or all of the course's (those at
-    low priority: after the students' own jobs)."""
+    """Evaluate again, with its assignment's current settings, one ready submission or all of the
+    course's (those at low priority: after the students' own jobs); the baselines with the default
+    assignment's."""
     if body.all == (body.submission_id is not None):
         raise HTTPException(status.HTTP_422_UNPROCESSABLE_CONTENT, "give either submission_id or all=true")
     submissions = (crud.course_submissions(session, course_id=instructor.course_id, status=READY) if body.all
                    else [ready_submission(session, instructor, body.submission_id)])
-    course = user_course(session, instructor)
     priority = LOW if body.all else NORMAL  # a whole course's backlog waits for the students' own jobs
-    jobs = [queue_evaluation(session, submission=s, max_attempts=settings.max_job_attempts, course=course,
-                             priority=priority) for s in submissions]
+    fallback = default_assignment(session, instructor)
+    jobs = [queue_evaluation(session, submission=s, max_attempts=settings.max_job_attempts, priority=priority,
+                             assignment=None if s.owner.course_id else fallback) for s in submissions]
     audit.record(session, actor=instructor, action=audit.RERUN, target_kind="submission",
                  target_id=None if body.all else body.submission_id, all=body.all, queued=len(jobs))
     session.commit()

@@ -11,12 +11,13 @@ from starlette.datastructures import UploadFile  # what a parsed form holds
 
 from league.server.api.cache import PRIVATE, etag_response
 from league.server.api.deps import (
-    CurrentUser, Id, SessionDep, check_jobs_in_flight, check_upload_quota, lock_account,
+    CurrentUser, Id, SessionDep, check_jobs_in_flight, check_upload_quota, lock_account, user_course,
 )
+from league.server.assignments import UploadRefused, check_upload, private_visible, upload_assignment
 from league.server.db import crud
 from league.server.logs import log_refused_upload
-from league.server.db.models import INSTRUCTOR, READY, STUDENT, Evaluation, Submission, User
-from league.server.results import owners_current_keys
+from league.server.db.models import INSTRUCTOR, PUBLIC, READY, STUDENT, Assignment, Evaluation, Submission, User
+from league.server.results import submissions_current_keys
 from league.server.rounds import active_submission_ids
 from league.server.schemas import (
     DbId, EpisodeOut, EpisodePage, EvaluationOut, EvaluationSummary, SubmissionCreated, SubmissionDetail,
@@ -38,32 +39,38 @@ def model_kind(filename: str | None) -> str:
 UPLOAD_FORM = {"requestBody": {"required": True, "content": {"multipart/form-data": {"schema": {
     "type": "object", "required": ["file"], "properties": {
         "file": {"type": "string", "format": "binary", "description": "an ONNX (.onnx) or TorchScript (.pt) model"},
-        "name": {"type": "string", "maxLength": 100, "description": "default: the file name"}}}}}}}
+        "name": {"type": "string", "maxLength": 100, "description": "default: the file name"},
+        "assignment": {"type": "string", "maxLength": 100,
+                       "description": "an assignment's id or name; default: the only one open to you"}}}}}}}
 
 
 @router.post("", response_model=SubmissionCreated, status_code=status.HTTP_201_CREATED, openapi_extra=UPLOAD_FORM)
 async def create_submission(request: Request, user: CurrentUser) -> SubmissionCreated:
-    """Upload a model (multipart `file`, optional `name`): it is validated in a sandbox, then evaluated
-    on the course's tracks. The body is read only once the token is accepted."""
-    async with request.form(max_files=1, max_fields=1) as form:
-        file, name = form.get("file"), form.get("name")
+    """Upload a model (multipart `file`, optional `name` and `assignment`) to an assignment: it is
+    validated in a sandbox, then evaluated on the assignment's public tracks. The body is read only
+    once the token is accepted."""
+    async with request.form(max_files=1, max_fields=2) as form:
+        file, name, wanted = form.get("file"), form.get("name"), form.get("assignment")
         try:
             if not isinstance(file, UploadFile) or not file.filename:
                 raise HTTPException(status.HTTP_422_UNPROCESSABLE_CONTENT,
                                     "send the model as the multipart field `file` (with its file name)")
             if name is not None and (not isinstance(name, str) or len(name) > 100):
                 raise HTTPException(status.HTTP_422_UNPROCESSABLE_CONTENT, "name: at most 100 characters")
+            if wanted is not None and (not isinstance(wanted, str) or len(wanted) > 100):
+                raise HTTPException(status.HTTP_422_UNPROCESSABLE_CONTENT, "assignment: an id or a name")
             kind = model_kind(file.filename)
-            return await run_in_threadpool(submit, request.app.state.league, user, file, name, kind)
+            return await run_in_threadpool(submit, request.app.state.league, user, file, name, kind, wanted)
         except HTTPException as refusal:
             log_refused_upload(user.id, str(refusal.detail), getattr(file, "size", None))
             raise
 
 
-def submit(league_, user: User, file: UploadFile, name: str | None, kind: str) -> SubmissionCreated:
-    """Store the file, then, in one transaction holding the student's row, check their quota and
-    jobs in flight and add the submission: parallel uploads never pass a limit. A refused upload's
-    file is not kept."""
+def submit(league_, user: User, file: UploadFile, name: str | None, kind: str,
+           wanted: str | None = None) -> SubmissionCreated:
+    """Store the file, then, in one transaction holding the student's row, check the assignment's
+    window, their quotas and jobs in flight and add the submission: parallel uploads never pass a
+    limit. A refused upload's file is not kept."""
     settings, store = league_.settings, league_.store
     try:
         sha256, size = store.save(file.file, max_bytes=settings.max_upload_bytes)
@@ -75,13 +82,22 @@ def submit(league_, user: User, file: UploadFile, name: str | None, kind: str) -
     try:
         with league_.sessions.begin() as session:
             lock_account(session, user)
+            now = league_.clock.now()
+            try:
+                assignment = upload_assignment(session, user=user, course=user_course(session, user), wanted=wanted,
+                                               now=now)
+                late = check_upload(session, assignment=assignment, user=user, now=now)
+            except UploadRefused as refused:
+                raise HTTPException(refused.status, str(refused)) from None
             if user.role == STUDENT:
                 check_upload_quota(session, user, settings.quota_per_day)
                 check_jobs_in_flight(session, user, settings.max_jobs_in_flight)
             crud.save_blob(session, sha256=sha256, data=store.path(sha256).read_bytes())  # for other machines' workers
-            submission, job = crud.create_submission(session, owner=user, name=display_name[:100],
+            submission, job = crud.create_submission(session, owner=user, assignment=assignment,
+                                                     name=display_name[:100],
                                                      filename=PurePath(file.filename).name[:255], kind=kind,
-                                                     sha256=sha256, size=size, max_attempts=settings.max_job_attempts)
+                                                     sha256=sha256, size=size, max_attempts=settings.max_job_attempts,
+                                                     late=late, created_at=now)
             created, job_id = SubmissionCreated(id=submission.id, status=submission.status), job.id
     except HTTPException:
         with league_.sessions() as session:
@@ -100,11 +116,10 @@ def read_submissions(user: CurrentUser, session: SessionDep, all: bool = False) 
     else:
         submissions = crud.submissions_of(session, owner_ids=[user.id])
     owners = list({s.owner_id: s.owner for s in submissions}.values())
-    keys = owners_current_keys(session, owners)
-    evaluations = crud.latest_evaluations(session, submission_ids=[s.id for s in submissions],
-                                          result_keys={s.id: keys[s.owner_id] for s in submissions})
+    keys = submissions_current_keys(session, submissions)
+    evaluations = crud.latest_evaluations(session, submission_ids=[s.id for s in submissions], result_keys=keys)
     active = active_submission_ids(session, owners=owners)
-    return [submission_out(s, evaluations.get(s.id), keys[s.owner_id], s.id in active) for s in submissions]
+    return [submission_out(s, evaluations.get(s.id), keys[s.id], s.id in active) for s in submissions]
 
 
 NOT_MODIFIED = {304: {"description": "unchanged since the ETag sent in If-None-Match"}}
@@ -116,7 +131,7 @@ def read_submission(submission_id: Id, request: Request, user: CurrentUser, sess
     settings, else the newest) with what produced it, and a link to that evaluation's episodes. Poll
     it with the ETag it sent (If-None-Match): 304 while nothing changed."""
     submission = readable_submission(session, user, submission_id)
-    key = owners_current_keys(session, [submission.owner])[submission.owner_id]
+    key = submissions_current_keys(session, [submission])[submission.id]
     evaluation = crud.latest_evaluation(session, submission_id=submission.id, result_key=key)
     detail = SubmissionDetail(**submission_fields(submission), log=submission.log,
                               evaluation=evaluation_out(evaluation, key, EvaluationSummary),
@@ -131,13 +146,14 @@ def read_episodes(submission_id: Id, request: Request, user: CurrentUser, sessio
                   evaluation_id: Annotated[DbId | None, Query(description="default: the latest")] = None,
                   offset: Annotated[int, Query(ge=0, le=10_000)] = 0,
                   limit: Annotated[int, Query(ge=1, le=1000)] = 100) -> Response:
-    """The episodes of the submission's evaluation (the one its status shows, or `evaluation_id`), in
-    order, paged."""
+    """The episodes of the submission's evaluation (the one its status shows, or `evaluation_id`: a
+    private test's once its assignment is published), in order, paged."""
     submission = readable_submission(session, user, submission_id)
-    key = owners_current_keys(session, [submission.owner])[submission.owner_id]
+    key = submissions_current_keys(session, [submission])[submission.id]
     evaluation = (crud.latest_evaluation(session, submission_id=submission.id, result_key=key)
                   if evaluation_id is None else session.get(Evaluation, evaluation_id))
-    if evaluation is None or evaluation.submission_id != submission.id:
+    if evaluation is None or evaluation.submission_id != submission.id or (
+            evaluation.track != PUBLIC and not private_visible(session.get(Assignment, evaluation.assignment_id), user)):
         raise HTTPException(status.HTTP_404_NOT_FOUND, "no such evaluation of this submission")
     rows, total = crud.episode_page(session, evaluation_id=evaluation.id, offset=offset, limit=limit)
     page = EpisodePage(evaluation_id=evaluation.id, total=total, items=[EpisodeOut.model_validate(r) for r in rows])
@@ -172,7 +188,7 @@ def update_submission(submission_id: Id, body: SubmissionUpdate, user: CurrentUs
     if body.public is not None:
         submission.public = body.public
     session.commit()
-    key = owners_current_keys(session, [user])[user.id]
+    key = submissions_current_keys(session, [submission])[submission.id]
     evaluation = crud.latest_evaluation(session, submission_id=submission.id, result_key=key)
     return submission_out(submission, evaluation, key,
                           submission.id in active_submission_ids(session, owners=[user]))

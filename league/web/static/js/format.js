@@ -51,3 +51,21 @@ export function finalText(row) {
   if (row.outcome === "dnf") return `DNF: ${row.reason || "agent failed"}`;
   return outcomeText(row.outcome);
 }
+
+/** A time in the viewer's own time zone, with the zone named: "1 Dec 2026, 23:59 CET". */
+export function zonedTime(iso) {
+  if (!iso) return "–";
+  const date = new Date(iso);
+  return Number.isNaN(date.getTime()) ? iso
+    : date.toLocaleString([], { dateStyle: "medium", timeStyle: "short", timeZoneName: "short" });
+}
+
+/** What is left from `now` (the server's clock) to `until`: "3 d 4 h", "5 h 12 min", "closed". */
+export function timeLeft(until, now) {
+  if (!until) return "no deadline";
+  const minutes = Math.floor((new Date(until) - new Date(now)) / 60000);
+  if (minutes <= 0) return "closed";
+  const days = Math.floor(minutes / 1440);
+  const hours = Math.floor((minutes % 1440) / 60);
+  return days ? `${days} d ${hours} h` : `${hours} h ${minutes % 60} min`;
+}

@@ -190,7 +190,7 @@ def test_colliding_ids_and_a_long_cache_period_every_change_shows_on_the_next_re
                                                        kind="onnx", sha256=f"{k}".ljust(64, "0"), size=1,
                                                        max_attempts=1)
                 submission.status, submission.public, submission.obs_dim = READY, owner is baselines, 5
-                job = queue_evaluation(session, submission=submission, course=course, max_attempts=1)
+                job = queue_evaluation(session, submission=submission, max_attempts=1)
                 submissions.append(submission)
                 jobs.append(job)
             session.flush()

@@ -132,8 +132,9 @@ def test_a_rounds_track_is_secret_until_the_round_is_over(app_league):
     assert len(secrets) > 10
     with app_league.client(students[0]) as student:
         mine = student.get("/api/submissions").json()[0]["id"]
+        assignment = student.get("/api/assignments").json()[0]["id"]
     ids = {"championship_id": [cid], "number": [1], "race_id": heats, "submission_id": [mine],
-           "filename": ["none.whl"]}
+           "filename": ["none.whl"], "assignment_id": [assignment]}
     paths = [*every_get(app_league.app, ids), f"/api/races?championship_id={cid}", "/api/jobs?limit=1000",
              f"/api/championships/{cid}/standings?size=100", "/api/submissions?all=true"]
     readers = [None, students[0], instructor_token]

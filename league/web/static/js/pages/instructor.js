@@ -1,8 +1,10 @@
-// The instructor console (/instructor): students, evaluation settings, championships, jobs, the audit log.
+// The instructor console (/instructor): students, evaluation settings, assignments, championships, jobs, the
+// audit log.
 
 import { api } from "../api.js";
 import { $, badge, element, onClick, onSubmit, replaceKeepingFocus, say } from "../dom.js";
 import { dateTime } from "../format.js";
+import { setUpAssignments } from "../instructor/assignments.js";
 import { setUpAudit } from "../instructor/audit.js";
 import { setUpChampionships } from "../instructor/championships.js";
 import { setUpEvaluations } from "../instructor/evaluations.js";
@@ -54,7 +56,8 @@ async function start() {
   showAccount(me);
   const jobs = new Poller(refreshJobs, JOBS_POLL_MS);
   onClick($("refresh-jobs"), () => jobs.poll());
-  const parts = [setUpStudents(me), setUpEvaluations(), setUpPrivacy(), setUpChampionships(), jobs.poll(), setUpAudit()];
+  const parts = [setUpStudents(me), setUpEvaluations(), setUpAssignments(), setUpPrivacy(), setUpChampionships(), jobs.poll(),
+    setUpAudit()];
   const results = await Promise.allSettled(parts);
   const failures = results.filter((r) => r.status === "rejected").map((r) => r.reason.message);
   if (failures.length) say($("page-message"), failures.join(" "), "error");

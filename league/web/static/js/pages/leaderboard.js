@@ -149,8 +149,42 @@ $("championship").addEventListener("change", (event) => {
 
 // --------------------------------------------------------------------------- leaderboard and races
 
+// the board shown: the default one (/api/leaderboard), or a picked assignment's (logged-in members)
+let assignments = [];
+let assignmentId = new URLSearchParams(location.search).get("assignment");
+
+async function loadAssignments() {
+  assignments = me ? await api("/api/assignments").catch(() => []) : [];
+  if (!assignments.length) return;
+  if (!assignments.some((a) => String(a.id) === String(assignmentId))) assignmentId = String(assignments[0].id);
+  $("assignment").replaceChildren(...assignments.map((a) => element("option", { text: a.name, attrs: { value: a.id } })));
+  $("assignment").value = assignmentId;
+  $("assignment-picker").hidden = false;
+  showBoardKinds();
+}
+
+function showBoardKinds() {
+  const published = Boolean(assignments.find((a) => String(a.id) === String(assignmentId))?.published_at);
+  $("board-kind").querySelector("option[value=private]").disabled = !published;
+  if (!published) $("board-kind").value = "public";
+}
+
+for (const id of ["assignment", "board-kind"]) {
+  $(id).addEventListener("change", () => {
+    assignmentId = $("assignment").value;
+    showBoardKinds();
+    const url = new URL(location.href);
+    url.searchParams.set("assignment", assignmentId);
+    history.replaceState(null, "", url);
+    leaderboardPager.page = 1;
+    refreshLeaderboard().catch(showProblem("Leaderboard"));
+  });
+}
+
 async function refreshLeaderboard() {
-  const page = await api(`/api/leaderboard?${leaderboardPager.query()}`, BOARD_CALL);
+  const path = assignmentId && assignments.length
+    ? `/api/assignments/${assignmentId}/board?board=${$("board-kind").value}&` : "/api/leaderboard?";
+  const page = await api(`${path}${leaderboardPager.query()}`, BOARD_CALL);
   leaderboard.update(page.items);
   leaderboardPager.update(page.total);
 }
@@ -215,7 +249,9 @@ async function refreshAll() {
 
 onClick($("standings-csv"), () => download(`/api/championships/${championshipId}/standings.csv`,
   `standings-${championshipId}.csv`).catch(showProblemNow("Standings CSV")));
-onClick($("leaderboard-csv"), () => download("/api/leaderboard.csv", "leaderboard.csv").catch(showProblemNow("Grades CSV")));
+onClick($("leaderboard-csv"), () => (assignmentId && assignments.length
+  ? download(`/api/assignments/${assignmentId}/board.csv?board=${$("board-kind").value}`, `assignment-${assignmentId}.csv`)
+  : download("/api/leaderboard.csv", "leaderboard.csv")).catch(showProblemNow("Grades CSV")));
 
 function showProblemNow(part) {
   return (error) => say($("notice"), `${part}: ${error.message}`, "error");
@@ -233,6 +269,7 @@ async function start() {
     me = null;
   }
   document.querySelectorAll("[data-instructor]").forEach((button) => { button.hidden = me?.role !== "instructor"; });
+  await loadAssignments();
   refresher.poll();
 }
 

@@ -4,7 +4,7 @@
 import { api } from "../api.js";
 import { $, badge, element, focusOn, onSubmit, replaceKeepingFocus, say } from "../dom.js";
 import { showEpisodeChart } from "../episode-chart.js";
-import { count, dateTime, number, outcomeText } from "../format.js";
+import { count, dateTime, number, outcomeText, timeLeft, zonedTime } from "../format.js";
 import { Poller } from "../poller.js";
 import { requireUser, showAccount } from "../session.js";
 import { dropZone } from "../upload-zone.js";
@@ -34,7 +34,7 @@ function settled(submission) {
 
 async function refresh() {
   submissions = await api("/api/submissions");
-  await refreshQuota();
+  await Promise.all([refreshQuota(), refreshAssignments()]);
   renderList();
   reportUpload();
   fillRaceAgents();
@@ -49,6 +49,32 @@ async function refresh() {
     }
   }
   poller.interval = submissions.every(settled) ? SLOW_POLL_MS : FAST_POLL_MS;
+}
+
+// --------------------------------------------------------------------------- assignments
+
+async function refreshAssignments() {
+  const assignments = await api("/api/assignments");
+  const picker = $("upload-assignment");
+  const open = assignments.filter((a) => a.state === "open" || a.state === "late");
+  const kept = picker.value;
+  picker.replaceChildren(...open.map((a) => element("option", { text: `${a.name}${a.state === "late" ? " (late)" : ""}`,
+    attrs: { value: a.id } })));
+  if (open.some((a) => String(a.id) === kept)) picker.value = kept;
+  picker.closest(".field").hidden = open.length < 2; // one open: the server takes it, nothing to choose
+  replaceKeepingFocus($("assignments").tBodies[0], ...assignments.map((a) => {
+    const final = a.final || {};
+    const result = final.evaluation && final.evaluation.status === "done"
+      ? `${final.evaluation.completed}/${final.evaluation.episodes_total} laps, return ${number(final.evaluation.mean_return, 2)}`
+      : (a.published_at ? "–" : "after publication");
+    return element("tr", {},
+      element("td", { text: a.name, attrs: { title: a.description || "" } }), element("td", {}, badge(a.state)),
+      element("td", { text: zonedTime(a.opens_at) }),
+      element("td", { text: zonedTime(a.my_due_at) + (a.extended ? " (extension)" : "") }),
+      element("td", { text: timeLeft(a.my_due_at, a.now) }), element("td", { text: zonedTime(a.late_until) }),
+      element("td", { text: final.submission_id ? `#${final.submission_id}${final.selected ? " (selected)" : " (best)"}` : "–" }),
+      element("td", { text: result }));
+  }));
 }
 
 /** Uploads left today: read again when a submission comes or changes status (a rejected one is free). */
@@ -261,6 +287,7 @@ onSubmit($("upload-form"), async () => {
   form.append("file", chosenFile, chosenFile.name);
   const name = $("submission-name").value.trim();
   if (name) form.append("name", name);
+  if (!$("upload-assignment").closest(".field").hidden) form.append("assignment", $("upload-assignment").value);
   $("upload-button").disabled = true;
   say(message, `Uploading ${chosenFile.name}…`, "info");
   try {

@@ -1,0 +1,145 @@
+"""Benchmark of a course's due time: 200 finals tested on the private tracks, to a published board.
+
+    python benchmarks/bench_course.py [--backend sqlite|postgres] [--students 200] [--episodes 20]
+
+A course of --students students (a roster imported through the API) with three assignments (a time
+trial without obstacles, then obstacles, then chicanes; --episodes episodes each, public and
+private). Each student uploads an agent to the first (bench_rush.py's working files: ONNX and
+TorchScript, compact and lidar, dynamic and fixed batch), evaluated on its public tracks by two
+`league worker`s beside `league serve --no-worker`, all with their default settings (a reaper pass
+every 10 s). Once the queue is empty, the instructor moves the first assignment's due time to 3 s
+from now; it publishes itself (auto_publish) once every final is tested.
+
+Printed, beside bench_rush.py's figures: the time from the due time to the published private board
+(the server's own `due_at` and `published_at`; target <= 120 s), and how long the private tests
+took from the first to the last. Checked, exit status 1 if one fails: every student on the private
+board, each final tested on --episodes private episodes; no job failed; the other two
+assignments unpublished.
+"""
+from __future__ import annotations
+
+import argparse
+import os
+import signal
+import sys
+import tempfile
+import time
+from concurrent.futures import ThreadPoolExecutor
+from datetime import datetime, timedelta, timezone
+from pathlib import Path
+
+from _league import Deadline, League, backend, enrol
+from bench_rush import good_files, wait_queue_empty
+
+TARGET_S = 120.0
+DUE_IN_S = 3.0
+ASSIGNMENTS = (("time trial", {"obstacles": False, "chicanes": False}, 0),
+               ("obstacles", {"obstacles": True, "chicanes": False}, 7),
+               ("chicanes", {"obstacles": True, "chicanes": True}, 14))  # name, env options, due in days
+
+
+def create_assignments(instructor, episodes: int) -> list[dict]:
+    now = datetime.now(timezone.utc)
+    created = []
+    for name, options, days in ASSIGNMENTS:
+        body = {"name": name, "episodes": episodes, "env_options": options, "auto_publish": True,
+                "due_at": (now + timedelta(days=days + 1)).isoformat()}
+        response = instructor.post("/api/assignments", json=body)
+        response.raise_for_status()
+        created.append(response.json())
+    return created
+
+
+def upload_all(league: League, tokens: list[str], files: list[Path], assignment: str) -> None:
+    def send(k: int) -> None:
+        with league.client(tokens[k]) as student:
+            path = files[k % len(files)]
+            response = student.post("/api/submissions", data={"assignment": assignment},
+                                    files={"file": (path.name, path.read_bytes())})
+            response.raise_for_status()
+
+    with ThreadPoolExecutor(8) as pool:
+        list(pool.map(send, range(len(tokens))))
+
+
+def wait_published(instructor, assignment_id: int, timeout: float) -> dict:
+    deadline = Deadline(timeout, "the private board's publication")
+    while True:
+        assignment = instructor.get(f"/api/assignments/{assignment_id}").json()
+        if assignment["published_at"]:
+            return assignment
+        deadline.check(assignment)
+        time.sleep(0.2)
+
+
+def private_tests(instructor, due: datetime) -> list[dict]:
+    """The evaluations that started after the due time: the finals' private tests."""
+    jobs = instructor.get("/api/jobs", params={"limit": 500}).json()
+    return [job for job in jobs if job["kind"] == "evaluate" and job["started_at"]
+            and datetime.fromisoformat(job["started_at"].replace("Z", "+00:00")) >= due]
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0], epilog="\n".join(__doc__.splitlines()[4:]),
+                                     formatter_class=argparse.RawDescriptionHelpFormatter)
+    parser.add_argument("--backend", choices=["sqlite", "postgres"], default="sqlite")
+    parser.add_argument("--students", type=int, default=200)
+    parser.add_argument("--episodes", type=int, default=20, help="episodes of each assignment's evaluations")
+    parser.add_argument("--distinct", type=int, default=8, help="different agent files (bench_rush.py's kinds)")
+    args = parser.parse_args(argv)
+    print(f"load average {' '.join(f'{x:.2f}' for x in os.getloadavg())}, {os.cpu_count()} CPUs; {args.backend}: "
+          f"{args.students} students, 3 assignments, {args.episodes}-episode evaluations, 2 workers", flush=True)
+    with tempfile.TemporaryDirectory(prefix="league-course-") as tmp, backend(args.backend, Path(tmp)) as urls:
+        folder = Path(tmp)
+        (folder / "files").mkdir()
+        files = good_files(folder / "files", args.distinct)
+        with League(folder, embedded=False, workers=2, settings=urls) as league:
+            return course(league, args, files)
+
+
+def course(league: League, args: argparse.Namespace, files: list[Path]) -> int:
+    with league.client() as instructor:
+        tokens = enrol(instructor, [f"student{k:03d}" for k in range(args.students)])
+        assignments = create_assignments(instructor, args.episodes)
+        first = assignments[0]
+        wait_queue_empty(league, 600)  # the baselines on the new assignments' tracks
+        started = time.perf_counter()
+        upload_all(league, tokens, files, first["name"])
+        wait_queue_empty(league, 600 + 15 * args.students)  # a loaded 2-core machine: ~5 s a job
+        print(f"  {args.students} uploads validated and evaluated on the public tracks in "
+              f"{time.perf_counter() - started:.1f} s", flush=True)
+        due = datetime.now(timezone.utc) + timedelta(seconds=DUE_IN_S)
+        instructor.patch(f"/api/assignments/{first['id']}", json={"due_at": due.isoformat()}).raise_for_status()
+        published = wait_published(instructor, first["id"], timeout=600)
+        tests = sorted(private_tests(instructor, due), key=lambda job: job["started_at"])
+        board = instructor.get(f"/api/assignments/{first['id']}/board",
+                               params={"board": "private", "size": 100, "page": 1}).json()
+        rows = board["items"] + instructor.get(f"/api/assignments/{first['id']}/board", params={
+            "board": "private", "size": 100, "page": 2}).json()["items"]
+        others = [instructor.get(f"/api/assignments/{a['id']}").json() for a in assignments[1:]]
+        failed = instructor.get("/api/jobs", params={"status": "failed", "limit": 10}).json()
+    seconds = (datetime.fromisoformat(published["published_at"])
+               - datetime.fromisoformat(published["due_at"])).total_seconds()
+    span = (max(datetime.fromisoformat(job["finished_at"]) for job in tests)
+            - datetime.fromisoformat(tests[0]["started_at"])).total_seconds() if tests else float("nan")
+    print(f"  due time -> private board published ({board['total']} finals, {args.episodes} private episodes each): "
+          f"{seconds:.1f} s (target <= {TARGET_S:g} s: {'ok' if seconds <= TARGET_S else 'OVER TARGET'}); "
+          f"the private tests ran {span:.1f} s, first start to last finish", flush=True)
+    failures = []
+    if board["total"] != args.students or any(row["stale"] or row["episodes"] != args.episodes for row in rows):
+        failures.append(f"the private board has {board['total']} rows, not {args.students} of "
+                        f"{args.episodes} episodes")
+    if failed:
+        failures.append(f"jobs failed: {[(job['id'], job['error']) for job in failed]}")
+    if any(other["published_at"] for other in others):
+        failures.append("another assignment was published")
+    for failure in failures:
+        print(f"  FAILED: {failure}", flush=True)
+    print(f"checks: {'all passed' if not failures else f'{len(failures)} FAILED'} (every student's final on the "
+          f"private board, no job failed, the other assignments untouched)", flush=True)
+    return 1 if failures else 0
+
+
+if __name__ == "__main__":
+    signal.signal(signal.SIGTERM, lambda *_: sys.exit(143))
+    sys.exit(main())
