@@ -10,8 +10,10 @@ returns the rows, best first. The rules, in one place:
   if they were the only one added (they move no one else): `rank` and `students` are theirs alone.
 - **Points**: the rubric's, within [0, max_points], times the assignment's late penalty factor if
   the final was late. A student **without a final** (no submission by their close time) gets 0
-  points; one whose final has **no private result** (not evaluated yet, or its evaluation failed)
-  gets an empty grade, so that a gradebook never reads a pending grade as a zero.
+  points; one whose close time has not passed, or whose final has **no private result of the
+  current settings** (not evaluated yet, its evaluation failed, or only of other settings: `stale`)
+  gets an empty grade, so that a gradebook never reads a pending grade as a zero. Each row's
+  `status` says which: graded, no final, open, pending, stale, or reference (a baseline).
 - **Rubrics** (`Rubric`, JSON the instructor sets): points by completed fraction (steps or
   linear) plus points by rank (linear or a table), or a formula over `completed` (fraction 0-1),
   `mean_speed`, `rank` and `students` (the count ranked), with numbers, + - * / **, min(),
@@ -34,6 +36,7 @@ from dataclasses import dataclass
 from typing import Annotated, Any, Literal
 
 from pydantic import BaseModel, ConfigDict, Field, field_validator, model_validator
+from pydantic_core import PydanticCustomError
 
 from league.spreadsheet import csv_text
 
@@ -197,6 +200,11 @@ PROBES = [{"completed": c, "mean_speed": s, "rank": r, "students": n}
 # --------------------------------------------------------------------------- rubrics
 
 
+def _invalid(message: str) -> PydanticCustomError:
+    """A rubric's problem as the API says it (pydantic would prefix a ValueError with "Value error, ")."""
+    return PydanticCustomError("invalid_rubric", message)
+
+
 class Step(BaseModel):
     model_config = ConfigDict(extra="forbid")
 
@@ -217,9 +225,9 @@ class CompletedSteps(BaseModel):
     def _rising(cls, steps: list[Step]) -> list[Step]:
         for low, high in zip(steps, steps[1:]):
             if high.completed <= low.completed:
-                raise ValueError("steps must be in order of rising completed fractions, each once")
+                raise _invalid("steps must be in order of rising completed fractions, each once")
             if high.points < low.points:
-                raise ValueError("a step of a higher completed fraction may not give fewer points")
+                raise _invalid("a step of a higher completed fraction may not give fewer points")
         return steps
 
     @property
@@ -243,7 +251,7 @@ class CompletedLinear(BaseModel):
     @model_validator(mode="after")
     def _ordered(self) -> CompletedLinear:
         if self.full_at <= self.zero_at:
-            raise ValueError("full_at must be above zero_at")
+            raise _invalid("full_at must be above zero_at")
         return self
 
     @property
@@ -282,7 +290,7 @@ class RankTable(BaseModel):
     @classmethod
     def _falling(cls, points: list[float]) -> list[float]:
         if any(lower > higher for higher, lower in zip(points, points[1:])):
-            raise ValueError("a lower rank may not give more points than a higher one")
+            raise _invalid("a lower rank may not give more points than a higher one")
         return points
 
     @property
@@ -306,10 +314,10 @@ class PointsRubric(BaseModel):
     @model_validator(mode="after")
     def _parts(self) -> PointsRubric:
         if self.completed is None and self.rank is None:
-            raise ValueError("give points by completed fraction, by rank, or both")
+            raise _invalid("give points by completed fraction, by rank, or both")
         most = sum(part.most for part in (self.completed, self.rank) if part is not None)
         if most > self.max_points + 1e-9:
-            raise ValueError(f"the parts give up to {most:g} points, more than max_points ({self.max_points:g})")
+            raise _invalid(f"the parts give up to {most:g} points, more than max_points ({self.max_points:g})")
         return self
 
     def raw_points(self, figures: dict[str, float]) -> float:
@@ -334,9 +342,12 @@ class FormulaRubric(BaseModel):
     @field_validator("formula")
     @classmethod
     def _readable(cls, formula: str) -> str:
-        tree = parse_formula(formula)
-        for figures in PROBES:
-            evaluate_formula(tree, figures)
+        try:
+            tree = parse_formula(formula)
+            for figures in PROBES:
+                evaluate_formula(tree, figures)
+        except FormulaError as error:
+            raise _invalid(str(error)) from None
         return formula
 
     def raw_points(self, figures: dict[str, float]) -> float:
@@ -369,7 +380,9 @@ def read_rubric(data: dict[str, Any]) -> PointsRubric | FormulaRubric:
 @dataclass(frozen=True)
 class Entry:
     """A line to grade: a student (or a baseline, `baseline=True`) and their final's figures on the
-    private tracks. `submission_id` None: no final; `completed` None: the final has no private result."""
+    private tracks. `closed` False: their close time has not passed (no final yet); `submission_id`
+    None: no final; `completed` None: the final has no private result of the current settings
+    (`stale`: it has one of other settings only)."""
 
     name: str
     user_id: int | None = None
@@ -382,10 +395,12 @@ class Entry:
     mean_return: float | None = None
     mean_speed: float | None = None
     late: bool = False
+    closed: bool = True
+    stale: bool = False
 
     @property
     def evaluated(self) -> bool:
-        return self.submission_id is not None and self.completed is not None
+        return self.closed and self.submission_id is not None and self.completed is not None
 
     def score(self) -> tuple[float, float]:
         """The board's order: completed fraction, then mean return."""
@@ -400,9 +415,22 @@ class GradeRow:
     penalty: float | None  # the factor the points were multiplied by (1 on time); None when not graded
     points: float | None
 
+    @property
+    def status(self) -> str:
+        e = self.entry
+        if e.baseline:
+            return "reference"
+        if not e.closed:
+            return "open"
+        if e.submission_id is None:
+            return "no final"
+        if not e.evaluated:
+            return "stale" if e.stale else "pending"
+        return "graded"
+
     def as_dict(self) -> dict[str, Any]:
         e = self.entry
-        return {"name": e.name, "role": "baseline" if e.baseline else "student", "email": e.email,
+        return {"name": e.name, "status": self.status, "role": "baseline" if e.baseline else "student", "email": e.email,
                 "student_id": e.student_id, "submission_id": e.submission_id, "completed": e.completed,
                 "mean_return": e.mean_return, "mean_speed": e.mean_speed, "rank": self.rank,
                 "students": self.students, "late": e.late, "penalty": self.penalty, "points": self.points,
@@ -412,7 +440,7 @@ class GradeRow:
 def grade(entries: Sequence[Entry], rubric: PointsRubric | FormulaRubric, *,
           late_penalty: float | None = None) -> list[GradeRow]:
     """Every entry's row: those with a private result best first (baselines among them as reference
-    lines), then students whose final has none, then students without a final, by name.
+    lines), then students not graded yet (open, pending, stale), then students without a final, by name.
     `late_penalty`: the factor a late final's points are multiplied by (None: late costs nothing).
     Raises FormulaError if the rubric's formula has no value for some student's figures."""
     ranked = [e for e in entries if e.evaluated and not e.baseline and not e.revoked]
@@ -428,7 +456,7 @@ def grade(entries: Sequence[Entry], rubric: PointsRubric | FormulaRubric, *,
 
 
 def _row(entry: Entry, rank: int | None, students: int | None, rubric, late_penalty: float | None) -> GradeRow:
-    if entry.baseline or (entry.submission_id is not None and not entry.evaluated):
+    if entry.baseline or not entry.closed or (entry.submission_id is not None and not entry.evaluated):
         return GradeRow(entry, rank, students, None, None)
     if entry.submission_id is None:
         return GradeRow(entry, None, None, None, 0.0)
@@ -443,7 +471,7 @@ def _order(row: GradeRow) -> tuple:
     e = row.entry
     if e.evaluated:
         return (0, tuple(-x for x in e.score()), e.baseline, e.name)
-    return (1 if e.submission_id is not None else 2, (), False, e.name)
+    return (2 if e.closed and e.submission_id is None else 1, (), False, e.name)
 
 
 def student_rows(rows: Sequence[GradeRow]) -> list[GradeRow]:
@@ -452,7 +480,7 @@ def student_rows(rows: Sequence[GradeRow]) -> list[GradeRow]:
 
 # --------------------------------------------------------------------------- exports
 
-GENERIC_COLUMNS = ["name", "role", "email", "student_id", "submission", "completed", "mean_return", "mean_speed",
+GENERIC_COLUMNS = ["name", "status", "role", "email", "student_id", "submission", "completed", "mean_return", "mean_speed",
                    "rank", "students", "late", "penalty", "points", "revoked"]
 CANVAS_STUDENT_COLUMNS = ["Student", "ID", "SIS User ID", "SIS Login ID", "Section"]
 CANVAS_POINTS_POSSIBLE = "Points Possible"  # the row Canvas reads each column's maximum from
@@ -475,7 +503,7 @@ def _yes(flag: bool) -> str | None:
 def generic_csv(rows: Sequence[GradeRow]) -> str:
     """Every row and column: students and the baselines' reference lines (role), figures rounded."""
     return csv_text(GENERIC_COLUMNS, [[
-        e.name, "baseline" if e.baseline else "student", e.email, e.student_id, e.submission_id,
+        e.name, row.status, "baseline" if e.baseline else "student", e.email, e.student_id, e.submission_id,
         _round(e.completed, 4), _round(e.mean_return, 3), _round(e.mean_speed, 3), row.rank, row.students,
         _yes(e.late), row.penalty, row.points, _yes(e.revoked)] for row in rows for e in [row.entry]])
 

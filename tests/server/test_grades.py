@@ -205,11 +205,13 @@ def test_a_revoked_student_is_flagged_and_moves_no_one():
 
 
 def test_no_final_is_zero_and_a_final_without_a_private_result_is_empty():
-    rows = by_name(grade([student("ann", 0.9), student("none", None, submission_id=None),
-                          student("pending", None, submission_id=7)], read_rubric(RANK_ONLY)))
-    assert (rows["none"].points, rows["none"].rank) == (0.0, None)
-    assert (rows["pending"].points, rows["pending"].rank, rows["pending"].penalty) == (None, None, None)
-    assert rows["ann"].students == 1
+    rows = grade([student("ann", 0.9), student("none", None, submission_id=None), student("pending", None, submission_id=7),
+                  student("stale", None, submission_id=8, stale=True), student("open", 1.0, closed=False)],
+                 read_rubric(RANK_ONLY))
+    assert [(r.entry.name, r.status, r.rank, r.penalty, r.points) for r in rows] == [
+        ("ann", "graded", 1, 1.0, 10), ("open", "open", None, None, None), ("pending", "pending", None, None, None),
+        ("stale", "stale", None, None, None), ("none", "no final", None, None, 0.0)]
+    assert rows[0].students == 1  # nobody else was ranked
 
 
 def test_the_late_penalty_multiplies_a_late_final_and_points_stay_within_zero_and_max():

@@ -4,9 +4,9 @@ from __future__ import annotations
 from fastapi import APIRouter
 
 from league.server.api.routes import (
-    assignments, championships, evaluations, health, jobs, leaderboard, package, races, submissions, users,
+    assignments, championships, evaluations, grades, health, jobs, leaderboard, package, races, submissions, users,
 )
 
 api_router = APIRouter()
-for module in (health, users, assignments, submissions, evaluations, jobs, races, championships, leaderboard, package):
+for module in (health, users, assignments, grades, submissions, evaluations, jobs, races, championships, leaderboard, package):
     api_router.include_router(module.router)
