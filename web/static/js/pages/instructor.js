@@ -1,4 +1,4 @@
-// The instructor console (/instructor): students, evaluation settings, assignments, championships, jobs.
+// The instructor console (/instructor): students, evaluation settings, assignments, championships, grades, jobs.
 
 import { api } from "../api.js";
 import { $, badge, element, onClick, replaceKeepingFocus, say } from "../dom.js";
@@ -6,6 +6,7 @@ import { dateTime } from "../format.js";
 import { setUpAssignments } from "../instructor/assignments.js";
 import { setUpChampionships } from "../instructor/championships.js";
 import { setUpEvaluations } from "../instructor/evaluations.js";
+import { setUpGrades } from "../instructor/grades.js";
 import { setUpStudents } from "../instructor/students.js";
 import { Poller } from "../poller.js";
 import { requireUser, showAccount } from "../session.js";
@@ -40,7 +41,8 @@ async function start() {
   showAccount(me);
   const jobs = new Poller(refreshJobs, JOBS_POLL_MS);
   onClick($("refresh-jobs"), () => jobs.poll());
-  const parts = [setUpStudents(me), setUpEvaluations(), setUpAssignments(), setUpChampionships(), jobs.poll()];
+  const parts = [setUpStudents(me), setUpEvaluations(), setUpAssignments(), setUpChampionships(), setUpGrades(),
+    jobs.poll()];
   const results = await Promise.allSettled(parts);
   const failures = results.filter((r) => r.status === "rejected").map((r) => r.reason.message);
   if (failures.length) say($("page-message"), failures.join(" "), "error");
