@@ -193,8 +193,8 @@ def _figures(values: dict[str, float]) -> str:
 
 # figures a formula must have a value for when it is set: the edges (nothing completed, a car
 # that never moved, a single student, the last of many) as well as the middle
-PROBES = [{"completed": c, "mean_speed": s, "rank": r, "students": n}
-          for c in (0.0, 0.5, 1.0) for s in (0.0, 0.5, 3.0) for r, n in ((1, 1), (1, 2), (2, 2), (1, 30), (15, 30), (30, 30))]
+PROBES = [{"completed": c, "mean_speed": s, "rank": r, "students": n} for c in (0.0, 0.5, 1.0) for s in (0.0, 0.5, 3.0)
+          for r, n in ((1, 1), (1, 2), (2, 2), (1, 30), (15, 30), (30, 30))]
 
 
 # --------------------------------------------------------------------------- rubrics
@@ -430,8 +430,8 @@ class GradeRow:
 
     def as_dict(self) -> dict[str, Any]:
         e = self.entry
-        return {"name": e.name, "status": self.status, "role": "baseline" if e.baseline else "student", "email": e.email,
-                "student_id": e.student_id, "submission_id": e.submission_id, "completed": e.completed,
+        return {"name": e.name, "status": self.status, "role": "baseline" if e.baseline else "student",
+                "email": e.email, "student_id": e.student_id, "submission_id": e.submission_id, "completed": e.completed,
                 "mean_return": e.mean_return, "mean_speed": e.mean_speed, "rank": self.rank,
                 "students": self.students, "late": e.late, "penalty": self.penalty, "points": self.points,
                 "revoked": e.revoked}
@@ -480,8 +480,8 @@ def student_rows(rows: Sequence[GradeRow]) -> list[GradeRow]:
 
 # --------------------------------------------------------------------------- exports
 
-GENERIC_COLUMNS = ["name", "status", "role", "email", "student_id", "submission", "completed", "mean_return", "mean_speed",
-                   "rank", "students", "late", "penalty", "points", "revoked"]
+GENERIC_COLUMNS = ["name", "status", "role", "email", "student_id", "submission", "completed", "mean_return",
+                   "mean_speed", "rank", "students", "late", "penalty", "points", "revoked"]
 CANVAS_STUDENT_COLUMNS = ["Student", "ID", "SIS User ID", "SIS Login ID", "Section"]
 CANVAS_POINTS_POSSIBLE = "Points Possible"  # the row Canvas reads each column's maximum from
 MOODLE_IDENTIFIERS = {"email": "Email address", "idnumber": "ID number"}  # Moodle's names for the user fields
@@ -547,11 +547,13 @@ def canvas_csv(graded: Sequence[Graded]) -> str:
     points = _points_by_student(graded)
     lines: list[list] = [[CANVAS_POINTS_POSSIBLE, None, None, None, None, *(a.max_points for a in graded)]]
     for e in _students(graded):
-        lines.append([e.name, None, e.student_id, e.email, None, *(column.get(e.user_id or e.name) for column in points)])
+        lines.append([e.name, None, e.student_id, e.email, None,
+                      *(column.get(e.user_id or e.name) for column in points)])
     return csv_text(CANVAS_STUDENT_COLUMNS + [a.name for a in graded], lines)
 
 
-def moodle_csv(graded: Sequence[Graded], *, identifier: Literal["email", "idnumber"] = "email") -> tuple[str, list[str]]:
+def moodle_csv(graded: Sequence[Graded], *,
+               identifier: Literal["email", "idnumber"] = "email") -> tuple[str, list[str]]:
     """Moodle's CSV grade import: the identifier column (mapped in Moodle to the user's email or ID
     number) and a column of points an assignment. Students without that identifier are left out,
     their names returned: Moodle gives a line with an empty identifier the grade of the line above."""

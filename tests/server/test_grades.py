@@ -137,7 +137,8 @@ def test_points_linear_in_completed_fraction_and_in_rank():
     ({"kind": "points", "max_points": 10, "completed": {"kind": "linear", "points": 5, "zero_at": 0.6,
                                                          "full_at": 0.5}}, "full_at must be above zero_at"),
     ({"kind": "points", "max_points": 10, "rank": {"kind": "table", "points": [1, 3]}}, "may not give more points"),
-    ({"kind": "points", "max_points": 10, "rank": {"kind": "curve", "points": 3}}, "does not match any of the expected"),
+    ({"kind": "points", "max_points": 10, "rank": {"kind": "curve", "points": 3}},
+     "does not match any of the expected"),
     ({"kind": "points", "max_points": 0, "rank": {"kind": "linear", "points": 0}}, "greater than 0"),
     ({"kind": "points", "max_points": 10, "rank": {"kind": "linear", "points": 3}, "bonus": 1}, "Extra inputs"),
     ({"kind": "magic", "max_points": 10}, "does not match any of the expected tags: 'points', 'formula'"),
@@ -164,12 +165,13 @@ RANK_ONLY = {"kind": "points", "max_points": 10, "rank": {"kind": "table", "poin
 def student(name: str, completed: float | None = 1.0, mean_return: float = 1.0, user_id: int = 0, **kw) -> Entry:
     kw.setdefault("submission_id", 100 + len(name))
     return Entry(name=name, user_id=user_id or hash(name) % 10_000 + 1, email=f"{name}@uni.example",
-                 student_id=f"S-{name}", completed=completed, mean_return=mean_return if completed is not None else None,
-                 mean_speed=0.5 if completed is not None else None, **kw)
+                 student_id=f"S-{name}", completed=completed,
+                 mean_return=mean_return if completed is not None else None, mean_speed=0.5 if completed is not None else None, **kw)
 
 
 def baseline(name: str, completed: float, mean_return: float) -> Entry:
-    return Entry(name=name, baseline=True, submission_id=1, completed=completed, mean_return=mean_return, mean_speed=1.0)
+    return Entry(name=name, baseline=True, submission_id=1, completed=completed, mean_return=mean_return,
+                 mean_speed=1.0)
 
 
 def by_name(rows) -> dict:
@@ -205,8 +207,8 @@ def test_a_revoked_student_is_flagged_and_moves_no_one():
 
 
 def test_no_final_is_zero_and_a_final_without_a_private_result_is_empty():
-    rows = grade([student("ann", 0.9), student("none", None, submission_id=None), student("pending", None, submission_id=7),
-                  student("stale", None, submission_id=8, stale=True), student("open", 1.0, closed=False)],
+    rows = grade([student("ann", 0.9), student("none", None, submission_id=None),
+                  student("pending", None, submission_id=7), student("stale", None, submission_id=8, stale=True), student("open", 1.0, closed=False)],
                  read_rubric(RANK_ONLY))
     assert [(r.entry.name, r.status, r.rank, r.penalty, r.points) for r in rows] == [
         ("ann", "graded", 1, 1.0, 10), ("open", "open", None, None, None), ("pending", "pending", None, None, None),

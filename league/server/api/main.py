@@ -8,5 +8,6 @@ from league.server.api.routes import (
 )
 
 api_router = APIRouter()
-for module in (health, users, assignments, grades, submissions, evaluations, jobs, races, championships, leaderboard, package):
+for module in (health, users, assignments, grades, submissions, evaluations, jobs, races, championships, leaderboard,
+               package):
     api_router.include_router(module.router)

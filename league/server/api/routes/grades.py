@@ -30,14 +30,17 @@ def graded_or_409(session: SessionDep, assignment: Assignment) -> grades.Graded:
     some student's figures)."""
     try:
         return grades.Graded(assignment.name, rubric_of(assignment).max_points, assignment_grades(session, assignment))
-    except (NoRubric, grades.FormulaError) as error:
-        raise HTTPException(status.HTTP_409_CONFLICT, f"{assignment.name}: {error}") from None
+    except NoRubric as error:
+        raise HTTPException(status.HTTP_409_CONFLICT, str(error)) from None
+    except grades.FormulaError as error:
+        raise HTTPException(status.HTTP_409_CONFLICT, f"{assignment.name}: {error}: set another rubric") from None
 
 
 def csv_file(graded: list[grades.Graded], fmt: str, identifier: str, stem: str, generic: str) -> Response:
     """The file of `fmt`: Canvas's or Moodle's import, else the `generic` text. A Moodle file's
     `X-Left-Out` header counts the students it leaves out (without the identifier)."""
-    headers, text = {"Content-Disposition": f'attachment; filename="{stem}{"" if fmt == "generic" else "-" + fmt}.csv"'}, generic
+    suffix = "" if fmt == "generic" else f"-{fmt}"
+    headers, text = {"Content-Disposition": f'attachment; filename="{stem}{suffix}.csv"'}, generic
     if fmt == "canvas":
         text = grades.canvas_csv(graded)
     elif fmt == "moodle":

@@ -86,7 +86,8 @@ def close_and_evaluate(course: Course, private: dict[str, int]) -> None:
     with course.league.sessions.begin() as session:
         job_ids = close_due(session, now=AFTER, max_attempts=1)
     with course.league.sessions() as session:
-        owners = {job_id: session.get(Submission, session.get(Job, job_id).submission_id).owner_id for job_id in job_ids}
+        owners = {job_id: session.get(Submission, session.get(Job, job_id).submission_id).owner_id
+                  for job_id in job_ids}
     students = {course.user(name).id: name for name in private}
     assert sorted(owners.values()) == sorted(students)
     settings = private_settings(course)
@@ -155,9 +156,10 @@ def test_the_baselines_are_reference_lines_once_evaluated_on_the_private_tracks(
     response = course.instructor.put(f"/api/assignments/{course.assignment['id']}/rubric", json=RUBRIC)
     assert response.status_code == 200, response.text
     with app_league.sessions() as session:
-        job_ids = [job_id for (job_id,) in session.query(Job.id).join(Evaluation, Evaluation.id == Job.evaluation_id)
-                   .join(Submission, Submission.id == Evaluation.submission_id).join(User, User.id == Submission.owner_id)
-                   .filter(User.role == BASELINE, Evaluation.track == PRIVATE,
+        job_ids = [job_id for (job_id,) in session.query(Job.id)
+                   .join(Evaluation, Evaluation.id == Job.evaluation_id)
+                   .join(Submission, Submission.id == Evaluation.submission_id)
+                   .join(User, User.id == Submission.owner_id).filter(User.role == BASELINE, Evaluation.track == PRIVATE,
                            Evaluation.assignment_id == course.assignment["id"], Job.status == "queued")]
     assert job_ids, "setting the rubric queues the baselines' private evaluations"
     for job_id in job_ids:
@@ -234,7 +236,7 @@ def test_a_rubric_is_checked_when_set_and_grades_need_one(app_league):
     url = f"/api/assignments/{course.assignment['id']}"
     response = course.instructor.get(f"{url}/grades")
     assert (response.status_code, response.json()["detail"]) == (
-        409, f"Time trial: Time trial has no rubric yet: set one (PUT /api/assignments/{course.assignment['id']}/rubric)")
+        409, f"Time trial has no rubric yet: set one (PUT /api/assignments/{course.assignment['id']}/rubric)")
     response = course.instructor.put(f"{url}/rubric", json={"kind": "formula", "max_points": 10,
                                                             "formula": "10 * completed / mean_speed"})
     assert (response.status_code, response.json()["detail"]) == (

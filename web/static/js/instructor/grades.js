@@ -5,7 +5,9 @@ import { $, badge, element, onClick, onSubmit, replaceKeepingFocus, say } from "
 import { number } from "../format.js";
 
 // shown in an assignment without a rubric: a start to edit (the server README's Grades has more)
-const EXAMPLE = { kind: "points", max_points: 10, completed: { kind: "linear", points: 6 }, rank: { kind: "linear", points: 4 } };
+const EXAMPLE = {
+  kind: "points", max_points: 10, completed: { kind: "linear", points: 6 }, rank: { kind: "linear", points: 4 },
+};
 // each status: its words, and the badge style it shares with the submissions' statuses
 const STATUS = { graded: ["graded", "done"], "no final": ["no final (0)", "rejected"], open: ["not closed yet", "queued"],
   pending: ["evaluating", "running"], stale: ["stale: other settings", "pending"], reference: ["baseline", "reference"] };
