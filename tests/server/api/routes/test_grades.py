@@ -172,6 +172,18 @@ def test_the_baselines_are_reference_lines_once_evaluated_on_the_private_tracks(
         ("baseline", None, None, 0.75)
     assert [r["rank"] for r in rows if r["role"] == "student" and not r["revoked"]] == [1, 2, 3, None]
 
+    # before publication, a student finds neither the baseline's private test nor the private seed
+    with app_league.sessions() as session:
+        evaluation = session.get(Job, job_ids[0]).evaluation_id
+        baseline_id = session.get(Job, job_ids[0]).submission_id
+        private_seed = session.get(Assignment, course.assignment["id"]).private_seed
+    ann = course.client("ann")
+    assert ann.get(f"/api/submissions/{baseline_id}/episodes", params={"evaluation_id": evaluation}).status_code == 404
+    for path in (f"/api/assignments/{course.assignment['id']}", f"/api/assignments/{course.assignment['id']}/board",
+                 "/api/leaderboard"):
+        answer = ann.get(path)
+        assert answer.status_code == 200 and str(private_seed) not in answer.text, path
+
 
 def test_the_grade_files_parse_and_have_each_gradebooks_columns(app_league):
     course = graded_course(app_league)
