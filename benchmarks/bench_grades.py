@@ -126,7 +126,8 @@ def main(argv: list[str] | None = None) -> int:
                 figures = [
                     ("an assignment's board as grades (board.csv, before)",
                      median_ms(client, f"/api/assignments/{ids[2]}/board.csv", args.repeat, board="private")),
-                    ("an assignment's grades, JSON", median_ms(client, f"/api/assignments/{ids[2]}/grades", args.repeat)),
+                    ("an assignment's grades, JSON",
+                     median_ms(client, f"/api/assignments/{ids[2]}/grades", args.repeat)),
                     *[(f"an assignment's grades, {fmt} file",
                        median_ms(client, f"/api/assignments/{ids[2]}/grades.csv", args.repeat, format=fmt))
                       for fmt in ("generic", "canvas", "moodle")],

@@ -431,8 +431,8 @@ class GradeRow:
     def as_dict(self) -> dict[str, Any]:
         e = self.entry
         return {"name": e.name, "status": self.status, "role": "baseline" if e.baseline else "student",
-                "email": e.email, "student_id": e.student_id, "submission_id": e.submission_id, "completed": e.completed,
-                "mean_return": e.mean_return, "mean_speed": e.mean_speed, "rank": self.rank,
+                "email": e.email, "student_id": e.student_id, "submission_id": e.submission_id,
+                "completed": e.completed, "mean_return": e.mean_return, "mean_speed": e.mean_speed, "rank": self.rank,
                 "students": self.students, "late": e.late, "penalty": self.penalty, "points": self.points,
                 "revoked": e.revoked}
 
