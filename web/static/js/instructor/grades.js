@@ -15,9 +15,20 @@ const STATUS = { graded: ["graded", "done"], "no final": ["no final (0)", "rejec
 export async function setUpGrades() {
   const assignments = await api("/api/assignments");
   const select = $("grades-assignment");
-  select.replaceChildren(...assignments.map((a) => element("option", { text: a.name, attrs: { value: a.id } })));
+  const listAssignments = () => select.replaceChildren(
+    ...assignments.map((a) => element("option", { text: a.name, attrs: { value: a.id } })));
+  listAssignments();
   const current = () => assignments.find((a) => String(a.id) === select.value);
   select.addEventListener("change", () => show(current()));
+  // an assignment created in the Assignments section meanwhile joins the list when the list is reached
+  select.addEventListener("focus", async () => {
+    const fresh = await api("/api/assignments");
+    if (fresh.length === assignments.length) return;
+    const chosen = select.value;
+    assignments.splice(0, assignments.length, ...fresh);
+    listAssignments();
+    select.value = chosen;
+  });
 
   onSubmit($("rubric-form"), async () => {
     const assignment = current();
