@@ -3,9 +3,9 @@ the database and graded by league.server.grades (which holds every rule).
 
 Only private results of the assignment's **current** private settings count (league.server.results'
 key): after a change of its settings a final evaluated with the old ones is `stale`, with an empty
-grade, until it is evaluated again; grades never mix results of two settings. The baselines'
-reference lines come from their own private evaluations, queued (LOW priority) when the instructor
-sets the rubric (`queue_reference_evaluations`).
+grade, until it is evaluated again; grades never mix results of two settings. Setting the rubric
+queues, at LOW priority, the private evaluations the grades lack (`queue_missing_evaluations`): the
+baselines' (their reference lines) and, after a change of the settings, the stale finals'.
 """
 from __future__ import annotations
 
@@ -91,17 +91,20 @@ def assignment_grades(session: Session, assignment: Assignment) -> list[grades.G
                         late_penalty=assignment.late_penalty)
 
 
-def queue_reference_evaluations(session: Session, *, assignment: Assignment, max_attempts: int) -> list[Job]:
-    """A private evaluation of each ready baseline without one of the current private settings (done,
-    running or queued), at LOW priority: the grades' reference lines. In the caller's transaction."""
+def queue_missing_evaluations(session: Session, *, assignment: Assignment, max_attempts: int) -> list[Job]:
+    """A private evaluation, at LOW priority, of each ready baseline and each frozen final without one
+    of the current private settings (done, running or queued). In the caller's transaction."""
     key = private_key(assignment)
     covered = set(session.scalars(select(Evaluation.submission_id).where(
         Evaluation.assignment_id == assignment.id, Evaluation.track == PRIVATE, Evaluation.result_key == key,
         Evaluation.status.in_((DONE, RUNNING, QUEUED)))))
+    rows = crud.student_assignments(session, assignment_id=assignment.id).values()
+    finals = [row.final_submission_id for row in rows if row.final_at is not None and row.final_submission_id]
+    wanted = [*crud.ready_baseline_submissions(session), *crud.submissions_by_id(session, ids=finals).values()]
     jobs = []
-    for baseline in crud.ready_baseline_submissions(session):
-        if baseline.id not in covered:
-            _, job = crud.create_evaluation(session, submission=baseline, assignment=assignment,
+    for submission in wanted:
+        if submission.id not in covered:
+            _, job = crud.create_evaluation(session, submission=submission, assignment=assignment,
                                             settings=assignment.private_settings(), result_key=key,
                                             max_attempts=max_attempts, priority=LOW, track=PRIVATE)
             jobs.append(job)

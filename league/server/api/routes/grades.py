@@ -13,7 +13,7 @@ from league.server.api.deps import (
 from league.server.api.routes.assignments import assignment_out, course_assignment
 from league.server.db import crud
 from league.server.db.models import STUDENT, Assignment
-from league.server.gradebook import NoRubric, assignment_grades, queue_reference_evaluations, rubric_of
+from league.server.gradebook import NoRubric, assignment_grades, queue_missing_evaluations, rubric_of
 from league.server.schemas import AssignmentOut, GradesOut, MyGradeOut
 
 router = APIRouter(tags=["grades"])
@@ -52,11 +52,12 @@ def csv_file(graded: list[grades.Graded], fmt: str, identifier: str, stem: str, 
 @router.put("/assignments/{assignment_id}/rubric", response_model=AssignmentOut)
 def set_rubric(assignment_id: Id, body: RubricBody, clock: ClockDep, instructor: InstructorUser, session: SessionDep,
                queue: QueueDep, settings: SettingsDep) -> AssignmentOut:
-    """Set how the assignment is graded (checked: a 422 says what to change). The baselines are
-    evaluated on its private tracks, at low priority, for the grades' reference lines."""
+    """Set how the assignment is graded (checked: a 422 says what to change). The private evaluations
+    the grades lack are queued at low priority: the baselines' (reference lines), and after a change
+    of the assignment's settings, the finals evaluated with the old ones."""
     assignment = course_assignment(session, instructor, assignment_id)
     assignment.rubric = body.model_dump(mode="json")
-    jobs = queue_reference_evaluations(session, assignment=assignment, max_attempts=settings.max_job_attempts)
+    jobs = queue_missing_evaluations(session, assignment=assignment, max_attempts=settings.max_job_attempts)
     session.commit()
     for job in jobs:
         queue.enqueue(job.id)

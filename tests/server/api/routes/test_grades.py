@@ -278,15 +278,16 @@ def test_grades_never_mix_results_of_two_settings(app_league):
     assert [(r["status"], r["rank"], r["points"]) for r in grades(course)["rows"]] == [
         ("stale", None, None), ("stale", None, None)]
 
+    # saving the rubric again queues the stale finals' private evaluations with the new settings
     settings = private_settings(course)
-    with app_league.sessions.begin() as session:  # ann's final, evaluated again with the new settings
-        row = crud.student_assignment(session, assignment_id=course.assignment["id"], user_id=course.user("ann").id)
-        _, job = crud.create_evaluation(session, submission=session.get(Submission, row.final_submission_id),
-                                        assignment=session.get(Assignment, course.assignment["id"]),
-                                        settings=settings, result_key=settings_key(settings), max_attempts=1,
-                                        track=PRIVATE)
-        job_id = job.id
-    app_league.finish_job(job_id, evaluation_outcome(6, 8, settings))
+    assert course.instructor.put(f"/api/assignments/{course.assignment['id']}/rubric", json=RUBRIC).status_code == 200
+    with app_league.sessions() as session:
+        queued = dict(session.query(Submission.owner_id, Job.id).join(Job, Job.submission_id == Submission.id)
+                      .join(Evaluation, Evaluation.id == Job.evaluation_id)
+                      .filter(Evaluation.assignment_id == course.assignment["id"], Evaluation.track == PRIVATE,
+                              Evaluation.result_key == settings_key(settings), Job.status == "queued").all())
+    assert {course.user("ann").id, course.user("bob").id} <= set(queued)
+    app_league.finish_job(queued[course.user("ann").id], evaluation_outcome(6, 8, settings))  # ann's runs first
     rows = grades(course)["rows"]
     assert [(r["name"], r["status"], r["rank"], r["students"], r["completed"]) for r in rows] == [
         (course.user("ann").name, "graded", 1, 1, 0.75), (course.user("bob").name, "stale", None, None, None)]
