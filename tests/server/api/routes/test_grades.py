@@ -159,7 +159,8 @@ def test_the_baselines_are_reference_lines_once_evaluated_on_the_private_tracks(
         job_ids = [job_id for (job_id,) in session.query(Job.id)
                    .join(Evaluation, Evaluation.id == Job.evaluation_id)
                    .join(Submission, Submission.id == Evaluation.submission_id)
-                   .join(User, User.id == Submission.owner_id).filter(User.role == BASELINE, Evaluation.track == PRIVATE,
+                   .join(User, User.id == Submission.owner_id)
+                   .filter(User.role == BASELINE, Evaluation.track == PRIVATE,
                            Evaluation.assignment_id == course.assignment["id"], Job.status == "queued")]
     assert job_ids, "setting the rubric queues the baselines' private evaluations"
     for job_id in job_ids:
