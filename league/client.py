@@ -572,6 +572,57 @@ def run_integrity(args: argparse.Namespace) -> int:
     return EXIT_OK
 
 
+def run_grades(args: argparse.Namespace) -> int:
+    """Instructors: the grades as CSV on standard output (an assignment's, or the course's); with
+    --set-rubric, set the assignment's rubric first. Students: their own grade, once published."""
+    with Api(connection(args)) as api:
+        me = api.get("/api/users/me")
+        assignment = find_assignment(api, args.assignment) if args.assignment else None
+        if me["role"] != "instructor":
+            if assignment is None:
+                raise ClientError("league grades ASSIGNMENT: which assignment?", EXIT_USAGE)
+            return print_my_grade(api.get(f"/api/assignments/{assignment['id']}/grades/me"))
+        if args.set_rubric:
+            if assignment is None:
+                raise ClientError("league grades ASSIGNMENT --set-rubric FILE: which assignment?", EXIT_USAGE)
+            api.call("PUT", f"/api/assignments/{assignment['id']}/rubric", json=read_rubric_file(args.set_rubric))
+            print(f"{assignment['name']}: rubric set", file=sys.stderr)
+        path = f"/api/assignments/{assignment['id']}/grades.csv" if assignment else "/api/grades.csv"
+        sys.stdout.write(api.get(path, format=args.format, identifier=args.identifier))
+        if args.format == "moodle":
+            warn_unidentified(api.get("/api/users"), args.identifier)
+    return EXIT_OK
+
+
+def read_rubric_file(name: str) -> dict:
+    text = sys.stdin.read() if name == "-" else Path(name).read_text(encoding="utf-8")
+    try:
+        return json.loads(text)
+    except ValueError as error:
+        raise ClientError(f"{name}: not JSON ({error}); see the server README, Grades, for examples",
+                          EXIT_USAGE) from None
+
+
+def warn_unidentified(users: list[dict], identifier: str) -> None:
+    """Name the students the Moodle file leaves out: those without the identifier it matches by."""
+    key = "email" if identifier == "email" else "student_id"
+    missing = [u["name"] for u in users if u["role"] == "student" and not u.get(key)]
+    if missing:
+        print(f"left out of the Moodle file, without {'an email' if key == 'email' else 'a student id'}: "
+              f"{', '.join(missing)} (upload the roster with that column, or use the other --identifier)",
+              file=sys.stderr)
+
+
+def print_my_grade(grade: dict) -> int:
+    if grade["points"] is None:
+        print(f"{grade['assignment']}: no grade yet ({grade['status']})")
+        return EXIT_OK
+    rank = f", rank {grade['rank']} of {grade['students']}" if grade["rank"] else ""
+    late = f", late: x{grade['penalty']:g}" if grade["late"] else ""
+    print(f"{grade['assignment']}: {grade['points']:g} / {grade['max_points']:g} points{rank}{late}")
+    return EXIT_OK
+
+
 def run_race_server(args: argparse.Namespace) -> int:
     body = {"submission_ids": args.ids, **({"seed": args.seed} if args.seed is not None else {})}
     with Api(connection(args)) as api:
@@ -691,6 +742,23 @@ def add_commands(subparsers) -> None:
                      "without a selection it is your best on the public board.")
     select.add_argument("submission", type=int, metavar="SUBMISSION", help="the submission's id")
     select.add_argument("--assignment", metavar="NAME", help="default: the submission's assignment")
+
+    grades = command(
+        "grades", "instructors: the grades as CSV (an assignment's or the course's); students: your grade",
+        run_grades,
+        "Instructors: an assignment's grades on its private tracks, as CSV on standard output: generic\n"
+        "(every column), or the file Canvas's or Moodle's gradebook imports (see the server README,\n"
+        "Grades); without ASSIGNMENT, the course's: a column for each assignment with a rubric.\n"
+        "  league grades \"Time trial\" --set-rubric rubric.json     (set how it is graded first)\n"
+        "  league grades \"Time trial\" --format canvas > canvas.csv\n"
+        "  league grades --format moodle --identifier idnumber > moodle.csv\n"
+        "Students: league grades ASSIGNMENT prints your grade once the assignment is published.")
+    grades.add_argument("assignment", nargs="?", metavar="ASSIGNMENT", help="its name or id (default: the course)")
+    grades.add_argument("--format", choices=["generic", "canvas", "moodle"], default="generic",
+                        help="the CSV's layout (default generic)")
+    grades.add_argument("--identifier", choices=["email", "idnumber"], default="email",
+                        help="moodle: the column Moodle matches students by (default email)")
+    grades.add_argument("--set-rubric", metavar="FILE", help="a JSON rubric to set first ('-': standard input)")
 
     standings = command("standings", "print a championship's standings", run_standings)
     standings.add_argument("championship", metavar="CHAMPIONSHIP",

@@ -466,6 +466,7 @@ class AssignmentOut(BaseModel):
     state: str = Field("open", description="for you now: upcoming, open, late or closed")
     now: UtcTime = Field(description="the server's clock when answered (time left: my_due_at - now)")
     final: FinalOut | None = Field(None, description="yours (students)")
+    rubric: dict[str, Any] | None = Field(None, description="how it is graded (league.server.grades); null: not set")
 
 
 class SelectionIn(BaseModel):
@@ -484,6 +485,8 @@ class ExtensionOut(BaseModel):
 
 class AssignmentBoard(LeaderboardPage):
     board: Literal["public", "private"]
+
+
 class AuditEventOut(BaseModel):
     model_config = ConfigDict(from_attributes=True)
 
@@ -542,3 +545,40 @@ class IntegrityReport(BaseModel):
 
 class ProbesQueued(BaseModel):
     queued: list[int] = Field(description="ids of the submissions queued to be probed (low priority)")
+
+
+class GradeRowOut(BaseModel):
+    name: str = Field(description="the student's name, or the baseline agent's")
+    status: Literal["graded", "no final", "open", "pending", "stale", "reference"] = Field(
+        description="graded; no final (0 points); open (final not frozen yet), pending (its private evaluation "
+                    "not done, or failed), stale (its private result is of other settings): empty points; "
+                    "reference: a baseline (no rank, no grade)")
+    role: Literal["student", "baseline"]
+    email: str | None
+    student_id: str | None
+    submission_id: int | None = Field(description="the final submission")
+    completed: float | None = Field(description="the fraction of the private episodes completed (0-1)")
+    mean_return: float | None
+    mean_speed: float | None
+    rank: int | None = Field(description="among students only (equal figures share a rank)")
+    students: int | None = Field(description="how many students were ranked with this one")
+    late: bool
+    penalty: float | None = Field(description="the factor the points were multiplied by (the late penalty, else 1)")
+    points: float | None
+    revoked: bool
+
+
+class GradesOut(BaseModel):
+    assignment_id: int
+    assignment: str
+    published: bool
+    max_points: float
+    late_penalty: float | None
+    rubric: dict[str, Any]
+    rows: list[GradeRowOut] = Field(description="graded best first, baselines among them, then the rest by name")
+
+
+class MyGradeOut(GradeRowOut):
+    assignment_id: int
+    assignment: str
+    max_points: float

@@ -61,14 +61,21 @@ def standings_rows(session: Session, championship: Championship) -> list[dict]:
     return rows
 
 
-def course_ratings(session: Session, *, course_id: int | None) -> dict[int, rules.Rating]:
-    """Ratings from every finished round of the course's championships, oldest first."""
+def course_heats(session: Session, *, course_id: int | None) -> list[list[dict]]:
+    """The heats of every finished round of the course's championships, oldest first."""
     rounds = sorted((r for c in crud.course_championships(session, course_id=course_id) for r in c.rounds),
                     key=lambda r: r.id)
     heats = []
     for championship_round in rounds:
         heats += finished_heats([championship_round])
-    return ratings_after(heats)
+    return heats
+
+
+def raced_last(session: Session, heats: list[list[dict]]) -> dict[int, int]:
+    """Each owner's submission that raced last (owner id -> submission id)."""
+    entrants = [row["entrant"] for heat in heats for row in heat]
+    owners = {s.id: s.owner_id for s in crud.submissions_by_id(session, ids=sorted(set(entrants))).values()}
+    return {owners[entrant]: entrant for entrant in entrants if entrant in owners}
 
 
 # --------------------------------------------------------------------------- the course leaderboard
@@ -82,7 +89,8 @@ def leaderboard_rows(session: Session, *, course_id: int | None) -> list[dict]:
 
 def assignment_board(session: Session, assignment: Assignment, track: str = PUBLIC) -> list[dict]:
     """Each student's best evaluated submission of the assignment (completion rate, then mean return),
-    and every bundled baseline as a reference row; best first, with the course-wide rating. Only
+    and every bundled baseline as a reference row; best first, with the course-wide rating (a
+    student's best agent that never raced shows the rating of their agent that raced last). Only
     results of the assignment's current settings rank (league.server.results); a student or baseline
     whose results are all of other settings follows the ranked rows, stale and unranked, by name.
     The private board (`track` PRIVATE; show it only once published) ranks the students' finals on
@@ -96,12 +104,18 @@ def assignment_board(session: Session, assignment: Assignment, track: str = PUBL
         best, key = stale if entry.stale else ranked, leaderboard_key(entry)
         if key not in best or _score(entry) > _score(best[key]):
             best[key] = entry
-    ratings = course_ratings(session, course_id=assignment.course_id)
+    heats = course_heats(session, course_id=assignment.course_id)
+    ratings, raced = ratings_after(heats), raced_last(session, heats)
+
+    def rating(entry) -> rules.Rating | None:
+        """The agent's; for a student whose best agent has not raced, that of their agent that raced last."""
+        return ratings.get(entry.id) or ratings.get(raced.get(entry.owner_id))
+
     ordered = sorted(ranked.values(), key=lambda entry: (_score(entry), -entry.id), reverse=True)
     unranked = sorted((entry for key, entry in stale.items() if key not in ranked),
                       key=lambda entry: (entry.owner, entry.name, entry.id))
-    return ([_leaderboard_row(rank, entry, ratings.get(entry.id)) for rank, entry in enumerate(ordered, start=1)]
-            + [_leaderboard_row(None, entry, ratings.get(entry.id)) for entry in unranked])
+    return ([_leaderboard_row(rank, entry, rating(entry)) for rank, entry in enumerate(ordered, start=1)]
+            + [_leaderboard_row(None, entry, rating(entry)) for entry in unranked])
 
 
 def leaderboard_key(entry) -> tuple[str, int]:
@@ -130,22 +144,26 @@ def _leaderboard_row(rank: int | None, entry, rating: rules.Rating | None) -> di
 
 
 LEADERBOARD_GRADES = ["rank", "student", "agent", "submission_id", "completed", "episodes", "mean_return",
-                      "mean_steps", "mean_speed", "rating", "stale"]
-STANDINGS_GRADES = ["rank", "student", "agent", "submission_id", "points", "wins", "heats", "rating", "mu", "sigma"]
+                      "mean_steps", "mean_speed", "rating", "stale", "revoked"]
+STANDINGS_GRADES = ["rank", "student", "agent", "submission_id", "points", "wins", "heats", "rating", "mu", "sigma",
+                    "revoked"]
 STALE_FIGURES = ("rank", "completed", "episodes", "mean_return", "mean_steps", "mean_speed")  # empty when stale
 
 
 def grade_rows(session: Session, rows: list[dict], *, course_id: int | None, columns: list[str]) -> list[list]:
-    """The board's rows of the course's students (rank as the board shows it), then every other
-    student of the course with empty figures: one line per student to grade (or more, for
-    standings, when their active submission changed between rounds). Baselines are left out. A
-    stale row (its figures are of other settings) keeps its agent, is marked `stale` = yes and
-    has its rank and figures empty, so that a gradebook never reads them as this course's."""
-    students = [u.name for u in crud.course_users(session, course_id=course_id) if u.role == STUDENT]
-    enrolled = set(students)
+    """The board's rows of the course's students, ranked among students only in the board's order
+    (the baselines, left out, take no rank: the first student is 1), then every other student of
+    the course with empty figures, revoked ones marked `revoked` = yes: one line per student to
+    grade (or more, for standings, when their active submission changed between rounds). A stale
+    row (its figures are of other settings) keeps its agent, is marked `stale` = yes and has its
+    rank and figures empty, so that a gradebook never reads them as this course's."""
+    students = [u for u in crud.course_users(session, course_id=course_id) if u.role == STUDENT]
+    enrolled = {u.name for u in students}
     mine = [{**row, "student": row["owner"], "agent": row["name"], "heats": len(row.get("finishes", ())),
              **(dict.fromkeys(STALE_FIGURES) if row.get("stale") else {}), "stale": "yes" if row.get("stale") else None}
             for row in rows if row["owner"] in enrolled and row["submission_id"] > 0]  # < 0: a deleted student's
-    ranked = {row["student"] for row in mine}
-    mine += [{"student": name} for name in students if name not in ranked]
+    for rank, row in enumerate((row for row in mine if row["rank"] is not None), start=1):
+        row["rank"] = rank
+    listed = {row["student"] for row in mine}
+    mine += [{"student": u.name, "revoked": "yes" if u.revoked_at else None} for u in students if u.name not in listed]
     return [[row.get(column) for column in columns] for row in mine]

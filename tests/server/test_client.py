@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import csv
 import io
+import json
 import os
 import re
 import stat
@@ -22,7 +23,7 @@ from league.evaluation import metrics_run
 
 from .conftest import (
     REPO, TEST_SETTINGS, baseline_submission, create_student, free_port, fresh_backend, make_server, upload,
-    wait_settled,
+    wait_for, wait_settled,
 )
 
 EPISODES, SEED = int(TEST_SETTINGS["LEAGUE_EVAL_EPISODES"]), int(TEST_SETTINGS["LEAGUE_EVAL_SEED"])
@@ -174,6 +175,76 @@ def test_instructors_get_the_grades_from_the_terminal(server, tmp_path):
                      LEAGUE_TOKEN=student_token(server, unique("nosy")))
     assert refused.returncode == EXIT_AUTH
     assert refused.stderr == "league: error: the server refused: only instructors may do this\n"
+
+
+@pytest.mark.long
+def test_an_assignment_is_graded_on_its_private_tracks_and_exported_from_the_terminal(server, models, tmp_path):
+    """End to end on a running server: two students upload, the due time is moved into the past, the
+    server freezes their finals and its worker evaluates them on the private tracks; the instructor
+    sets a rubric and exports the grades (generic, Canvas, Moodle); a student reads their own grade
+    once the assignment is published."""
+    from datetime import datetime, timedelta, timezone
+
+    title, now = unique("Graded"), datetime.now(timezone.utc)
+    with server.client(server.instructor_token) as instructor:
+        created = instructor.post("/api/assignments", json={"name": title, "episodes": EPISODES,
+                                                            "due_at": (now + timedelta(hours=1)).isoformat()})
+        assert created.status_code == 201, created.text
+        assignment = created.json()
+        students = {}
+        for who, email in (("fast", "fast@uni.example"), ("slow", None)):
+            answer = instructor.post("/api/users", json={"name": unique(who), "email": email})
+            students[who] = answer.json()
+    for who, model in (("fast", models["onnx"]), ("slow", models["heuristic_onnx"])):
+        with server.client(students[who]["token"]) as client, open(model, "rb") as handle:
+            sent = client.post("/api/submissions", files={"file": (model.name, handle)},
+                               data={"name": who, "assignment": title})
+            assert sent.status_code == 201, sent.text
+            assert wait_settled(client, sent.json()["id"], timeout=180)["status"] == "ready"
+    with server.client(server.instructor_token) as instructor:  # the due time passes: the reaper closes it
+        moved = instructor.patch(f"/api/assignments/{assignment['id']}",
+                                 json={"due_at": (now - timedelta(minutes=1)).isoformat()})
+        assert moved.status_code == 200, moved.text
+    (tmp_path / "rubric.json").write_text(json.dumps({"kind": "formula", "max_points": 10,
+                                                       "formula": "10 * completed"}))
+    env = {"LEAGUE_SERVER": server.url, "LEAGUE_TOKEN": server.instructor_token}
+    set_rubric = league("grades", title, "--set-rubric", str(tmp_path / "rubric.json"), config=tmp_path, **env)
+    assert set_rubric.returncode == EXIT_OK and f"{title}: rubric set" in set_rubric.stderr, set_rubric.stderr
+
+    with server.client(server.instructor_token) as instructor:
+        wait_for(lambda: instructor.get(f"/api/assignments/{assignment['id']}/grades").json()["rows"],
+                 lambda rows: sum(row["status"] == "graded" for row in rows) == 2, timeout=180, interval=0.2)
+    table = league("grades", title, config=tmp_path, **env)
+    assert table.returncode == EXIT_OK, table.stderr
+    rows = {row["name"]: row for row in csv.DictReader(io.StringIO(table.stdout)) if row["role"] == "student"}
+    fast, slow = rows[students["fast"]["name"]], rows[students["slow"]["name"]]
+    private_run = metrics_run(load_agent(models["onnx"]), episodes=EPISODES, seed=_private_seed(server, assignment))
+    assert float(fast["completed"]) == pytest.approx(private_run.completed / EPISODES, abs=1e-4)
+    assert float(fast["points"]) == pytest.approx(round(10 * private_run.completed / EPISODES, 2))
+    assert {fast["rank"], slow["rank"]} <= {"1", "2"} and fast["late"] == slow["late"] == ""
+
+    canvas = league("grades", title, "--format", "canvas", config=tmp_path, **env)
+    lines = list(csv.reader(io.StringIO(canvas.stdout)))
+    assert lines[0] == ["Student", "ID", "SIS User ID", "SIS Login ID", "Section", title]
+    assert lines[1][0] == "Points Possible" and {line[0] for line in lines[2:]} >= set(rows)
+    moodle = league("grades", title, "--format", "moodle", config=tmp_path, **env)
+    assert list(csv.reader(io.StringIO(moodle.stdout)))[:2] == [["Email address", title],
+                                                                ["fast@uni.example", fast["points"]]]
+    assert students["slow"]["name"] in moodle.stderr  # left out: no email
+
+    student = {"LEAGUE_SERVER": server.url, "LEAGUE_TOKEN": students["fast"]["token"]}
+    early = league("grades", title, config=tmp_path, **student)
+    assert early.returncode == EXIT_REFUSED and f"the grades of {title} are not published" in early.stderr
+    with server.client(server.instructor_token) as instructor:
+        assert instructor.post(f"/api/assignments/{assignment['id']}/publish").status_code == 200
+    mine = league("grades", title, config=tmp_path, **student)
+    assert mine.returncode == EXIT_OK, mine.stderr
+    assert mine.stdout.startswith(f"{title}: {float(fast['points']):g} / 10 points, rank {fast['rank']} of ")
+
+
+def _private_seed(server, assignment: dict) -> int:
+    with server.client(server.instructor_token) as instructor:
+        return instructor.get(f"/api/assignments/{assignment['id']}").json()["private_seed"]
 
 
 def test_standings_by_name_for_anyone_and_names_that_name_none_or_several(server, tmp_path):

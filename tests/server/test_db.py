@@ -1,6 +1,7 @@
 """The schema: the Alembic migrations build exactly what the models describe, on both backends."""
 from __future__ import annotations
 
+import json
 from datetime import datetime
 
 import pytest
@@ -290,3 +291,41 @@ def test_existing_courses_stay_public_and_get_pseudonym_keys_users_no_display_na
     assert all(row[3] is not None for row in courses) and courses[0][3] != courses[1][3]
     assert [tuple(row) for row in users] == [(1, "prof", 1, None, None), (2, "Ada", 1, "a@u.edu", None),
                                              (3, "Bea", 2, None, None)]
+
+
+# --------------------------------------------------------------------------- 0016: assignments gain a rubric
+
+
+def test_assignments_gain_a_rubric_with_their_rows_kept_and_lose_it_on_downgrade(backend):
+    """0016 on a 0010 database that holds an assignment: the row kept, no rubric; a rubric (JSON)
+    reads back; the downgrade drops the column and keeps the row."""
+    _, (database_url, _, _) = backend
+    engine = make_engine(database_url)
+    config = alembic_config(database_url)
+    with engine.connect() as connection:
+        config.attributes["connection"] = connection
+        command.upgrade(config, "0010")
+        connection.commit()
+    now = datetime(2026, 11, 1)
+    with engine.begin() as connection:
+        connection.execute(text("INSERT INTO courses (id, name, created_at, updated_at) VALUES (1, 'c', :now, :now)"),
+                           {"now": now})
+        connection.execute(text(
+            "INSERT INTO assignments (id, course_id, name, description, seed, episodes, env_options, private_seed, "
+            "auto_publish, created_at, updated_at) VALUES (1, 1, 'hw1', '', 3, 5, '{}', 77, false, :now, :now)"),
+            {"now": now})
+    migrate(engine)
+    rubric = '{"kind": "formula", "max_points": 10, "formula": "10 * completed"}'
+    with engine.begin() as connection:
+        assert connection.execute(text("SELECT name, private_seed, rubric FROM assignments")).one() == ("hw1", 77, None)
+        connection.execute(text("UPDATE assignments SET rubric = :rubric"), {"rubric": rubric})
+    with engine.connect() as connection:
+        stored = connection.execute(text("SELECT rubric FROM assignments")).scalar_one()
+        assert (json.loads(stored) if isinstance(stored, str) else stored)["formula"] == "10 * completed"
+        config.attributes["connection"] = connection
+        command.downgrade(config, "0010")
+        connection.commit()
+        assert "rubric" not in {c["name"] for c in inspect(connection).get_columns("assignments")}
+        assert connection.execute(text("SELECT name, private_seed FROM assignments")).one() == ("hw1", 77)
+    migrate(engine)
+    engine.dispose()

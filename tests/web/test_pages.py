@@ -429,6 +429,39 @@ def test_instructor_creates_students_changes_settings_and_reruns(web, web_server
     web.screenshot("instructor-console")
 
 
+def test_instructor_sets_a_rubric_and_sees_the_grades(web, web_server):
+    """The console's Grades: an assignment's rubric (refused with the server's reason, then saved),
+    its students' grades (none before the due time), the files to download."""
+    token = instructor_of_a_new_course(web_server)
+    with web_server.client(token) as instructor:
+        student = instructor.post("/api/users", json={"name": unique("dora")}).json()
+        assignment = instructor.post("/api/assignments", json={
+            "name": "Time trial", "episodes": 3, "due_at": "2099-01-01T00:00:00+00:00"}).json()
+    web.login(token)
+    web.page.wait_for_selector("#grades-message.info")
+    assert web.page.inner_text("#grades-message") == "Time trial has no rubric yet: edit the example above and save it."
+    assert '"kind": "points"' in web.page.input_value("#rubric-text")  # an example to edit
+
+    web.page.fill("#rubric-text", '{"kind": "formula", "max_points": 10, "formula": "10 * completed / mean_speed"}')
+    web.page.click("#rubric-form button[type=submit]")
+    web.page.wait_for_selector("#grades-message.error")
+    assert web.page.inner_text("#grades-message") == ("Not saved: formula.formula: the formula divides by zero when "
+                                                      "completed=0, mean_speed=0, rank=1, students=1")
+    web.page.fill("#rubric-text", '{"kind": "formula", "max_points": 10, "formula": "10 * completed"}')
+    web.page.click("#rubric-form button[type=submit]")
+    web.page.wait_for_selector("#grades-message.success")
+    web.page.wait_for_selector("#grades tbody tr")
+    cells = web.page.locator("#grades tbody tr td").all_inner_texts()
+    assert cells[:3] == ["–", student["name"], "not closed yet"] and cells[6] == "–"
+    with web_server.client(token) as instructor:
+        assert instructor.get(f"/api/assignments/{assignment['id']}").json()["rubric"]["formula"] == "10 * completed"
+    with web.page.expect_download() as canvas:
+        web.page.click("#grades-canvas")
+    assert canvas.value.suggested_filename == "Time trial (Canvas).csv"
+    assert Path(canvas.value.path()).read_text().startswith('Student,ID,SIS User ID,SIS Login ID,Section,Time trial\n')
+    web.screenshot("instructor-grades")
+
+
 def test_a_student_cannot_use_the_instructor_console(web, web_server):
     web.login(student_token(web_server, unique("frank")))
     web.goto("/instructor")

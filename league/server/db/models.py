@@ -106,6 +106,8 @@ class Assignment(Base):
     daily_quota: Mapped[int | None] = mapped_column(Integer, default=None)  # uploads per student per UTC day
     auto_publish: Mapped[bool] = mapped_column(default=False)
     published_at: Mapped[datetime | None] = mapped_column(default=None)
+    # the grading rubric (league.server.grades.read_rubric reads it); None until the instructor sets one
+    rubric: Mapped[dict[str, Any] | None] = mapped_column(JSON, default=None)
     created_at: Mapped[datetime] = mapped_column(default=utcnow)
     updated_at: Mapped[datetime] = mapped_column(default=utcnow, onupdate=utcnow)
 

@@ -56,7 +56,7 @@ def assignment_out(session: SessionDep, assignment: Assignment, user: User, cloc
                          evaluation=EvaluationOut.model_validate(evaluation) if evaluation else None)
     return AssignmentOut(
         **{name: getattr(assignment, name) for name in ("id", "name", "description", *SETTINGS, *TIMES,
-                                                        "published_at")},
+                                                        "published_at", "rubric")},
         private_seed=assignment.private_seed if visible else None, my_due_at=times.due_at,
         my_closes_at=times.closes_at, extended=times.extended, state=times.state(now), now=now, final=final)
 

@@ -90,19 +90,22 @@ def test_instructors_export_the_leaderboard_of_their_course_as_csv(app_league):
     agent last; an agent name a spreadsheet would run is defused."""
     course = unique("graded course")
     _, token = app_league.user("prof", role=INSTRUCTOR, course_name=course)
-    (ann, _), (bob, _), (cy, _) = (app_league.user(name, course_name=course) for name in ("ann", "bob", "cy"))
+    (ann, _), (bob, _), (cy, _), (dan, _) = (app_league.user(name, course_name=course)
+                                             for name in ("ann", "bob", "cy", "dan"))
     app_league.submission(ann, completed=1)
     best = app_league.submission(ann, completed=3)
     bob_agent = app_league.submission(bob, completed=2)
+    app_league.submission(dan, completed=3)
     with app_league.sessions.begin() as session:
         session.get(Submission, bob_agent.id).name = "=HYPERLINK(\"http://evil.example\")"
     with app_league.client(token) as instructor:
+        assert instructor.post(f"/api/users/{dan.id}/revoke").status_code == 200
         rows = parse_csv(instructor.get("/api/leaderboard.csv"))
     with app_league.student("nosy")[1] as student:
         assert student.get("/api/leaderboard.csv").status_code == 403
 
-    assert [(r["student"], r["submission_id"]) for r in rows] == [
-        (ann.name, str(best.id)), (bob.name, str(bob_agent.id)), (cy.name, "")]
+    assert [(r["student"], r["submission_id"], r["revoked"]) for r in rows] == [
+        (ann.name, str(best.id), ""), (bob.name, str(bob_agent.id), ""), (cy.name, "", ""), (dan.name, "", "yes")]
     assert rows[0]["rank"] == "1" and rows[1]["rank"] == "2" and rows[2]["rank"] == ""
     assert rows[1]["agent"] == "'=HYPERLINK(\"http://evil.example\")"
     assert (rows[0]["completed"], rows[0]["episodes"], float(rows[0]["mean_return"])) == ("3", "3", 6.0)
@@ -124,10 +127,9 @@ def test_the_grades_are_data_in_any_spreadsheet(app_league):
     assert formula_cells(text) == set()
     header, line = text.splitlines(keepends=True)
     grades = dict(zip(next(csv.reader([header])), next(csv.reader([line], quoting=csv.QUOTE_NONNUMERIC))))
-    assert isinstance(grades.pop("rank"), float)  # among the baselines other tests evaluated
-    assert grades == {"student": ann.name, "agent": "fast;'=2+5;'=cmd|' /C calc'!A0", "submission_id": agent.id,
-                      "completed": 2, "episodes": 3, "mean_return": 4.0, "mean_steps": 500.0, "mean_speed": 0.3,
-                      "rating": "", "stale": ""}
+    assert grades == {"rank": 1, "student": ann.name, "agent": "fast;'=2+5;'=cmd|' /C calc'!A0",
+                      "submission_id": agent.id, "completed": 2, "episodes": 3, "mean_return": 4.0,
+                      "mean_steps": 500.0, "mean_speed": 0.3, "rating": "", "stale": "", "revoked": ""}
 
 
 @pytest.mark.slow

@@ -1,5 +1,5 @@
-// The instructor console (/instructor): students, evaluation settings, assignments, championships, jobs, the
-// audit log.
+// The instructor console (/instructor): students, evaluation settings, assignments, championships, grades,
+// jobs, the audit log.
 
 import { api } from "../api.js";
 import { $, badge, element, onClick, onSubmit, replaceKeepingFocus, say } from "../dom.js";
@@ -8,6 +8,7 @@ import { setUpAssignments } from "../instructor/assignments.js";
 import { setUpAudit } from "../instructor/audit.js";
 import { setUpChampionships } from "../instructor/championships.js";
 import { setUpEvaluations } from "../instructor/evaluations.js";
+import { setUpGrades } from "../instructor/grades.js";
 import { setUpStudents } from "../instructor/students.js";
 import { Poller } from "../poller.js";
 import { requireUser, showAccount } from "../session.js";
@@ -56,8 +57,8 @@ async function start() {
   showAccount(me);
   const jobs = new Poller(refreshJobs, JOBS_POLL_MS);
   onClick($("refresh-jobs"), () => jobs.poll());
-  const parts = [setUpStudents(me), setUpEvaluations(), setUpAssignments(), setUpPrivacy(), setUpChampionships(), jobs.poll(),
-    setUpAudit()];
+  const parts = [setUpStudents(me), setUpEvaluations(), setUpAssignments(), setUpPrivacy(), setUpChampionships(),
+    setUpGrades(), jobs.poll(), setUpAudit()];
   const results = await Promise.allSettled(parts);
   const failures = results.filter((r) => r.status === "rejected").map((r) => r.reason.message);
   if (failures.length) say($("page-message"), failures.join(" "), "error");

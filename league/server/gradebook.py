@@ -1,0 +1,111 @@
+"""The grades of stored assignments: each student's frozen final and its private result, read from
+the database and graded by league.server.grades (which holds every rule).
+
+Only private results of the assignment's **current** private settings count (league.server.results'
+key): after a change of its settings a final evaluated with the old ones is `stale`, with an empty
+grade, until it is evaluated again; grades never mix results of two settings. Setting the rubric
+queues, at LOW priority, the private evaluations the grades lack (`queue_missing_evaluations`): the
+baselines' (their reference lines) and, after a change of the settings, the stale finals'.
+"""
+from __future__ import annotations
+
+from sqlalchemy import select
+from sqlalchemy.orm import Session
+
+from league.server import grades, results
+from league.server.db import crud
+from league.server.db.models import (
+    DONE, LOW, PRIVATE, QUEUED, RUNNING, STUDENT, Assignment, Evaluation, Job, Submission, User,
+)
+
+
+class NoRubric(LookupError):
+    """The assignment has no rubric yet."""
+
+
+def rubric_of(assignment: Assignment) -> grades.PointsRubric | grades.FormulaRubric:
+    if assignment.rubric is None:
+        raise NoRubric(f"{assignment.name} has no rubric yet: set one (PUT /api/assignments/{assignment.id}/rubric)")
+    return grades.read_rubric(assignment.rubric)
+
+
+def private_key(assignment: Assignment) -> str:
+    return results.settings_key(assignment.private_settings())
+
+
+def private_results(session: Session, assignment: Assignment,
+                    submission_ids: list[int]) -> tuple[dict[int, Evaluation], set[int]]:
+    """Each submission's newest finished private evaluation of the current private settings; and the
+    submissions that have such evaluations of other settings only (stale)."""
+    key, current, other = private_key(assignment), {}, set()
+    if not submission_ids:
+        return current, other
+    for evaluation in session.scalars(select(Evaluation).where(
+            Evaluation.assignment_id == assignment.id, Evaluation.track == PRIVATE, Evaluation.status == DONE,
+            Evaluation.submission_id.in_(submission_ids)).order_by(Evaluation.id)):
+        if evaluation.result_key == key:
+            current[evaluation.submission_id] = evaluation  # ordered by id: the newest wins
+        else:
+            other.add(evaluation.submission_id)
+    return current, other - set(current)
+
+
+def figures(evaluation: Evaluation | None) -> dict:
+    if evaluation is None:
+        return {}
+    return {"completed": evaluation.completed / max(evaluation.episodes_total or 0, 1),
+            "mean_return": evaluation.mean_return, "mean_speed": evaluation.mean_speed}
+
+
+def assignment_entries(session: Session, assignment: Assignment) -> list[grades.Entry]:
+    """Every student of the course (revoked ones flagged) with their final, and the baselines with a
+    private result, as league.server.grades reads them."""
+    students = [u for u in crud.course_users(session, course_id=assignment.course_id) if u.role == STUDENT]
+    rows = crud.student_assignments(session, assignment_id=assignment.id)
+    frozen = {u.id: rows[u.id].final_submission_id for u in students if u.id in rows and rows[u.id].final_at}
+    baselines = crud.ready_baseline_submissions(session)
+    finals = crud.submissions_by_id(session, ids=[i for i in frozen.values() if i is not None])
+    current, stale = private_results(session, assignment, list(finals) + [b.id for b in baselines])
+    entries = [_student_entry(u, frozen, finals, current, stale) for u in students]
+    entries += [grades.Entry(name=b.name, baseline=True, submission_id=b.id, **figures(current[b.id]))
+                for b in baselines if b.id in current]
+    return entries
+
+
+def _student_entry(user: User, frozen: dict[int, int | None], finals: dict[int, Submission],
+                   current: dict[int, Evaluation], stale: set[int]) -> grades.Entry:
+    # a student revoked before their close time is never frozen (close_due takes active students):
+    # they have no final
+    closed = user.id in frozen or user.revoked_at is not None
+    final = finals.get(frozen.get(user.id))
+    return grades.Entry(name=user.name, user_id=user.id, email=user.email, student_id=user.student_id,
+                        revoked=user.revoked_at is not None, closed=closed,
+                        submission_id=final.id if final else None, late=bool(final and final.late),
+                        stale=bool(final and final.id in stale), **figures(current.get(final.id) if final else None))
+
+
+def assignment_grades(session: Session, assignment: Assignment) -> list[grades.GradeRow]:
+    """The assignment's rows (NoRubric without a rubric; grades.FormulaError if its formula has no
+    value for some student's figures)."""
+    return grades.grade(assignment_entries(session, assignment), rubric_of(assignment),
+                        late_penalty=assignment.late_penalty)
+
+
+def queue_missing_evaluations(session: Session, *, assignment: Assignment, max_attempts: int) -> list[Job]:
+    """A private evaluation, at LOW priority, of each ready baseline and each frozen final without one
+    of the current private settings (done, running or queued). In the caller's transaction."""
+    key = private_key(assignment)
+    covered = set(session.scalars(select(Evaluation.submission_id).where(
+        Evaluation.assignment_id == assignment.id, Evaluation.track == PRIVATE, Evaluation.result_key == key,
+        Evaluation.status.in_((DONE, RUNNING, QUEUED)))))
+    rows = crud.student_assignments(session, assignment_id=assignment.id).values()
+    finals = [row.final_submission_id for row in rows if row.final_at is not None and row.final_submission_id]
+    wanted = [*crud.ready_baseline_submissions(session), *crud.submissions_by_id(session, ids=finals).values()]
+    jobs = []
+    for submission in wanted:
+        if submission.id not in covered:
+            _, job = crud.create_evaluation(session, submission=submission, assignment=assignment,
+                                            settings=assignment.private_settings(), result_key=key,
+                                            max_attempts=max_attempts, priority=LOW, track=PRIVATE)
+            jobs.append(job)
+    return jobs
