@@ -109,7 +109,10 @@ class Worker:
         self._stop_listening.set()
         self.reaper.stop()
         self.beat.stop()
-        registry.unregister(self.context.sessions, self.worker_id)
+        try:
+            registry.unregister(self.context.sessions, self.worker_id)
+        except Exception:  # noqa: BLE001 - the database is gone: its row ages out of /api/health
+            log.warning("could not remove this worker from the workers table", exc_info=True)
         self._release_cpus()
 
     def _wait(self) -> None:
