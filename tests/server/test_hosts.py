@@ -280,7 +280,7 @@ def test_workers_on_other_hosts_share_the_league_and_survive_a_cut_link(tmp_path
         fetched = {i for i in files if (data / "blobs" / sha[i][:2] / sha[i]).exists()}
         assert fetched >= {j["submission_id"] for j in entry_jobs if worker_pid(j) == pid}
         assert all((data / "blobs" / sha[i][:2] / sha[i]).read_bytes() == files[i].read_bytes() for i in fetched)
-        assert not (data / "league.db").exists() and not (data / "queue.db").exists()
+        assert not (data / "league.db").exists()
 
     # the round: the cut host's heat raced again, from the start, by the other host; counted once
     by_race = {j["race_id"]: j for j in jobs}
