@@ -16,3 +16,4 @@ a job is queued by its row alone; each job thread claims the fairest queued row 
 UPDATE (one worker wins), results are written in the transaction that ends the lease, and the
 reaper re-queues what a dead worker left behind (as fishtest scavenges dead tasks). Wake-ups only
 shorten the wait: PostgreSQL's LISTEN/NOTIFY, and a short poll (`queue_poll_s`) whatever happens.
+"""
