@@ -98,13 +98,10 @@ class Worker:
                  len(self.threads), self.context.settings.resolved_queue_poll_s,
                  ", woken by NOTIFY" if self.context.queue.notifies else "")
 
-    def stop(self, wait: bool = False) -> None:
-        """Claim no more; hand the running jobs back (unless `wait`: let them finish); unregister."""
+    def stop(self) -> None:
+        """Claim no more, hand the running jobs back, stop the other threads, unregister."""
         self.draining.set()
         self.context.queue.wakeup.wake()
-        if wait:
-            for thread in self.threads:
-                thread.join()
         self._hand_back()
         self._stop_listening.set()
         self.reaper.stop()
