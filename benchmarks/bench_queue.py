@@ -14,6 +14,7 @@ exit status 1 if the maximum is over the target.
 from __future__ import annotations
 
 import argparse
+import os
 import random
 import statistics
 import sys
@@ -107,6 +108,8 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--seed", type=int, default=0)
     args = parser.parse_args(argv)
     rng = random.Random(args.seed)
+    print(f"load average {' '.join(f'{x:.2f}' for x in os.getloadavg())}, {os.cpu_count()} CPUs; "
+          f"{args.jobs} jobs per case", flush=True)
     cases = [("sqlite", 0.5, False), ("postgres", 2.0, False), ("postgres", 2.0, True)]  # the default polls
     worst = 0.0
     for kind, poll_s, wake in cases:
