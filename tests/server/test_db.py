@@ -183,7 +183,7 @@ def test_users_gain_email_and_student_id_with_their_data_kept(backend):
 def test_submissions_gain_probe_actions_with_their_data_kept_and_lose_them_on_downgrade(backend):
     """0013 on a database of 0008 that holds submissions: every row kept, not probed; a downgrade
     back to 0008 keeps the rows too."""
-    _, (database_url, _, _) = backend
+    _, database_url = backend
     engine = make_engine(database_url)
     config = alembic_config(database_url)
     with engine.connect() as connection:
