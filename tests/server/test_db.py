@@ -225,7 +225,7 @@ def test_existing_courses_stay_public_and_get_pseudonym_keys_users_no_display_na
     """0012 on a database of the previous schema (0013) with two courses and their users: the
     courses keep showing their boards to anyone (an upgrade changes nothing silently), each with its
     own pseudonym key; every user row kept, without a display name, which is then unique in a course."""
-    _, (database_url, _, _) = backend
+    _, database_url = backend
     engine = make_engine(database_url)
     config = alembic_config(database_url)
     with engine.connect() as connection:

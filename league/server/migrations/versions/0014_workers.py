@@ -2,7 +2,7 @@
 whether queued jobs have a worker to run them (the database is the job queue from this revision)
 
 Revision ID: 0014
-Revises: 0013
+Revises: 0012
 Create Date: 2026-11-25 19:00:00
 """
 from alembic import op
@@ -10,7 +10,7 @@ import sqlalchemy as sa
 
 
 revision = '0014'
-down_revision = '0013'
+down_revision = '0012'
 branch_labels = None
 depends_on = None
 
