@@ -22,7 +22,6 @@ if str(ROOT) not in sys.path:
     sys.path.insert(0, str(ROOT))
 
 PG_ADMIN_URL = os.environ.get("LEAGUE_BENCH_PG", "postgresql://postgres@127.0.0.1:5432/test")
-REDIS_URL = os.environ.get("LEAGUE_BENCH_REDIS", "redis://127.0.0.1:6379/0")
 
 
 def thesis_actor(folder: Path, name: str = "thesis_actor.onnx", **driver_options) -> Path:
@@ -75,33 +74,31 @@ def free_port() -> int:
 
 @contextlib.contextmanager
 def backend(kind: str, folder: Path) -> Iterator[dict[str, str]]:
-    """LEAGUE_* settings of a new, empty database and queue, removed afterwards.
+    """LEAGUE_* settings of a new, empty database (which is also the job queue), removed afterwards.
 
-    "sqlite": the embedded defaults (SQLite database and SQLite queue in the data directory);
-    "postgres": a database of its own on the local PostgreSQL and a queue on the local Redis.
+    "sqlite": the embedded default (an SQLite database in the data directory);
+    "postgres": a database of its own on the local PostgreSQL.
     """
     if kind == "sqlite":
-        yield {"LEAGUE_DATABASE_URL": f"sqlite:///{folder / 'league.db'}",
-               "LEAGUE_QUEUE_URL": f"sqlite:///{folder / 'queue.db'}"}
+        yield {"LEAGUE_DATABASE_URL": f"sqlite:///{folder / 'league.db'}"}
         return
     if kind != "postgres":
         raise ValueError(f"unknown backend {kind!r}")
     import psycopg
-    import redis
 
     name = f"league_bench_{uuid.uuid4().hex[:10]}"
     with psycopg.connect(PG_ADMIN_URL, autocommit=True, connect_timeout=5) as admin:
         admin.execute(f'CREATE DATABASE "{name}"')
     try:
-        yield {"LEAGUE_DATABASE_URL": f"postgresql+psycopg://postgres@127.0.0.1:5432/{name}",
-               "LEAGUE_QUEUE_URL": REDIS_URL, "LEAGUE_QUEUE_NAME": name}
+        yield {"LEAGUE_DATABASE_URL": f"postgresql+psycopg://postgres@127.0.0.1:5432/{name}"}
     finally:
         with psycopg.connect(PG_ADMIN_URL, autocommit=True, connect_timeout=5) as admin:
             admin.execute(f'DROP DATABASE IF EXISTS "{name}" WITH (FORCE)')
-        client = redis.Redis.from_url(REDIS_URL, socket_connect_timeout=5)
-        keys = list(client.scan_iter(match=f"*{name}*", count=1000))
-        if keys:
-            client.delete(*keys)
+
+
+def started(worker_log: str) -> bool:
+    """A worker's job threads run ("consumer started": a source tree from before the database was the queue)."""
+    return "worker started" in worker_log or "consumer started" in worker_log.lower()
 
 
 class League:
@@ -180,13 +177,13 @@ class League:
     def start_worker(self, wait: bool = False, timeout: float = 60, cpus: str | None = None,
                      settings: dict[str, str] | None = None) -> subprocess.Popen:
         """A `league worker` process (on the given CPUs, else on all; with more LEAGUE_* `settings`);
-        with `wait`, return once its consumer runs."""
-        log = f"worker-{self.workers_started}.log"  # a log of its own: "consumer started" is this one's
+        with `wait`, return once its job threads run."""
+        log = f"worker-{self.workers_started}.log"  # a log of its own: "worker started" is this one's
         self.workers_started += 1
         worker = self._spawn("worker", *(["--cpus", cpus] if cpus else []), log=log, settings=settings)
         self.workers.append(worker)
         deadline = time.monotonic() + timeout
-        while wait and "consumer started" not in self.log(log).lower():
+        while wait and not started(self.log(log)):
             if worker.poll() is not None:
                 raise RuntimeError(f"the worker exited ({worker.returncode}):\n{self.log(log)}")
             if time.monotonic() > deadline:

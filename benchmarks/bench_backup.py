@@ -109,7 +109,7 @@ def measure(league: League, args: argparse.Namespace, folder: Path, database_url
 def parse(argv: list[str] | None) -> argparse.Namespace:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--backend", choices=["sqlite", "postgres"], default="sqlite",
-                        help="the semester's database: SQLite, or the local PostgreSQL (LEAGUE_BENCH_PG) and Redis")
+                        help="the semester's database: SQLite, or the local PostgreSQL (LEAGUE_BENCH_PG)")
     parser.add_argument("--students", type=int, default=200)
     parser.add_argument("--uploads", type=int, default=600)
     parser.add_argument("--rounds", type=int, default=10)

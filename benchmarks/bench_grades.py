@@ -111,8 +111,7 @@ def main(argv: list[str] | None = None) -> int:
     from league.server.db.session import make_engine, migrate
 
     with tempfile.TemporaryDirectory() as folder, backend(args.backend, Path(folder)) as urls:
-        settings = Settings(_env_file=None, data_dir=Path(folder) / "data", database_url=urls["LEAGUE_DATABASE_URL"],
-                            queue_url=urls["LEAGUE_QUEUE_URL"], queue_name=urls.get("LEAGUE_QUEUE_NAME", "league"))
+        settings = Settings(_env_file=None, data_dir=Path(folder) / "data", database_url=urls["LEAGUE_DATABASE_URL"])
         engine = make_engine(settings.resolved_database_url)
         migrate(engine)
         engine.dispose()

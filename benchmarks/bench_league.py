@@ -394,9 +394,8 @@ def main() -> None:
     parser.add_argument("--rate", type=float, default=200.0, help="GET /api/leaderboard per second in (c)")
     parser.add_argument("--seconds", type=float, help="length of the GET load in (c) (default 10, quick 5)")
     parser.add_argument("--backend", choices=["sqlite", "postgres"], default="sqlite",
-                        help="sqlite: SQLite database and queue (default); postgres: the local PostgreSQL "
-                             "(LEAGUE_BENCH_PG, default postgresql://postgres@127.0.0.1:5432/test) and "
-                             "Redis (LEAGUE_BENCH_REDIS, default redis://127.0.0.1:6379/0)")
+                        help="sqlite: an SQLite database (default); postgres: the local PostgreSQL "
+                             "(LEAGUE_BENCH_PG, default postgresql://postgres@127.0.0.1:5432/test)")
     parser.add_argument("--eval-episodes", type=int, default=1, help="episodes of each submission's evaluation")
     parser.add_argument("--seed", type=int, default=7, help="the championships' seed (their tracks and heats)")
     parser.add_argument("--round-repeats", type=int, default=1,

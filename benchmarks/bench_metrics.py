@@ -89,10 +89,9 @@ def main() -> None:
     from league.server.db.session import make_engine, migrate
     from tests.server.conftest import fresh_backend
 
-    with tempfile.TemporaryDirectory() as folder, fresh_backend(args.backend, Path(folder)) as urls:
-        database_url, queue_url, queue_name = urls
+    with tempfile.TemporaryDirectory() as folder, fresh_backend(args.backend, Path(folder)) as database_url:
         settings = Settings(_env_file=None, data_dir=Path(folder) / "data", database_url=database_url,
-                            queue_url=queue_url, queue_name=queue_name, bootstrap=False, metrics_token="bench")
+                            bootstrap=False, metrics_token="bench")
         engine = make_engine(settings.resolved_database_url)
         migrate(engine)
         engine.dispose()

@@ -482,8 +482,7 @@ def parse(argv: list[str] | None) -> argparse.Namespace:
                                      epilog="\n".join(__doc__.splitlines()[4:]),
                                      formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("--backend", choices=["sqlite", "postgres"], default="sqlite",
-                        help="sqlite: SQLite database and queue; postgres: the local PostgreSQL (LEAGUE_BENCH_PG) "
-                             "and Redis (LEAGUE_BENCH_REDIS)")
+                        help="sqlite: an SQLite database; postgres: the local PostgreSQL (LEAGUE_BENCH_PG)")
     parser.add_argument("--students", type=int, default=200)
     parser.add_argument("--uploads", type=int, default=600)
     parser.add_argument("--window-s", type=float, default=300.0, help="the uploads are spread over this time")

@@ -23,7 +23,7 @@ from league.server.bootstrap import bootstrap
 from league.server.clock import Clock
 from league.server.config import Settings, load_settings
 from league.server.db.session import check_schema, make_engine, make_sessionmaker, revision_of
-from league.server.jobs.queue import JobQueue, build_queue
+from league.server.jobs.queue import JobQueue
 from league.server.jobs.runner import close_due_now
 from league.server.jobs.worker import sweep_store
 from league.server.roster import MAX_ROSTER_BYTES
@@ -47,7 +47,7 @@ class League:
 
 def open_league(settings: Settings, engine: Engine | None = None) -> League:
     engine = engine or make_engine(settings.resolved_database_url)
-    return League(settings, engine, make_sessionmaker(engine), build_queue(settings), BlobStore(settings.data_dir))
+    return League(settings, engine, make_sessionmaker(engine), JobQueue(engine), BlobStore(settings.data_dir))
 
 
 def prepare_league(league_: League) -> None:

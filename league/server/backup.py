@@ -2,7 +2,7 @@
 
 The database is the state: users and tokens (hashed), submissions and their model files (`blobs`),
 evaluations, jobs, races and their replays (`race_replays`), championships. The data directory
-holds only copies a worker fetches from the database again (`blobs/`) and the SQLite queue.
+holds only copies a worker fetches from the database again (`blobs/`).
 
 One format for both backends: a backup is an SQLite database with the league's schema at the
 revision of the database it was taken from, readable with `sqlite3 FILE`. It is a consistent
@@ -15,7 +15,8 @@ snapshot taken while the server runs:
 
 A restore goes into a fresh data directory or an empty database (`replace`: over an existing one)
 of either backend, migrated to this installation's schema; jobs that were running at the backup
-go back to the queue (their workers are gone) and run at once, as the queued ones. Every file
+go back to the queue (their workers are gone) and, as the queued ones, run as soon as a worker
+looks (the jobs table is the queue), and the backed-up list of workers is emptied. Every file
 written, temporary or not, is readable by its owner only.
 """
 from __future__ import annotations
@@ -37,6 +38,7 @@ from league.server.db.session import (
     make_engine, migrate, schema_problem, schema_state, shown_url, upgrade,
 )
 from league.server.jobs.leases import release_running
+from league.server.jobs.registry import forget_all
 
 ROWS_PER_BATCH = 1000
 BLOBS_PER_BATCH = 16  # rows holding model files or replays (up to LEAGUE_MAX_UPLOAD_MB each)
@@ -182,6 +184,7 @@ def _restore_sqlite(path: Path, database: Path) -> None:
                 upgrade(connection, "head")
             with Session(engine) as session, session.begin():
                 release_running(session, reason="restored from a backup taken while it ran")
+                forget_all(session)
         finally:
             engine.dispose()
         for stale in (database.with_name(database.name + "-wal"), database.with_name(database.name + "-shm")):
@@ -205,6 +208,7 @@ def _restore_postgres(path: Path, url: str, replace: bool) -> None:
                 copy_tables(rows, session.connection())
                 _restart_sequences(session.connection())
                 release_running(session, reason="restored from a backup taken while it ran")
+                forget_all(session)
         finally:
             source.dispose()
             engine.dispose()

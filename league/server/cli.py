@@ -48,9 +48,10 @@ def add_commands(subparsers) -> None:
 
     worker = subparsers.add_parser("worker", parents=[where],
                                    help="run a worker (more of them: on this or other machines)",
-                                   description="Run jobs from the queue until interrupted. Point "
-                                               "LEAGUE_DATABASE_URL and LEAGUE_QUEUE_URL at the shared "
-                                               "PostgreSQL and Redis to work for a remote server.")
+                                   description="Run queued jobs until interrupted (Ctrl-C: once the running "
+                                               "ones finish; SIGTERM: at once, handing them back). The database "
+                                               "is the queue: point LEAGUE_DATABASE_URL at the league's "
+                                               "PostgreSQL to work for a server on another machine.")
     worker.add_argument("--threads", type=int, help="jobs run at once (default LEAGUE_WORKER_THREADS)")
     worker.add_argument("--cpus", help="run on these CPUs only, e.g. 1 or 0-3,6 (default LEAGUE_WORKER_CPUS: all); "
                                        "the sandboxes it starts inherit them. Not needed to share a machine: "
@@ -271,7 +272,6 @@ def run_worker(args: argparse.Namespace) -> int:
     check_schema(revision)  # workers never migrate: `league serve` or `league migrate` does
     lower_session_priority(settings.job_nice)
     context = worker_context(settings, engine)
-    log.info("worker: queue %s", type(context.queue.huey).__name__)
     Worker(context, threads=args.threads or settings.worker_threads).run_forever()
     return 0
 

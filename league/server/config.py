@@ -1,8 +1,7 @@
 """The league server's settings: one pydantic-settings class, read from LEAGUE_* variables and `.env`.
 
-Every default runs the embedded league (SQLite database and SQLite task queue in the data
-directory); point `database_url` at PostgreSQL and `queue_url` at Redis to run workers on
-several machines. docs/SETTINGS.md is generated from this class (`league config --markdown`).
+Every default runs the embedded league (an SQLite database in the data directory); point
+`database_url` at PostgreSQL to run workers on several machines (the database is the job queue). docs/SETTINGS.md is generated from this class (`league config --markdown`).
 
 A setting cannot be wrong silently: `load_settings` names the variable of a value it cannot
 read, `unknown_variables` the LEAGUE_* names that are no setting (with the closest one), and
@@ -35,6 +34,12 @@ OTHER_VARIABLES = {
     "LEAGUE_DEBUG": "any value: a failing `league` command prints its traceback",
 }
 OWN_PREFIXES = ("LEAGUE_TEST_", "LEAGUE_BENCH_")  # the test suite's and the benchmarks' own variables
+# settings of earlier versions, and why they are gone (warned about when still set)
+REMOVED_VARIABLES = {
+    "LEAGUE_QUEUE_URL": "the database is the job queue now: workers need only LEAGUE_DATABASE_URL (no Redis)",
+    "LEAGUE_QUEUE_NAME": "the database is the job queue now: one queue per database",
+    "LEAGUE_REQUEUE_QUEUED_AFTER_S": "workers claim queued jobs straight from the database: nothing is re-sent",
+}
 
 
 class ConfigError(Exception):
@@ -54,8 +59,6 @@ class Settings(BaseSettings):
     database_url: str | None = Field(None, description="the database, as an SQLAlchemy URL "
                                                        "(postgresql+psycopg://user:password@host/league); "
                                                        "default: sqlite:///DATA_DIR/league.db")
-    queue_url: str | None = Field(None, description="redis://host:port/db, or default SQLite DATA_DIR/queue.db")
-    queue_name: str = Field("league", description="Huey queue name (the Redis key prefix)")
     baselines_dir: Path | None = Field(None, description="agents registered under the `baselines` account on an "
                                                          "empty database; default: the ones bundled with the "
                                                          "package (league/baselines/agents); an empty "
@@ -150,7 +153,15 @@ class Settings(BaseSettings):
     heartbeat_interval_s: float = Field(5.0, description="how often a running job's worker renews its lease")
     lease_timeout_s: float = Field(60.0, description="a running job without heartbeat for this long is re-queued")
     reaper_interval_s: float = Field(10.0, description="how often each worker looks for jobs whose worker stopped")
-    requeue_queued_after_s: float = Field(600.0, description="re-send a job left queued this long (lost message)")
+    queue_poll_s: float | None = Field(None, gt=0, description="how often an idle worker looks for queued jobs in the "
+                                                               "database; default 0.5 on SQLite, 2 on PostgreSQL "
+                                                               "(where an enqueue also wakes workers at once: "
+                                                               "LISTEN/NOTIFY)")
+    worker_heartbeat_s: float = Field(5.0, gt=0, description="how often a worker process says it is alive (the "
+                                                             "workers table; /api/health)")
+    worker_silent_after_s: float = Field(30.0, gt=0, description="a worker not heard from this long is not counted "
+                                                                 "alive: /api/health answers 503 if jobs wait and "
+                                                                 "no worker is")
     max_job_attempts: int = Field(3, description="a job whose worker dies this many times fails for good")
 
     # monitoring (league/server/observability.py)
@@ -181,8 +192,10 @@ class Settings(BaseSettings):
         return self.database_url or f"sqlite:///{self.data_dir.resolve() / 'league.db'}"
 
     @property
-    def resolved_queue_url(self) -> str:
-        return self.queue_url or f"sqlite:///{self.data_dir.resolve() / 'queue.db'}"
+    def resolved_queue_poll_s(self) -> float:
+        if self.queue_poll_s is not None:
+            return self.queue_poll_s
+        return 0.5 if self.resolved_database_url.startswith("sqlite") else 2.0
 
     @property
     def resolved_baselines_dir(self) -> Path:
@@ -225,6 +238,9 @@ def unknown_variables(environ: Mapping[str, str] = os.environ, env_file: Path = 
     warnings = []
     for name, where in sorted(found.items()):
         if name in known or name.startswith(OWN_PREFIXES):
+            continue
+        if name in REMOVED_VARIABLES:
+            warnings.append(f"{name} (in {where}) is no longer a setting and is ignored: {REMOVED_VARIABLES[name]}")
             continue
         closest = difflib.get_close_matches(name.removeprefix(ENV_PREFIX), [k.removeprefix(ENV_PREFIX) for k in known],
                                             n=1, cutoff=0.7)  # the shared prefix would make every name close

@@ -28,7 +28,7 @@ from sqlalchemy.orm import Session, sessionmaker
 from starlette.routing import Mount
 
 from league.server.db import crud
-from league.server.db.models import DONE, INSTRUCTOR, RUNNING, EpisodeResult, Job, Submission
+from league.server.db.models import DONE, INSTRUCTOR, EpisodeResult, Job, Submission, WorkerProcess
 
 # job durations (seconds): a validation takes seconds, an evaluation of 100 episodes minutes, a race about one
 JOB_BUCKETS = (1, 2, 5, 10, 20, 30, 60, 120, 300, 600, 1200, 1800, 3600)
@@ -103,17 +103,13 @@ def episode_outcomes(session: Session) -> CounterMetricFamily:
 
 
 def worker_heartbeats(session: Session) -> GaugeMetricFamily:
-    """Each worker process (host/pid) running a job, and its newest lease renewal: a worker whose
-    time falls behind by more than the lease timeout has stopped (its jobs are given to others)."""
+    """Each worker process (host/pid) in the workers table, idle or not, and its newest heartbeat: a
+    worker whose time falls behind has stopped (its running jobs go to others after the lease timeout)."""
     beats = GaugeMetricFamily("league_worker_heartbeat_timestamp_seconds",
-                              "Newest heartbeat of each worker process running jobs (unix time)", labels=["worker"])
-    newest: dict[str, float] = {}
-    for attempt, beat in session.execute(select(Job.worker_id, Job.heartbeat_at).where(
-            Job.status == RUNNING, Job.heartbeat_at.is_not(None))):
-        worker = (attempt or "").rpartition("/")[0] or attempt or "unknown"  # host/pid/attempt -> host/pid
-        newest[worker] = max(newest.get(worker, 0.0), beat.timestamp())
-    for worker, beat in sorted(newest.items()):
-        beats.add_metric([worker], beat)
+                              "Newest heartbeat of each worker process (unix time)", labels=["worker"])
+    for host, pid, beat in session.execute(select(WorkerProcess.host, WorkerProcess.pid, WorkerProcess.heartbeat_at)
+                                           .order_by(WorkerProcess.host, WorkerProcess.pid)):
+        beats.add_metric([f"{host}/{pid}"], beat.timestamp())
     return beats
 
 

@@ -232,11 +232,23 @@ class SandboxIsolation(BaseModel):
     problem: str | None = Field(description="why a probe sandbox failed, if one did")
 
 
+class WorkerOut(BaseModel):
+    model_config = ConfigDict(from_attributes=True)
+
+    host: str
+    pid: int
+    version: str
+    started_at: datetime
+    heartbeat_at: datetime
+
+
 class Health(BaseModel):
-    status: str
-    database: str
-    queue: str
+    status: Literal["ok", "no_worker"]
+    reason: str | None = Field(description="why the status is not ok (then the answer is a 503)")
+    database: str = Field(description="sqlite or postgresql: the database, which is also the job queue")
     queued_jobs: int
+    oldest_queued_s: float | None = Field(description="how long the oldest queued job has waited (null: none waits)")
+    workers: list[WorkerOut] = Field(description="the workers heard from in the last worker_silent_after_s seconds")
     sandbox: SandboxIsolation = Field(description="how this machine's sandboxes are isolated")
 
 

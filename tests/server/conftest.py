@@ -1,8 +1,8 @@
-"""Fixtures of the server tests: real databases (SQLite, PostgreSQL), real queues (SQLite, Redis),
-real servers started as `python -m league.server serve|worker` subprocesses, spoken to over HTTP.
+"""Fixtures of the server tests: real databases (SQLite, PostgreSQL; each is also its league's job
+queue), real servers started as `python -m league.server serve|worker` subprocesses, spoken to over HTTP.
 
-PostgreSQL (127.0.0.1:5432, user postgres, trust auth) and Redis (127.0.0.1:6379) must be
-running for the "postgres" parameter; each server gets a database of its own, dropped at the end.
+PostgreSQL (127.0.0.1:5432, user postgres, trust auth) must be running for the "postgres"
+parameter; each server gets a database of its own, dropped at the end.
 """
 from __future__ import annotations
 
@@ -24,7 +24,6 @@ from . import model_factory as mf
 
 REPO = Path(__file__).resolve().parents[2]
 PG_ADMIN_URL = os.environ.get("LEAGUE_TEST_PG", "postgresql://postgres@127.0.0.1:5432/test")
-REDIS_URL = os.environ.get("LEAGUE_TEST_REDIS", "redis://127.0.0.1:6379/0")
 BACKENDS = ["sqlite", "postgres"]
 # Small, fast settings: 3-episode evaluations, short leases so that a dead worker is noticed in seconds.
 TEST_SETTINGS = {
@@ -38,7 +37,7 @@ TEST_SETTINGS = {
     "LEAGUE_HEARTBEAT_INTERVAL_S": "0.5",
     "LEAGUE_LEASE_TIMEOUT_S": "3",
     "LEAGUE_REAPER_INTERVAL_S": "0.5",
-    "LEAGUE_REQUEUE_QUEUED_AFTER_S": "30",
+    "LEAGUE_WORKER_HEARTBEAT_S": "0.5",
     "LEAGUE_WORKER_THREADS": "2",
     "LEAGUE_BOARD_VISIBILITY": "public",  # the tests read boards as visitors; tests/server/api/routes/test_privacy.py the rest
 }
@@ -50,45 +49,38 @@ TEST_SETTINGS = {
 def _postgres_available() -> str | None:
     try:
         import psycopg
-        import redis
 
         psycopg.connect(PG_ADMIN_URL, connect_timeout=3).close()
-        redis.Redis.from_url(REDIS_URL, socket_connect_timeout=3).ping()
     except Exception as error:  # noqa: BLE001 - any failure means "not available here"
-        return f"PostgreSQL or Redis not reachable: {error}"
+        return f"PostgreSQL not reachable: {error}"
     return None
 
 
 @contextlib.contextmanager
 def fresh_backend(kind: str, directory: Path):
-    """(database_url, queue_url, queue_name) of a new, empty database and queue; removed afterwards."""
+    """The URL of a new, empty database; removed afterwards."""
     name = f"league_test_{uuid.uuid4().hex[:10]}"
     if kind == "sqlite":
-        yield f"sqlite:///{directory / 'league.db'}", f"sqlite:///{directory / 'queue.db'}", name
+        yield f"sqlite:///{directory / 'league.db'}"
         return
     reason = _postgres_available()
     if reason:
         pytest.skip(reason)
     import psycopg
-    import redis
 
     with psycopg.connect(PG_ADMIN_URL, autocommit=True) as admin:
         admin.execute(f'CREATE DATABASE "{name}"')
     try:
-        yield f"postgresql+psycopg://postgres@127.0.0.1:5432/{name}", REDIS_URL, name
+        yield f"postgresql+psycopg://postgres@127.0.0.1:5432/{name}"
     finally:
         with psycopg.connect(PG_ADMIN_URL, autocommit=True) as admin:
             admin.execute(f'DROP DATABASE IF EXISTS "{name}" WITH (FORCE)')
-        client = redis.Redis.from_url(REDIS_URL)
-        keys = client.keys(f"*{name}*")
-        if keys:
-            client.delete(*keys)
 
 
 @pytest.fixture(params=BACKENDS)
 def backend(request, tmp_path):
-    with fresh_backend(request.param, tmp_path) as urls:
-        yield request.param, urls
+    with fresh_backend(request.param, tmp_path) as database_url:
+        yield request.param, database_url
 
 
 # --------------------------------------------------------------------------- servers
@@ -180,12 +172,11 @@ def server_command(cwd: Path, *args: str, **env: str) -> subprocess.CompletedPro
                           env={**clean, "PYTHONPATH": str(REPO), **env}, timeout=120)
 
 
-def make_server(tmp_path: Path, urls: tuple[str, str, str], **settings: str) -> LeagueServer:
-    database_url, queue_url, queue_name = urls
+def make_server(tmp_path: Path, database_url: str, **settings: str) -> LeagueServer:
     data_dir = tmp_path / "data"
     data_dir.mkdir()
     env = {**os.environ, **TEST_SETTINGS, **settings, "LEAGUE_DATA_DIR": str(data_dir),
-           "LEAGUE_DATABASE_URL": database_url, "LEAGUE_QUEUE_URL": queue_url, "LEAGUE_QUEUE_NAME": queue_name,
+           "LEAGUE_DATABASE_URL": database_url,
            "LEAGUE_CPU_SLOTS_DIR": str(tmp_path / "cpu-slots"),  # this test's workers are one machine's
            "LEAGUE_BASELINES_DIR": str(data_dir / "baselines"),  # empty: the heuristic driver is the baseline
            "PYTHONPATH": str(REPO)}
@@ -200,8 +191,8 @@ def make_server(tmp_path: Path, urls: tuple[str, str, str], **settings: str) -> 
 def league_server(request, tmp_path_factory):
     """A running `league serve` (API + its worker process) per backend, shared by the API tests."""
     tmp_path = tmp_path_factory.mktemp(f"league-{request.param}")
-    with fresh_backend(request.param, tmp_path) as urls:
-        server = make_server(tmp_path, urls)
+    with fresh_backend(request.param, tmp_path) as database_url:
+        server = make_server(tmp_path, database_url)
         server.start_api()
         try:
             yield server

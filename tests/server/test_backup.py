@@ -63,13 +63,11 @@ def jobs_waiting_in(backup_file: Path) -> int:
         return connection.execute("SELECT count(*) FROM jobs WHERE status IN ('queued', 'running')").fetchone()[0]
 
 
-def restored_server(tmp_path: Path, urls: tuple[str, str, str], original: LeagueServer) -> LeagueServer:
+def restored_server(tmp_path: Path, database_url: str, original: LeagueServer) -> LeagueServer:
     """A server of the other backend on a fresh data directory, its database still empty."""
-    database_url, queue_url, queue_name = urls
     data_dir = tmp_path / "data"
     data_dir.mkdir()
     env = {**original.env, "LEAGUE_DATA_DIR": str(data_dir), "LEAGUE_DATABASE_URL": database_url,
-           "LEAGUE_QUEUE_URL": queue_url, "LEAGUE_QUEUE_NAME": queue_name,
            "LEAGUE_CPU_SLOTS_DIR": str(tmp_path / "cpu-slots")}
     return LeagueServer(env, data_dir, instructor_token=original.instructor_token)
 
@@ -78,12 +76,10 @@ def restored_server(tmp_path: Path, urls: tuple[str, str, str], original: League
 def test_a_backup_taken_under_load_restores_every_answer(source, target, tmp_path, models):
     (tmp_path / "original").mkdir()
     (tmp_path / "restored").mkdir()
-    with fresh_backend(source, tmp_path / "original") as source_urls, \
-            fresh_backend(target, tmp_path / "restored") as target_urls:
-        # requeue after 600 s: a job the restore left waiting would show, not be re-sent
-        original = make_server(tmp_path / "original", source_urls, LEAGUE_QUOTA_PER_DAY="20",
-                               LEAGUE_REQUEUE_QUEUED_AFTER_S="600")
-        restored = restored_server(tmp_path / "restored", target_urls, original)
+    with fresh_backend(source, tmp_path / "original") as source_url, \
+            fresh_backend(target, tmp_path / "restored") as target_url:
+        original = make_server(tmp_path / "original", source_url, LEAGUE_QUOTA_PER_DAY="20")
+        restored = restored_server(tmp_path / "restored", target_url, original)
         original.start_api()
         try:
             tokens = semester(original, models)
@@ -107,7 +103,7 @@ def test_a_backup_taken_under_load_restores_every_answer(source, target, tmp_pat
             put_back = restored.command("restore", str(backup_file))
             assert put_back.returncode == 0, put_back.stderr
             restored.start_api()
-            drained(restored, timeout=90)  # the jobs queued and running at the backup, at once (no re-send)
+            drained(restored, timeout=90)  # the jobs queued and running at the backup, at once (no message needed)
             _replay_the_uploads_after_the_backup(original, restored, load.done, acknowledged)
             drained(original)
             drained(restored)
@@ -176,8 +172,8 @@ def users_of(url: str) -> list[tuple]:
 def test_an_older_backup_is_restored_at_this_schema_into_an_empty_database_only(source, target, tmp_path):
     (tmp_path / "a").mkdir()
     (tmp_path / "b").mkdir()
-    with fresh_backend(source, tmp_path / "a") as (source_url, _, _), \
-            fresh_backend(target, tmp_path / "b") as (target_url, _, _):
+    with fresh_backend(source, tmp_path / "a") as source_url, \
+            fresh_backend(target, tmp_path / "b") as target_url:
         league_with_a_user(source_url, "0005")  # an older release's league
         engine = make_engine(source_url)
         with engine.connect() as connection:

@@ -92,7 +92,7 @@ def test_a_worker_runs_its_threads_on_the_cpus_it_is_given(tmp_path):
                                   stdout=output, stderr=subprocess.STDOUT)
     try:
         deadline = time.monotonic() + 60
-        while "consumer started" not in log.read_text().lower():  # its job threads run by now
+        while "worker started" not in log.read_text():  # its job threads run by now
             assert worker.poll() is None and time.monotonic() < deadline, log.read_text()
             time.sleep(0.1)
         threads = list(Path(f"/proc/{worker.pid}/task").iterdir())
@@ -160,8 +160,8 @@ def cmdline(pid: int) -> list[str]:
 def test_serve_runs_its_worker_as_a_child_process_and_nothing_outlives_it(tmp_path, models, signal_):
     """The API's process runs no job (its event loop never waits for a job's GIL): its worker is a
     `league worker` child, whose sandboxes run below it; stopping serve (or killing it) stops them all."""
-    with fresh_backend("sqlite", tmp_path) as urls:
-        server = make_server(tmp_path, urls, LEAGUE_EVAL_EPISODES="40")
+    with fresh_backend("sqlite", tmp_path) as database_url:
+        server = make_server(tmp_path, database_url, LEAGUE_EVAL_EPISODES="40")
         server.start_api()
         try:
             student = create_student(server, "kid")
@@ -203,6 +203,6 @@ def autogroup_nice(pid: int) -> int | None:
 
 
 def threading_free_of_jobs(pid: int) -> bool:
-    """No job thread in the API's process: Huey's and the reaper's threads are named."""
+    """No job thread in the API's process: the worker's threads are named league-."""
     names = [(task / "comm").read_text().strip() for task in Path(f"/proc/{pid}/task").iterdir()]
-    return not any(name.startswith(("league-reaper", "Worker-", "Scheduler")) for name in names)
+    return not any(name.startswith("league-") for name in names)

@@ -38,8 +38,8 @@ def unique(name: str) -> str:
 @pytest.fixture(scope="module")
 def server(tmp_path_factory):
     tmp = tmp_path_factory.mktemp("client")
-    with fresh_backend("sqlite", tmp) as urls:
-        league_server = make_server(tmp, urls)
+    with fresh_backend("sqlite", tmp) as database_url:
+        league_server = make_server(tmp, database_url)
         league_server.start_api()
         try:
             yield league_server

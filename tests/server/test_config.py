@@ -25,6 +25,18 @@ def test_unknown_variables_are_named_with_the_closest_setting(tmp_path):
     ]
 
 
+def test_the_removed_queue_settings_say_the_database_is_the_queue(tmp_path):
+    """An upgraded deployment that still sets them learns that workers need the database only."""
+    env_file = tmp_path / ".env"
+    env_file.write_text("LEAGUE_QUEUE_NAME=league\n")
+    assert unknown_variables({"LEAGUE_QUEUE_URL": "redis://redis:6379/0"}, env_file) == [
+        f"LEAGUE_QUEUE_NAME (in {env_file}) is no longer a setting and is ignored: the database is the job queue "
+        f"now: one queue per database",
+        "LEAGUE_QUEUE_URL (in the environment) is no longer a setting and is ignored: the database is the job queue "
+        "now: workers need only LEAGUE_DATABASE_URL (no Redis)",
+    ]
+
+
 def test_sources_say_where_each_value_came_from(tmp_path):
     env_file = tmp_path / ".env"
     env_file.write_text("LEAGUE_QUOTA_PER_DAY=7\nLEAGUE_MAX_UPLOAD_MB=5\n")

@@ -58,7 +58,7 @@ def test_commands_run_from_the_wrong_directory_create_nothing_and_say_where_they
 
 @pytest.mark.parametrize("kind", ["sqlite", "postgres"])
 def test_two_processes_starting_together_migrate_once(kind, tmp_path):
-    with fresh_backend(kind, tmp_path) as (url, _, _):
+    with fresh_backend(kind, tmp_path) as url:
         env = {"LEAGUE_DATABASE_URL": url, "LEAGUE_DATA_DIR": str(tmp_path / "data")}
         clean = {name: value for name, value in os.environ.items() if not name.upper().startswith("LEAGUE_")}
         starts = [subprocess.Popen([sys.executable, "-m", "league.server", "init", "--instructor", name],

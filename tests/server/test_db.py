@@ -19,7 +19,7 @@ from .conftest import BACKENDS
 
 
 def test_migrations_match_the_models_and_run_twice(backend):
-    _, (database_url, _, _) = backend
+    _, database_url = backend
     engine = make_engine(database_url)
     migrate(engine)
     migrate(engine)  # a second start finds the schema up to date
@@ -33,7 +33,7 @@ def test_migrations_match_the_models_and_run_twice(backend):
 
 
 def test_downgrade_to_nothing_and_back(backend):
-    _, (database_url, _, _) = backend
+    _, database_url = backend
     engine = make_engine(database_url)
     migrate(engine)
     config = alembic_config(database_url)
@@ -146,7 +146,7 @@ def test_0007_keys_existing_results_so_that_the_board_keeps_what_0006_ranked(kin
 def test_users_gain_email_and_student_id_with_their_data_kept(backend):
     """0008 on a database of the previous schema (0007) that holds users: every row kept, both fields
     empty; a student id is then unique within its course, and many students may have none."""
-    _, (database_url, _, _) = backend
+    _, database_url = backend
     engine = make_engine(database_url)
     config = alembic_config(database_url)
     with engine.connect() as connection:
@@ -219,7 +219,7 @@ def test_0010_makes_each_course_one_default_assignment_and_every_answer_stays(ki
 def test_submissions_gain_probe_actions_with_their_data_kept_and_lose_them_on_downgrade(backend):
     """0013 on a database of 0008 that holds submissions: every row kept, not probed; a downgrade
     back to 0008 keeps the rows too."""
-    _, (database_url, _, _) = backend
+    _, database_url = backend
     engine = make_engine(database_url)
     config = alembic_config(database_url)
     with engine.connect() as connection:
@@ -261,7 +261,7 @@ def test_existing_courses_stay_public_and_get_pseudonym_keys_users_no_display_na
     """0012 on a database of the previous schema (0013) with two courses and their users: the
     courses keep showing their boards to anyone (an upgrade changes nothing silently), each with its
     own pseudonym key; every user row kept, without a display name, which is then unique in a course."""
-    _, (database_url, _, _) = backend
+    _, database_url = backend
     engine = make_engine(database_url)
     config = alembic_config(database_url)
     with engine.connect() as connection:
@@ -299,7 +299,7 @@ def test_existing_courses_stay_public_and_get_pseudonym_keys_users_no_display_na
 def test_assignments_gain_a_rubric_with_their_rows_kept_and_lose_it_on_downgrade(backend):
     """0016 on a 0010 database that holds an assignment: the row kept, no rubric; a rubric (JSON)
     reads back; the downgrade drops the column and keeps the row."""
-    _, (database_url, _, _) = backend
+    _, database_url = backend
     engine = make_engine(database_url)
     config = alembic_config(database_url)
     with engine.connect() as connection:

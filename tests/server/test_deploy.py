@@ -226,8 +226,8 @@ def test_the_image_runs_as_an_ordinary_user_and_only_the_worker_as_root():
 def league(tmp_path_factory):
     """A real `league serve` (SQLite, with its worker process)."""
     tmp_path = tmp_path_factory.mktemp("deploy")
-    with fresh_backend("sqlite", tmp_path) as urls:
-        server = make_server(tmp_path, urls)
+    with fresh_backend("sqlite", tmp_path) as database_url:
+        server = make_server(tmp_path, database_url)
         before = server.command("worker", "--check")
         server.start_api()
         try:

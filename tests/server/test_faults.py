@@ -27,8 +27,8 @@ def jobs_of(server, submission_id: int) -> list[dict]:
 
 
 def test_worker_killed_mid_evaluation_the_evaluation_completes_once(backend, tmp_path, models):
-    _, urls = backend
-    server = make_server(tmp_path, urls, LEAGUE_EVAL_EPISODES=LONG_EPISODES)
+    _, database_url = backend
+    server = make_server(tmp_path, database_url, LEAGUE_EVAL_EPISODES=LONG_EPISODES)
     server.start_api(embedded_worker=False)
     doomed = server.start_worker()
     try:
@@ -64,8 +64,8 @@ def test_worker_killed_mid_evaluation_the_evaluation_completes_once(backend, tmp
 
 @pytest.mark.long
 def test_restart_loses_nothing_and_leaves_nothing_stuck(backend, tmp_path, models):
-    _, urls = backend
-    server = make_server(tmp_path, urls, LEAGUE_EVAL_EPISODES=LONG_EPISODES)
+    _, database_url = backend
+    server = make_server(tmp_path, database_url, LEAGUE_EVAL_EPISODES=LONG_EPISODES)
     server.start_api()
     try:
         student = create_student(server, "lee")

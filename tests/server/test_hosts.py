@@ -1,14 +1,14 @@
 """Workers on other hosts: each `league worker` runs in a network namespace of its own (its own veth,
-data directory, temporary directory and CPU slots) and reaches the league's PostgreSQL and Redis
-over the veth addresses only: the test starts both, bound to the API host's address on a bridge
-(the machine's own services listen on loopback, which a namespace cannot reach).
+data directory, temporary directory and CPU slots) and reaches the league's PostgreSQL, which is
+also its job queue, over the veth addresses only: the test starts one, bound to the API host's
+address on a bridge (the machine's own services listen on loopback, which a namespace cannot reach).
 
 Uploads are evaluated and a championship round is raced across the hosts; one host's link is cut
 mid-heat, its heat is raced again by the other host, and once the link is back the cut host's late
 result is refused: no job lost, stuck or counted twice.
 
 Needs root, `ip netns` (iproute2), PostgreSQL's `initdb`/`postgres` run as the `postgres` system
-user, and `redis-server`; skipped with the reason where one is missing.
+user; skipped with the reason where one is missing.
 """
 from __future__ import annotations
 
@@ -38,8 +38,8 @@ from .test_rounds import (  # noqa: F401 - drivers is a fixture
     standings, start_round, wait_idle, wait_round_over, worker_pid,
 )
 
-SERVICE_USER = "postgres"  # PostgreSQL refuses to run as root; Redis runs as the same user
-PG_PORT, REDIS_PORT = 5432, 6379
+SERVICE_USER = "postgres"  # PostgreSQL refuses to run as root
+PG_PORT = 5432
 HOSTS = 2
 RACING = "cars: sandboxes started"  # a worker's log line as a race begins
 
@@ -51,7 +51,7 @@ pytestmark = [pytest.mark.slow, pytest.mark.hosts]
 
 @dataclass
 class Network:
-    """A bridge on this host (the API's, the database's and the queue's address) and one network
+    """A bridge on this host (the API's and the database's address) and one network
     namespace per worker host, joined to the bridge by a veth pair."""
 
     tag: str
@@ -120,15 +120,14 @@ def network(hosts: int) -> Iterator[Network]:
         subprocess.run(["ip", "link", "del", net.bridge], capture_output=True, timeout=30)
 
 
-# --------------------------------------------------------------------------- PostgreSQL and Redis
+# --------------------------------------------------------------------------- PostgreSQL
 
 
 @contextlib.contextmanager
-def services(net: Network) -> Iterator[tuple[str, str]]:
-    """A PostgreSQL cluster (initdb in a temporary directory) and a Redis, listening on the bridge
-    address only, run by the unprivileged SERVICE_USER; yields (database_url, queue_url) and
-    stops and removes both at the end."""
-    missing = [tool for tool in ("initdb", "postgres", "redis-server") if shutil.which(tool) is None]
+def services(net: Network) -> Iterator[str]:
+    """A PostgreSQL cluster (initdb in a temporary directory) listening on the bridge address only,
+    run by the unprivileged SERVICE_USER; yields its database_url and stops and removes it at the end."""
+    missing = [tool for tool in ("initdb", "postgres") if shutil.which(tool) is None]
     if missing:
         pytest.skip(f"not installed: {', '.join(missing)}")
     try:
@@ -139,7 +138,6 @@ def services(net: Network) -> Iterator[tuple[str, str]]:
     os.chown(root, owner.pw_uid, owner.pw_gid)
     as_owner = {"user": owner.pw_uid, "group": owner.pw_gid, "extra_groups": [], "cwd": root}
     processes: list[subprocess.Popen] = []
-    password = uuid.uuid4().hex  # Redis accepts other hosts' clients with a password only (protected mode)
     try:
         data = root / "pgdata"
         subprocess.run(["initdb", "-D", str(data), "-U", "postgres", "--auth=trust", "--no-sync", "-E", "UTF8"],
@@ -151,19 +149,15 @@ def services(net: Network) -> Iterator[tuple[str, str]]:
             ["postgres", "-D", str(data), "-c", f"listen_addresses={net.address}", "-c", f"port={PG_PORT}",
              "-c", f"unix_socket_directories={root}", "-c", "fsync=off"],
             stdout=log, stderr=subprocess.STDOUT, **as_owner))
-        processes.append(subprocess.Popen(
-            ["redis-server", "--bind", net.address, "--port", str(REDIS_PORT), "--save", "", "--appendonly", "no",
-             "--dir", str(root), "--requirepass", password], stdout=log, stderr=subprocess.STDOUT, **as_owner))
         admin = f"postgresql://postgres@{net.address}:{PG_PORT}/postgres"
-        queue_url = f"redis://:{password}@{net.address}:{REDIS_PORT}/0"
-        wait_for(lambda: services_up(processes, admin, queue_url, root / "services.log"), bool, timeout=60)
+        wait_for(lambda: services_up(processes, admin, root / "services.log"), bool, timeout=60)
         import psycopg
 
         with psycopg.connect(admin, autocommit=True) as connection:
             connection.execute("CREATE DATABASE league")
-        yield f"postgresql+psycopg://postgres@{net.address}:{PG_PORT}/league", queue_url
+        yield f"postgresql+psycopg://postgres@{net.address}:{PG_PORT}/league"
     finally:
-        for process in processes:  # SIGINT: PostgreSQL's fast shutdown; Redis exits on it too
+        for process in processes:  # SIGINT: PostgreSQL's fast shutdown
             process.send_signal(signal.SIGINT)
         for process in processes:
             try:
@@ -174,16 +168,14 @@ def services(net: Network) -> Iterator[tuple[str, str]]:
         shutil.rmtree(root, ignore_errors=True)
 
 
-def services_up(processes: list[subprocess.Popen], admin_url: str, queue_url: str, log: Path) -> bool:
+def services_up(processes: list[subprocess.Popen], admin_url: str, log: Path) -> bool:
     import psycopg
-    import redis
 
     if any(p.poll() is not None for p in processes):
-        pytest.fail(f"PostgreSQL or Redis exited:\n{log.read_text(errors='replace')[-3000:]}")
+        pytest.fail(f"PostgreSQL exited:\n{log.read_text(errors='replace')[-3000:]}")
     try:
         psycopg.connect(admin_url, connect_timeout=2).close()
-        redis.Redis.from_url(queue_url, socket_connect_timeout=2).ping()
-    except (psycopg.OperationalError, redis.ConnectionError):
+    except psycopg.OperationalError:
         return False
     return True
 
@@ -207,10 +199,10 @@ def worker_log(server: LeagueServer, k: int) -> str:
 
 
 def consuming(server: LeagueServer, k: int) -> bool:
-    """Worker k's queue consumer is running (it waits on Redis for messages from now on)."""
+    """Worker k's job threads are running (they claim from the database from now on)."""
     if server.workers[k].poll() is not None:
         pytest.fail(f"worker {k} exited:\n{worker_log(server, k)[-3000:]}")
-    return "Huey consumer started" in worker_log(server, k)
+    return "worker started" in worker_log(server, k)
 
 
 def all_jobs(server: LeagueServer) -> list[dict]:
@@ -231,8 +223,8 @@ def submissions_of(server: LeagueServer, ids: list[int]) -> dict[int, dict]:
 def test_workers_on_other_hosts_share_the_league_and_survive_a_cut_link(tmp_path, drivers):
     with contextlib.ExitStack() as stack:
         net = stack.enter_context(network(HOSTS))
-        database_url, queue_url = stack.enter_context(services(net))
-        server = make_server(tmp_path, (database_url, queue_url, "league"), LEAGUE_BOOTSTRAP="false",
+        database_url = stack.enter_context(services(net))
+        server = make_server(tmp_path, database_url, LEAGUE_BOOTSTRAP="false",
                              **ROUND_SETTINGS)
         stack.callback(server.stop_all)
         server.start_api(embedded_worker=False)
@@ -270,7 +262,7 @@ def test_workers_on_other_hosts_share_the_league_and_survive_a_cut_link(tmp_path
         after = {"round": read_round(server, championship_id), "jobs": all_jobs(server),
                  "standings": standings(server, championship_id)}
         log_of_cut_host = worker_log(server, 0)
-    # (everything stopped and removed: the workers, the API, PostgreSQL, Redis, the namespaces)
+    # (everything stopped and removed: the workers, the API, PostgreSQL, the namespaces)
 
     # uploads: validated and evaluated once each, by both hosts, with the models fetched from the database
     assert all(s["status"] == "ready" and s["evaluation"]["status"] == "done" for s in entered.values()), entered
@@ -288,7 +280,7 @@ def test_workers_on_other_hosts_share_the_league_and_survive_a_cut_link(tmp_path
         fetched = {i for i in files if (data / "blobs" / sha[i][:2] / sha[i]).exists()}
         assert fetched >= {j["submission_id"] for j in entry_jobs if worker_pid(j) == pid}
         assert all((data / "blobs" / sha[i][:2] / sha[i]).read_bytes() == files[i].read_bytes() for i in fetched)
-        assert not (data / "league.db").exists() and not (data / "queue.db").exists()
+        assert not (data / "league.db").exists()
 
     # the round: the cut host's heat raced again, from the start, by the other host; counted once
     by_race = {j["race_id"]: j for j in jobs}

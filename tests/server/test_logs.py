@@ -20,8 +20,8 @@ from .conftest import create_student, fresh_backend, make_server, upload, wait_s
 
 
 def test_json_lines_from_the_api_uvicorn_and_the_worker(tmp_path):
-    with fresh_backend("sqlite", tmp_path) as urls:
-        server = make_server(tmp_path, urls, LEAGUE_LOG_FORMAT="json", LEAGUE_BOOTSTRAP="false",
+    with fresh_backend("sqlite", tmp_path) as database_url:
+        server = make_server(tmp_path, database_url, LEAGUE_LOG_FORMAT="json", LEAGUE_BOOTSTRAP="false",
                              LEAGUE_EVAL_EPISODES="1", LEAGUE_EVAL_ENV_OPTIONS='{"max_episode_steps": 50}')
         server.start_api()
         try:

@@ -9,7 +9,7 @@ import pytest
 from prometheus_client.parser import text_string_to_metric_families
 from sqlalchemy import func, select
 
-from league.server.db.models import DONE, EpisodeResult, Job, Submission
+from league.server.db.models import DONE, EpisodeResult, Job, Submission, WorkerProcess
 from league.server.jobs.handlers import HANDLERS
 from league.server.jobs.leases import claim
 from league.server.metrics import JOB_BUCKETS
@@ -56,6 +56,8 @@ def test_metrics_equal_the_database_after_jobs_ran(kind, tmp_path):
             for job, seconds in zip(finished, (3.5, 700.25, 45.0)):
                 job.started_at = job.finished_at - timedelta(seconds=seconds)
 
+        with league.sessions.begin() as session:  # a worker's row, as it writes it at start
+            session.add(WorkerProcess(host="box-7", pid=4242, version="0.1.0"))
         with league.client("scrape-me") as prometheus:
             prometheus.get("/api/races/987654")  # a 404 through a templated route
             samples = scrape(prometheus)
@@ -65,7 +67,7 @@ def test_metrics_equal_the_database_after_jobs_ran(kind, tmp_path):
             statuses = dict(session.execute(select(Submission.status, func.count()).group_by(Submission.status)).all())
             episodes = dict(session.execute(select(EpisodeResult.outcome, func.count())
                                             .group_by(EpisodeResult.outcome)).all())
-            beat = session.get(Job, validation[waiting.id]).heartbeat_at
+            beat = session.scalars(select(WorkerProcess.heartbeat_at)).one()
 
     assert samples["league_jobs"] == {(("kind", k), ("status", s)): n for k, s, n in jobs}
     durations = {}

@@ -175,8 +175,8 @@ def check_round_counted_once(server: LeagueServer, championship_id: int, finishe
 
 @pytest.mark.long
 def test_worker_killed_mid_round_every_heat_counted_once(backend, tmp_path, drivers):
-    _, urls = backend
-    server = make_server(tmp_path, urls, **ROUND_SETTINGS)
+    _, database_url = backend
+    server = make_server(tmp_path, database_url, **ROUND_SETTINGS)
     server.start_api(embedded_worker=False)
     doomed = server.start_worker(**ONE_AT_A_TIME)
     try:
@@ -223,8 +223,8 @@ def test_worker_killed_mid_round_every_heat_counted_once(backend, tmp_path, driv
 
 
 def test_two_workers_share_the_heats_of_a_round(tmp_path, drivers):
-    with fresh_backend("postgres", tmp_path) as urls:
-        server = make_server(tmp_path, urls, LEAGUE_BOOTSTRAP="false", **ROUND_SETTINGS)
+    with fresh_backend("postgres", tmp_path) as database_url:
+        server = make_server(tmp_path, database_url, LEAGUE_BOOTSTRAP="false", **ROUND_SETTINGS)
         try:
             server.start_api(embedded_worker=False)
             for k in range(2):  # two machines, each with its own disk: the models come from the database
@@ -248,8 +248,8 @@ def test_two_workers_share_the_heats_of_a_round(tmp_path, drivers):
 def test_a_failed_round_races_its_failed_heats_again(tmp_path, drivers):
     """A heat whose job fails for good (here: its worker is killed and no attempt is left) fails
     the round, which counts for nothing until an instructor races its failed heats again."""
-    with fresh_backend("sqlite", tmp_path) as urls:
-        server = make_server(tmp_path, urls, LEAGUE_MAX_JOB_ATTEMPTS="1", LEAGUE_BOOTSTRAP="false", **ROUND_SETTINGS)
+    with fresh_backend("sqlite", tmp_path) as database_url:
+        server = make_server(tmp_path, database_url, LEAGUE_MAX_JOB_ATTEMPTS="1", LEAGUE_BOOTSTRAP="false", **ROUND_SETTINGS)
         server.start_api(embedded_worker=False)
         doomed = server.start_worker(**ONE_AT_A_TIME)
         instructor, student = server.client(server.instructor_token), create_student(server, "sam")

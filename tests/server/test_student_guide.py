@@ -29,8 +29,8 @@ def test_the_guide_has_blocks_of_both_kinds():
 @pytest.mark.long
 def test_every_block_of_the_student_guide_runs(tmp_path):
     pytest.importorskip("stable_baselines3", reason="the guide trains with Stable-Baselines3 (the rl extra)")
-    with fresh_backend("sqlite", tmp_path) as urls:
-        server = make_server(tmp_path, urls)
+    with fresh_backend("sqlite", tmp_path) as database_url:
+        server = make_server(tmp_path, database_url)
         server.start_api()
         try:
             with server.client(server.instructor_token) as instructor:

@@ -73,11 +73,10 @@ def releases(tmp_path_factory) -> dict[str, Path]:
 @pytest.mark.parametrize("commit, kind", [("c4a0240", "postgres"), ("b0d63d4", "sqlite")])
 def test_a_league_written_by_an_earlier_release_answers_the_same_after_the_upgrade(commit, kind, releases, tmp_path,
                                                                                    models):
-    with fresh_backend(kind, tmp_path) as (database_url, queue_url, queue_name):
+    with fresh_backend(kind, tmp_path) as database_url:
         data_dir = tmp_path / "data"
         data_dir.mkdir()
         env = {**os.environ, **TEST_SETTINGS, "LEAGUE_DATA_DIR": str(data_dir), "LEAGUE_DATABASE_URL": database_url,
-               "LEAGUE_QUEUE_URL": queue_url, "LEAGUE_QUEUE_NAME": queue_name,
                "LEAGUE_CPU_SLOTS_DIR": str(tmp_path / "cpu-slots"), "LEAGUE_BASELINES_DIR": str(data_dir / "baselines")}
         old = LeagueServer({**env, "PYTHONPATH": str(releases[commit])}, data_dir, root=releases[commit])
         added = old.command("users", "add", "prof", "--role", "instructor")  # (which created the database then)

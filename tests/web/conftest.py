@@ -66,8 +66,8 @@ def viewer_step(web) -> int:
 def web_server(tmp_path_factory):
     """A running `league serve` with the web pages, an instructor and the baselines bootstrapped."""
     tmp_path = tmp_path_factory.mktemp("league-web")
-    with fresh_backend("sqlite", tmp_path) as urls:
-        server = make_server(tmp_path, urls)
+    with fresh_backend("sqlite", tmp_path) as database_url:
+        server = make_server(tmp_path, database_url)
         server.start_api()
         try:
             home = httpx.get(f"{server.url}/", timeout=10)

@@ -406,3 +406,18 @@ class AuditEvent(Base):
     target_kind: Mapped[str] = mapped_column(String(20))
     target_id: Mapped[int | None] = mapped_column(BigInteger, default=None)
     details: Mapped[dict[str, Any]] = mapped_column(default=dict)
+
+
+class WorkerProcess(Base):
+    """A running `league worker` (serve's own included), beating every few seconds: /api/health says
+    whether queued jobs have anyone to run them. A worker removes its row when it stops; the rows of
+    workers that died are pruned by the others after a day."""
+
+    __tablename__ = "workers"
+
+    id: Mapped[int] = mapped_column(primary_key=True)
+    host: Mapped[str] = mapped_column(String(255))
+    pid: Mapped[int] = mapped_column(Integer)
+    version: Mapped[str] = mapped_column(String(50))  # microracer-league's
+    started_at: Mapped[datetime] = mapped_column(default=utcnow)
+    heartbeat_at: Mapped[datetime] = mapped_column(default=utcnow, index=True)

@@ -9,8 +9,9 @@ reclaims tasks whose worker went quiet. Here:
 * complete: the results are written in the transaction that moves `running -> done`, and only
   if this attempt still holds the lease -- so a re-run job is counted once;
 * reap: running jobs whose heartbeat is older than `lease_timeout` go back to the queue (or are
-  failed for good with their reason after `max_attempts`); queued jobs whose message may have
-  been lost are sent again (a duplicate message finds the job taken and does nothing).
+  failed for good with their reason after `max_attempts`).
+
+The jobs table is the queue itself (league.server.jobs.queue): a job is queued by its row alone.
 
 Each function takes the job handlers (kind -> JobHandler, league.server.jobs.handlers) whose
 `begin`, `finish` and `give_up` run inside these transactions.
@@ -41,8 +42,7 @@ def claim_next(sessions: sessionmaker[Session], handlers: Mapping[str, Any], *, 
             job = claim(sessions, handlers, job_id=job_id, attempt_id=attempt_id)
             if job is not None:
                 return job
-        # every candidate went to another worker meanwhile (many claim at once): look again, or a
-        # queued job would wait for the reaper's re-send while this worker's message is dropped
+        # every candidate went to another worker meanwhile (many claim at once): look again
     return None
 
 
@@ -73,6 +73,12 @@ def claim(sessions: sessionmaker[Session], handlers: Mapping[str, Any], *, job_i
         if not taken:
             return None
         job = session.get(Job, job_id, populate_existing=True)
+        if job.kind not in handlers:  # a row another version wrote: failed with the reason, not left waiting
+            job.status, job.finished_at, job.worker_id = FAILED, now, None
+            job.error = (f"no worker of this version runs jobs of kind {job.kind!r} (knows "
+                         f"{', '.join(sorted(handlers))}): queued by another version of microracer-league")
+            log.error("job %s failed: %s", job_id, job.error)
+            return None
         handlers[job.kind].begin(session, job)
         return job
 
@@ -152,21 +158,24 @@ def release_running(session: Session, *, reason: str) -> int:
 
 
 def reap(sessions: sessionmaker[Session], handlers: Mapping[str, Any], *, lease_timeout_s: float,
-         requeue_queued_after_s: float, now: datetime | None = None) -> list[int]:
-    """Re-queue running jobs whose worker stopped heart-beating and re-send long-queued ones.
+         now: datetime | None = None) -> list[int]:
+    """Re-queue running jobs whose worker stopped heart-beating; returns their ids.
 
-    Returns the ids to send to the queue. Safe to run in every worker at once: each change is a
-    conditional UPDATE that only one of them can make.
+    Safe to run in every worker at once: each change is a conditional UPDATE that only one of them can make.
     """
     now = now or utcnow()
     stale_before = now - timedelta(seconds=lease_timeout_s)
-    resend_before = now - timedelta(seconds=requeue_queued_after_s)
     with sessions() as session:
         stale = list(session.scalars(select(Job.id).where(Job.status == RUNNING, Job.heartbeat_at < stale_before)))
-        lost = list(session.scalars(select(Job.id).where(Job.status == QUEUED, Job.enqueued_at < resend_before)))
-    sent = [job_id for job_id in stale if _release_stale(sessions, handlers, job_id, stale_before, now)]
-    sent += [job_id for job_id in lost if _mark_resent(sessions, job_id, resend_before, now)]
-    return sent
+    return [job_id for job_id in stale if _release_stale(sessions, handlers, job_id, stale_before, now)]
+
+
+def queue_depth(session: Session, now: datetime | None = None) -> tuple[int, float | None]:
+    """How many jobs are queued, and how long the oldest has waited (seconds; None: none waits)."""
+    count, oldest = session.execute(select(func.count(), func.min(Job.enqueued_at)).where(Job.status == QUEUED)).one()
+    if oldest is None:
+        return 0, None
+    return count, max(0.0, ((now or utcnow()) - oldest).total_seconds())
 
 
 def _release_stale(sessions: sessionmaker[Session], handlers: Mapping[str, Any], job_id: int,
@@ -186,9 +195,3 @@ def _release_stale(sessions: sessionmaker[Session], handlers: Mapping[str, Any],
     if requeued:
         log.warning("job %s re-queued: %s", job_id, reason)
     return bool(requeued)
-
-
-def _mark_resent(sessions: sessionmaker[Session], job_id: int, resend_before: datetime, now: datetime) -> bool:
-    with sessions.begin() as session:
-        return bool(session.execute(update(Job).where(
-            Job.id == job_id, Job.status == QUEUED, Job.enqueued_at < resend_before).values(enqueued_at=now)).rowcount)

@@ -1,53 +1,80 @@
-"""The task queue: Huey, on SQLite (embedded default) or Redis (workers on several machines).
+"""The queue is the jobs table; this module only wakes the workers that claim from it.
 
-Messages carry only a job id; the job, its status and its lease are in the database, so a lost
-message or a dead consumer never loses work (see league.server.jobs.leases).
+A job is queued by committing its row (status `queued`); workers claim rows straight from the
+table (league.server.jobs.leases.claim_next), so nothing outside the database can lose a job: a
+restore, an upgrade or a crash leaves every queued row where a worker finds it. A wake-up only
+saves the wait for the next poll: on PostgreSQL `enqueue` sends a NOTIFY that every worker's
+listener hears (`Wakeup.listen`); on SQLite, and whenever a notification is missed, idle job
+threads look again every `queue_poll_s`.
 """
 from __future__ import annotations
 
-from pathlib import Path
-from typing import Callable
+import logging
+import threading
 
-from huey import RedisHuey, SqliteHuey
-from huey.api import Huey
+from sqlalchemy import Engine, text
 from sqlalchemy.engine import make_url
 
-from league.server.config import Settings
-from league.server.db.session import create_private_file
+log = logging.getLogger("league.server.jobs")
+CHANNEL = "league_jobs"  # PostgreSQL's notification channel
+RECONNECT_S = 5.0  # a listener that lost its connection tries again after this long (polling meanwhile)
+
+
+class Wakeup:
+    """Idle job threads of one process wait here until a job may be queued, or `timeout` passes.
+
+    A generation counter rather than an event: a thread that found nothing at generation g sleeps
+    only while the generation is still g, so a wake-up between its look and its wait is not lost."""
+
+    def __init__(self):
+        self._changed = threading.Condition()
+        self.generation = 0
+
+    def wake(self) -> None:
+        with self._changed:
+            self.generation += 1
+            self._changed.notify_all()
+
+    def wait(self, seen: int, timeout: float) -> None:
+        with self._changed:
+            self._changed.wait_for(lambda: self.generation != seen, timeout)
 
 
 class JobQueue:
-    """Huey plus the one task it runs: `run_job(job_id)`, executed by whoever set `runner`."""
+    """`enqueue(job_id)` after committing a queued job: wakes this process's job threads and, on
+    PostgreSQL, every worker's. The job id is for logs only: workers claim the fairest queued job."""
 
-    def __init__(self, huey: Huey):
-        self.huey = huey
-        self.runner: Callable[[int], None] | None = None  # set in worker processes only
-        self._task = huey.task(retries=0, name="run_job")(self._run)
-
-    def _run(self, job_id: int) -> None:
-        if self.runner is None:
-            raise RuntimeError("this process has no job runner (it is not a worker)")
-        self.runner(job_id)
+    def __init__(self, engine: Engine):
+        self.engine = engine
+        self.wakeup = Wakeup()
+        self.notifies = engine.dialect.name == "postgresql"
 
     def enqueue(self, job_id: int) -> None:
-        self._task(job_id)
+        self.wakeup.wake()
+        if not self.notifies:
+            return
+        try:
+            with self.engine.connect() as connection:
+                connection.execute(text("SELECT pg_notify(:channel, :job)"), {"channel": CHANNEL, "job": str(job_id)})
+                connection.commit()
+        except Exception:  # the job is queued all the same: the workers' next poll finds it
+            log.warning("could not notify the workers of job %s; they will find it when they next look", job_id,
+                        exc_info=True)
 
-    def pending(self) -> int:
-        return self.huey.pending_count()
+    def listen(self, stop: threading.Event) -> None:
+        """Until `stop`: wake this process's job threads on every NOTIFY (PostgreSQL only; a thread's body)."""
+        import psycopg
 
-    def flush(self) -> None:
-        self.huey.flush()
+        url = make_url(self.engine.url).set(drivername="postgresql")
+        while not stop.is_set():
+            try:
+                with psycopg.connect(url.render_as_string(hide_password=False), autocommit=True) as connection:
+                    connection.execute(f"LISTEN {CHANNEL}")
+                    self.wakeup.wake()  # anything queued while we were not listening
+                    while not stop.is_set():
+                        for _ in connection.notifies(timeout=1.0, stop_after=1):
+                            self.wakeup.wake()
+            except Exception as error:  # noqa: BLE001 - an outage: the poll carries on; try again later
+                log.warning("job notifications: %s; polling only, listening again in %g s", error, RECONNECT_S)
+                stop.wait(RECONNECT_S)
 
-
-def build_queue(settings: Settings) -> JobQueue:
-    return JobQueue(_build_huey(settings.resolved_queue_url, settings.queue_name))
-
-
-def _build_huey(url: str, name: str) -> Huey:
-    if url.startswith(("redis://", "rediss://", "unix://")):
-        return RedisHuey(name=name, url=url, results=False)
-    parsed = make_url(url)
-    if parsed.get_backend_name() != "sqlite" or not parsed.database:
-        raise ValueError(f"queue_url must be redis://... or sqlite:///path, got {url!r}")
-    create_private_file(Path(parsed.database))
-    return SqliteHuey(name=name, filename=parsed.database, results=False)

@@ -83,7 +83,7 @@ class JobRun:
 
     def model_file(self, submission: Submission) -> Path:
         """The submission's file in this worker's store, fetched from the database on first use here
-        (a worker on another machine shares only the database and the queue)."""
+        (a worker on another machine shares only the database)."""
         store = self.context.store
         path = store.path(submission.sha256)
         if path.exists():
@@ -99,14 +99,12 @@ def new_attempt_id() -> str:
     return f"{socket.gethostname()}/{os.getpid()}/{uuid.uuid4().hex[:8]}"
 
 
-def run_job(context: WorkerContext, job_id: int) -> None:
-    """Execute one queue message: claim the fairest queued job (the message's `job_id` says that one
-    was queued; which one runs is the queue's fairness), run it with heartbeats, record the outcome."""
-    lower_thread_priority(context.settings.job_nice)
+def run_next(context: WorkerContext) -> bool:
+    """Claim the fairest queued job, run it with heartbeats, record the outcome; False if none was queued."""
     attempt_id = new_attempt_id()
     job = leases.claim_next(context.sessions, context.handlers, attempt_id=attempt_id)
     if job is None:
-        return  # nothing queued: a duplicate or re-sent message
+        return False
     place_thread(context, context.handlers[job.kind])
     run = JobRun(context, job, attempt_id)
     context.active[job.id] = run
@@ -114,10 +112,11 @@ def run_job(context: WorkerContext, job_id: int) -> None:
         _work(run)
     finally:
         context.active.pop(job.id, None)
+    return True
 
 
 def prepare_job_thread(settings: Settings) -> None:
-    """When a job thread starts (Huey's startup hook, in that thread): its priority, then its fork
+    """When a job thread starts (in that thread): its priority, then its fork
     server, which prepares every runtime before the first job, at that priority."""
     lower_thread_priority(settings.job_nice)
     ForkServer.prepare_this_thread()
@@ -190,16 +189,13 @@ def release_active(context: WorkerContext) -> list[int]:
     return released
 
 
-def reap(context: WorkerContext, requeue_queued_after_s: float | None = None) -> list[int]:
-    """One reaper pass (league.server.jobs.leases.reap), sending what it freed to the queue; and the
-    private tests of the due times that passed (league.server.assignments.close_due)."""
-    settings = context.settings
-    resend = settings.requeue_queued_after_s if requeue_queued_after_s is None else requeue_queued_after_s
-    sent = leases.reap(context.sessions, context.handlers, lease_timeout_s=settings.lease_timeout_s,
-                       requeue_queued_after_s=resend)
-    for job_id in sent:
+def reap(context: WorkerContext) -> list[int]:
+    """One reaper pass (league.server.jobs.leases.reap), waking the workers for what it re-queued; and
+    the private tests of the due times that passed (league.server.assignments.close_due)."""
+    requeued = leases.reap(context.sessions, context.handlers, lease_timeout_s=context.settings.lease_timeout_s)
+    for job_id in requeued:
         context.queue.enqueue(job_id)
-    return sent + close_due_now(context.sessions, context.queue, max_attempts=settings.max_job_attempts)
+    return requeued + close_due_now(context.sessions, context.queue, max_attempts=context.settings.max_job_attempts)
 
 
 def close_due_now(sessions: sessionmaker[Session], queue: JobQueue, *, max_attempts: int,

@@ -1,38 +1,44 @@
-"""Workers: a Huey consumer that runs league jobs, and the reaper that keeps jobs from getting stuck.
+"""Workers: job threads that claim queued jobs from the database, the reaper, the worker's heartbeat.
 
-`league worker` runs one in the foreground (Huey handles SIGINT/SIGTERM); `league serve` starts
-one as its child process (league/server/cli.py), for the one-command embedded league.
+`league worker` runs one in the foreground; `league serve` starts one as its child process
+(league/server/cli.py), for the one-command embedded league. An idle job thread sleeps until a
+wake-up (league.server.jobs.queue) or `queue_poll_s`, then looks at the jobs table again: a job
+queued by any means runs within that poll while a worker is alive.
 """
 from __future__ import annotations
 
 import logging
 import os
+import signal
 import threading
 from pathlib import Path
+from typing import Callable
 
-from huey.consumer import Consumer
 from sqlalchemy import Engine
 
 from league.server.config import Settings
 from league.server.db import crud
 from league.server.db.session import make_sessionmaker
-from league.server.jobs.alive import alive_file, beat
+from league.server.jobs import alive, registry
 from league.server.jobs.handlers import HANDLERS
 from league.server.jobs.placement import Placement
-from league.server.jobs.queue import JobQueue, build_queue
-from league.server.jobs.runner import WorkerContext, prepare_job_thread, reap, release_active, run_job
+from league.server.jobs.queue import JobQueue
+from league.server.jobs.runner import WorkerContext, prepare_job_thread, reap, release_active, run_next
 from league.server.sandbox.process import ForkServer, sandbox_isolation
 from league.server.storage import BlobStore
 
 log = logging.getLogger("league.server.worker")
-MAX_POLL_DELAY_S = 1.0  # an idle SQLite-queue worker looks for work at least this often (Redis blocks instead)
+SIGNAL_CHECK_S = 0.5  # the main thread wakes this often to act on a signal
 
 
-class Reaper:
-    def __init__(self, context: WorkerContext):
-        self.context = context
+class Periodic:
+    """A daemon thread doing `work` every `interval_s` until stopped; a failing pass is logged, not fatal
+    (the reaper is what recovers from outages)."""
+
+    def __init__(self, name: str, interval_s: float, work: Callable[[], None]):
+        self.interval_s, self.work = interval_s, work
         self._stop = threading.Event()
-        self._thread = threading.Thread(target=self._loop, name="league-reaper", daemon=True)
+        self._thread = threading.Thread(target=self._loop, name=name, daemon=True)
 
     def start(self) -> None:
         self._thread.start()
@@ -42,42 +48,104 @@ class Reaper:
         self._thread.join(timeout=5)
 
     def _loop(self) -> None:
-        resend_after_s = 0.0  # the first pass re-sends every queued job: a restore or a lost queue left no message
         while True:
             try:
-                sent = reap(self.context, resend_after_s)
-                resend_after_s = self.context.settings.requeue_queued_after_s
-                if sent:
-                    log.info("reaper re-sent jobs %s", sent)
-                sweep_store(self.context.sessions, self.context.store)
-                beat(alive_file(self.context.settings.data_dir))  # `league worker --check`
-            except Exception:  # an outage must not end the reaper: it is what recovers from outages
-                log.exception("reaper pass failed")
-            if self._stop.wait(self.context.settings.reaper_interval_s):
+                self.work()
+            except Exception:  # noqa: BLE001
+                log.exception("%s: pass failed", self._thread.name)
+            if self._stop.wait(self.interval_s):
                 return
 
 
 class Worker:
-    def __init__(self, context: WorkerContext, *, threads: int):
-        context.queue.runner = lambda job_id: run_job(context, job_id)
+    def __init__(self, context: WorkerContext, *, threads: int,
+                 prepare_thread: Callable[[Settings], None] = prepare_job_thread):
         settings = context.settings
-        context.queue.huey.on_startup("league-job-thread")(lambda: prepare_job_thread(settings))  # in each
         if settings.cpu_placement and context.placement is None:
             context.placement = Placement(threads, Path(settings.cpu_slots_dir) if settings.cpu_slots_dir else None)
-        self.context = context
-        self.consumer = Consumer(context.queue.huey, workers=threads, periodic=False,
-                                       max_delay=MAX_POLL_DELAY_S, check_worker_health=True)
-        self.reaper = Reaper(context)
+        self.context, self.prepare_thread = context, prepare_thread  # (tests run jobs without sandboxes)
+        self.threads = [threading.Thread(target=self._job_thread, name=f"league-job-{n}", daemon=True)
+                        for n in range(threads)]
+        self.draining = threading.Event()  # claim no new job (SIGINT): the running ones finish
+        self.signals: list[int] = []  # received, acted on by the main thread
+        self.worker_id: int | None = None
+        self.reaper = Periodic("league-reaper", settings.reaper_interval_s, self._reap)
+        self.beat = Periodic("league-worker-beat", settings.worker_heartbeat_s, self._beat)
+        self._stop_listening = threading.Event()
 
     def run_forever(self) -> None:
-        """Run in the foreground until SIGINT (graceful: running jobs finish) or SIGTERM (they are handed back)."""
-        self.reaper.start()
+        """Run in the foreground until SIGINT (graceful: running jobs finish; a second one stops at once)
+        or SIGTERM (running jobs are handed back to the queue at once)."""
+        for signum in (signal.SIGINT, signal.SIGTERM):
+            signal.signal(signum, lambda number, frame: self.signals.append(number))
+        self.start()
         try:
-            self.consumer.run()
+            self._wait()
         finally:
-            self._hand_back()
-            self.reaper.stop()
-            self._release_cpus()
+            self.stop()
+
+    def start(self) -> None:
+        """Register, then start the heartbeat, the reaper, the listener (PostgreSQL) and the job threads."""
+        self.worker_id = registry.register(self.context.sessions)
+        self.beat.start()
+        self.reaper.start()
+        if self.context.queue.notifies:
+            threading.Thread(target=self.context.queue.listen, args=(self._stop_listening,),
+                             name="league-listener", daemon=True).start()
+        for thread in self.threads:
+            thread.start()
+        log.info("worker started: %d job threads claiming from the database (looking every %g s%s)",
+                 len(self.threads), self.context.settings.resolved_queue_poll_s,
+                 ", woken by NOTIFY" if self.context.queue.notifies else "")
+
+    def stop(self) -> None:
+        """Claim no more, hand the running jobs back, stop the other threads, unregister."""
+        self.draining.set()
+        self.context.queue.wakeup.wake()
+        self._hand_back()
+        self._stop_listening.set()
+        self.reaper.stop()
+        self.beat.stop()
+        try:
+            registry.unregister(self.context.sessions, self.worker_id)
+        except Exception:  # noqa: BLE001 - the database is gone: its row ages out of /api/health
+            log.warning("could not remove this worker from the workers table", exc_info=True)
+        self._release_cpus()
+
+    def _wait(self) -> None:
+        """Until the job threads end after a SIGINT, or at once on SIGTERM or a second SIGINT."""
+        while alive := [thread for thread in self.threads if thread.is_alive()]:
+            if signal.SIGTERM in self.signals or self.signals.count(signal.SIGINT) > 1:
+                return
+            if self.signals and not self.draining.is_set():
+                log.info("stopping once the running jobs finish (Ctrl-C again: hand them back now)")
+                self.draining.set()
+                self.context.queue.wakeup.wake()
+            alive[0].join(SIGNAL_CHECK_S)
+
+    def _job_thread(self) -> None:
+        context = self.context
+        self.prepare_thread(context.settings)
+        wakeup, poll_s = context.queue.wakeup, context.settings.resolved_queue_poll_s
+        while not self.draining.is_set():
+            seen = wakeup.generation
+            try:
+                ran = run_next(context)
+            except Exception:  # noqa: BLE001 - an outage: log it, look again after the poll
+                log.exception("job thread: claiming or running a job failed")
+                ran = False
+            if not ran:
+                wakeup.wait(seen, poll_s)
+
+    def _reap(self) -> None:
+        requeued = reap(self.context)
+        if requeued:
+            log.info("reaper re-queued jobs %s", requeued)
+        sweep_store(self.context.sessions, self.context.store)
+        alive.beat(alive.alive_file(self.context.settings.data_dir))  # `league worker --check`
+
+    def _beat(self) -> None:
+        self.worker_id = registry.beat(self.context.sessions, self.worker_id)
 
     def _release_cpus(self) -> None:
         if self.context.placement is not None:
@@ -104,7 +172,7 @@ def worker_context(settings: Settings, engine: Engine, queue: JobQueue | None = 
     store.ensure()
     sandbox_isolation(settings.sandbox_uid_base)  # logged at start-up: what this machine's sandboxes get
     ForkServer.release_this_thread()  # (the probe's: this thread runs no job)
-    return WorkerContext(settings, make_sessionmaker(engine), queue or build_queue(settings), store, HANDLERS)
+    return WorkerContext(settings, make_sessionmaker(engine), queue or JobQueue(engine), store, HANDLERS)
 
 
 def pin_to_cpus(spec: str) -> set[int]:

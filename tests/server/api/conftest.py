@@ -124,14 +124,14 @@ def league_test_settings() -> dict:
 def in_process_league(kind: str, tmp_path: Path, prepare: Callable[[str], None] | None = None, **settings):
     """The app with the test settings (and `settings`) on a fresh database of `kind` (given first to
     `prepare(database_url)`, e.g. to hold an older schema's data); an instructor; no worker."""
-    with fresh_backend(kind, tmp_path) as (database_url, queue_url, queue_name):
+    with fresh_backend(kind, tmp_path) as database_url:
         if prepare is not None:
             prepare(database_url)
         values = league_test_settings()
         values.update(public_cache_s=0)  # every answer fresh: tests independent of their order
         values.update(baselines_dir=tmp_path / "baselines")  # empty: the heuristic driver is the baseline
         settings = Settings(_env_file=None, **{**values, **settings}, data_dir=tmp_path / "data",
-                            database_url=database_url, queue_url=queue_url, queue_name=queue_name)
+                            database_url=database_url)
         migrate(app_engine := make_engine(settings.resolved_database_url))  # as `league serve` does first
         app_engine.dispose()
         app = create_app(settings)

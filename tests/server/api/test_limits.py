@@ -64,8 +64,8 @@ def test_a_multipart_body_is_not_read_without_a_token(app_league, path):
 @pytest.mark.slow
 def test_a_body_that_stops_arriving_is_refused_and_the_api_goes_on(tmp_path):
     """A real server and a client that sends half a body, then nothing: a 408 after the timeout."""
-    with fresh_backend("sqlite", tmp_path) as urls:
-        server = make_server(tmp_path, urls, LEAGUE_REQUEST_BODY_TIMEOUT_S="1", LEAGUE_BOOTSTRAP="false")
+    with fresh_backend("sqlite", tmp_path) as database_url:
+        server = make_server(tmp_path, database_url, LEAGUE_REQUEST_BODY_TIMEOUT_S="1", LEAGUE_BOOTSTRAP="false")
         server.start_api(embedded_worker=False)
         try:
             with socket.create_connection(("127.0.0.1", server.port), timeout=30) as client:

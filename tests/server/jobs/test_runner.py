@@ -1,5 +1,5 @@
-"""Job leases on a real database and queue (both backends): claimed once, results written once,
-stale jobs re-queued by the reaper, failed for good after their attempts."""
+"""Job leases on a real database (both backends; the jobs table is the queue): claimed once, results
+written once, stale jobs re-queued by the reaper, failed for good after their attempts."""
 from __future__ import annotations
 
 import os
@@ -14,8 +14,8 @@ from league.server.db.models import DONE, FAILED, LOW, QUEUED, RUNNING, Job, utc
 from league.server.db.session import make_engine, make_sessionmaker, migrate
 from league.server.jobs.leases import cancel, claim, claim_next, complete, fairest_queued, heartbeat
 from league.server.jobs.placement import Placement
-from league.server.jobs.queue import build_queue
-from league.server.jobs.runner import JobCannotSucceed, JobRun, WorkerContext, reap, release_active, run_job
+from league.server.jobs.queue import JobQueue
+from league.server.jobs.runner import JobCannotSucceed, JobRun, WorkerContext, reap, release_active, run_next
 from league.server.storage import BlobStore
 
 
@@ -44,12 +44,11 @@ class Recorder:
 
 @pytest.fixture
 def context(backend, tmp_path):
-    _, (database_url, queue_url, queue_name) = backend
-    settings = Settings(data_dir=tmp_path / "data", database_url=database_url, queue_url=queue_url,
-                        queue_name=queue_name, lease_timeout_s=60, requeue_queued_after_s=600, bootstrap=False)
+    _, database_url = backend
+    settings = Settings(data_dir=tmp_path / "data", database_url=database_url, lease_timeout_s=60, bootstrap=False)
     engine = make_engine(database_url)
     migrate(engine)
-    yield WorkerContext(settings, make_sessionmaker(engine), build_queue(settings), BlobStore(settings.data_dir),
+    yield WorkerContext(settings, make_sessionmaker(engine), JobQueue(engine), BlobStore(settings.data_dir),
                         handlers={"test": Recorder()})
     engine.dispose()
 
@@ -95,10 +94,10 @@ def test_a_job_is_claimed_by_one_attempt_only(context, recorder):
     assert (row.status, row.worker_id, row.attempts) == (RUNNING, winners[0], 1)
 
 
-def test_run_job_writes_the_outcome_and_ignores_duplicate_messages(context, recorder):
+def test_run_next_writes_the_outcome_once(context, recorder):
     job_id = new_job(context)
-    run_job(context, job_id)
-    run_job(context, job_id)  # the same message delivered twice
+    assert run_next(context)
+    assert not run_next(context)  # nothing else queued
     assert recorder.finished == [{"job": job_id}]
     assert (job(context, job_id).status, job(context, job_id).attempts) == (DONE, 1)
 
@@ -141,20 +140,33 @@ def test_a_job_whose_workers_keep_dying_fails_for_good_with_the_reason(context, 
 def test_a_failing_handler_is_retried_then_failed(context, recorder):
     recorder.fail_with = RuntimeError("disk full")
     job_id = new_job(context, max_attempts=2)
-    run_job(context, job_id)
+    run_next(context)
     assert (job(context, job_id).status, job(context, job_id).error) == (QUEUED, "RuntimeError: disk full")
-    run_job(context, job_id)
+    run_next(context)
     assert job(context, job_id).status == FAILED
     assert recorder.given_up == [(job_id, "RuntimeError: disk full")]
 
 
-def test_a_long_queued_job_is_sent_again(context, recorder):
+def test_a_long_queued_job_is_left_to_the_claims(context, recorder):
+    """Queued for an hour (its wake-up lost): nothing to re-send, the next claim takes it."""
     job_id = new_job(context)
     age(context, job_id, enqueued_at=3600)
-    pending = context.queue.pending()
-    assert reap(context) == [job_id]
-    assert context.queue.pending() == pending + 1
-    assert reap(context) == []  # sent once per period
+    assert reap(context) == []
+    assert run_next(context) and job(context, job_id).status == DONE
+
+
+def test_a_job_of_a_kind_no_handler_knows_fails_with_the_reason(context, recorder):
+    """A row an older release queued under a kind since renamed fails at once, saying so, and the
+    claim goes on to the next job instead of leaving it waiting."""
+    with context.sessions.begin() as session:
+        renamed = crud.create_job(session, kind="run_job", owner_id=None).id
+    known = new_job(context)
+    assert run_next(context)
+    row = job(context, renamed)
+    assert (row.status, row.worker_id) == (FAILED, None)
+    assert row.error == ("no worker of this version runs jobs of kind 'run_job' (knows test): queued by another "
+                         "version of microracer-league")
+    assert job(context, known).status == DONE
 
 
 def test_a_worker_shutting_down_hands_its_jobs_back(context, recorder):
@@ -162,14 +174,14 @@ def test_a_worker_shutting_down_hands_its_jobs_back(context, recorder):
     claimed = claim(context.sessions, context.handlers, job_id=job_id, attempt_id="leaving")
     run = JobRun(context, claimed, "leaving")
     context.active[job_id] = run
-    pending = context.queue.pending()
+    generation = context.queue.wakeup.generation
 
     assert release_active(context) == [job_id]
 
     assert run.lease_lost.is_set()
     row = job(context, job_id)
     assert (row.status, row.worker_id, row.error) == (QUEUED, None, "its worker shut down")
-    assert context.queue.pending() == pending + 1
+    assert context.queue.wakeup.generation == generation + 1  # this worker's idle threads look again
     assert complete(context.sessions, context.handlers, job_id=job_id, attempt_id="leaving", outcome={}) == []
 
 
@@ -192,7 +204,7 @@ def test_a_job_thread_is_placed_by_the_kind_of_its_job(context, tmp_path):
         context.handlers[kind] = AffinityRecorder(parallel)
     with context.sessions.begin() as session:
         ids = [crud.create_job(session, kind=kind, owner_id=None).id for kind in ("test-one-sandbox", "test-race")]
-    worker = threading.Thread(target=lambda: [run_job(context, job_id) for job_id in ids])  # a job thread
+    worker = threading.Thread(target=lambda: [run_next(context) for job_id in ids])  # a job thread
     worker.start()
     worker.join()
     with context.sessions() as session:
@@ -250,7 +262,7 @@ def test_a_students_jobs_are_claimed_before_any_low_priority_re_evaluation(conte
 def test_a_job_that_cannot_succeed_fails_once_without_retrying(context, recorder):
     recorder.fail_with = JobCannotSucceed("the file of submission 7 is no longer kept")
     job_id = new_job(context, max_attempts=3)
-    run_job(context, job_id)
+    run_next(context)
     row = job(context, job_id)
     assert (row.status, row.attempts, row.error) == (FAILED, 1, "the file of submission 7 is no longer kept")
     assert recorder.given_up == [(job_id, "the file of submission 7 is no longer kept")]

@@ -29,8 +29,8 @@ def test_a_new_workers_job_threads_prepare_torch_before_their_first_job(tmp_path
     server prepares every runtime (a tiny model of each, run) while no job asks: the first
     TorchScript model a new worker sees waits for no import of torch (35 s of a first upload's
     47.8 s on a busy machine, issue 25). The isolation probe's own fork server is gone."""
-    with fresh_backend("sqlite", tmp_path) as urls:
-        server = make_server(tmp_path, urls, LEAGUE_WORKER_THREADS="2", LEAGUE_JOB_NICE="10")
+    with fresh_backend("sqlite", tmp_path) as database_url:
+        server = make_server(tmp_path, database_url, LEAGUE_WORKER_THREADS="2", LEAGUE_JOB_NICE="10")
         worker = server.start_worker()
         try:
             servers = wait_for(lambda: fork_servers(worker.pid),

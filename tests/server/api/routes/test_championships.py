@@ -233,8 +233,8 @@ def season(tmp_path_factory, models):
     tmp = tmp_path_factory.mktemp("season")
     drivers = tmp / "drivers"
     drivers.mkdir()
-    with fresh_backend("sqlite", tmp) as urls:
-        server = make_server(tmp, urls, LEAGUE_PUBLIC_CACHE_S="0", LEAGUE_RACE_QUOTA_PER_DAY="1")
+    with fresh_backend("sqlite", tmp) as database_url:
+        server = make_server(tmp, database_url, LEAGUE_PUBLIC_CACHE_S="0", LEAGUE_RACE_QUOTA_PER_DAY="1")
         server.start_api()
         try:
             yield run_season(server, drivers, models)

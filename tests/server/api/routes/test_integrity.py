@@ -1,4 +1,4 @@
-"""The integrity report over real HTTP, on SQLite + SQLite queue and on PostgreSQL + Redis: real
+"""The integrity report over real HTTP, on SQLite and on PostgreSQL: real
 uploads validated (and probed) in real sandboxes, in a course of the test's own."""
 from __future__ import annotations
 

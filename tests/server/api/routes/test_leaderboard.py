@@ -135,8 +135,8 @@ def test_the_grades_are_data_in_any_spreadsheet(app_league):
 @pytest.mark.slow
 def test_an_agent_stays_on_the_leaderboard_while_it_is_evaluated_again(tmp_path, models):
     """Re-running evaluations (new settings) must not empty the board until a worker gets to them."""
-    with fresh_backend("sqlite", tmp_path) as urls:
-        server = make_server(tmp_path, urls)
+    with fresh_backend("sqlite", tmp_path) as database_url:
+        server = make_server(tmp_path, database_url)
         server.start_api()
         try:
             student = create_student(server, "mia")

@@ -1,4 +1,4 @@
-"""Friendly races, on SQLite + SQLite queue and on PostgreSQL + Redis: a student races their agent
+"""Friendly races, on SQLite and on PostgreSQL: a student races their agent
 against the baseline over real HTTP, the race is reproducible from what is stored; every race the
 API must refuse is refused with a clear reason (in process)."""
 from __future__ import annotations
@@ -320,8 +320,8 @@ def test_an_agent_of_another_course_cannot_race(grid, models):
 def test_race_settings_limit_cars_and_daily_races_and_a_replay_waits_for_the_race(backend, tmp_path, models):
     """LEAGUE_MAX_RACE_CARS=2 and LEAGUE_RACE_QUOTA_PER_DAY=1; with no worker running, the race stays
     pending and its replay is a 409 until a worker races it."""
-    _, urls = backend
-    server = make_server(tmp_path, urls, LEAGUE_MAX_RACE_CARS="2", LEAGUE_RACE_QUOTA_PER_DAY="1")
+    _, database_url = backend
+    server = make_server(tmp_path, database_url, LEAGUE_MAX_RACE_CARS="2", LEAGUE_RACE_QUOTA_PER_DAY="1")
     server.start_api(embedded_worker=False)
     worker = server.start_worker()
     try:

@@ -1,4 +1,4 @@
-"""Submissions, on SQLite + SQLite queue and on PostgreSQL + Redis: what a worker must run over real
+"""Submissions, on SQLite and on PostgreSQL: what a worker must run over real
 HTTP (league_server), the refusals in process (app_league)."""
 from __future__ import annotations
 

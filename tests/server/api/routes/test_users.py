@@ -20,7 +20,7 @@ def unique(name: str) -> str:
 def test_cli_token_authenticates_the_instructor(app_league):
     """`league users add` writes to the same database as the app; its token is accepted."""
     env = {**os.environ, "LEAGUE_DATABASE_URL": app_league.settings.resolved_database_url,
-           "LEAGUE_QUEUE_URL": app_league.settings.resolved_queue_url, "LEAGUE_DATA_DIR": str(app_league.settings.data_dir)}
+           "LEAGUE_DATA_DIR": str(app_league.settings.data_dir)}
     name = unique("prof")
     added = subprocess.run([sys.executable, "-m", "league.server", "users", "add", name, "--role", "instructor"],
                            env=env, capture_output=True, text=True, timeout=120)
