@@ -16,9 +16,10 @@ import numpy as np
 from sqlalchemy.orm import Session
 
 from league import championship as rules
+from league.server.assignments import final_choices
 from league.server.db import crud
 from league.server.db.models import (
-    BASELINE, DONE, FAILED, PENDING, RACE, RUNNING, Championship, ChampionshipRound, Job, Race, Submission, User,
+    BASELINE, DONE, FAILED, PENDING, RACE, READY, RUNNING, Assignment, Championship, ChampionshipRound, Job, Race, Submission, User,
 )
 from league.server.standings import championship_standings
 
@@ -96,9 +97,16 @@ def track_sealed(championship_round: ChampionshipRound) -> bool:
 
 
 def round_entrants(session: Session, championship: Championship) -> list[Submission]:
-    """Every student's active submission, and the ready baselines when they take part; in submission order."""
+    """Every student's submission that races -- their final choice of the championship's assignment
+    (the rule of the private test and the grades), else their active one -- and the ready baselines
+    when they take part; in submission order."""
     students = crud.active_students(session, course_id=championship.course_id)
-    picked = [s for s in (active_submission(session, user=u) for u in students) if s is not None]
+    if championship.assignment_id is not None:
+        assignment = session.get(Assignment, championship.assignment_id)
+        chosen = final_choices(session, assignment, [u.id for u in students]).values()
+        picked = [s for s in (session.get(Submission, i) for i in chosen if i is not None) if s.status == READY]
+    else:
+        picked = [s for s in (active_submission(session, user=u) for u in students) if s is not None]
     if championship.include_baselines:
         picked += crud.ready_baseline_submissions(session)
     return sorted(picked, key=lambda s: s.id)

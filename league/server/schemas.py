@@ -321,6 +321,9 @@ class ChampionshipCreate(BaseModel):
     include_baselines: bool = True
     seed: int | None = Field(None, ge=0, lt=2**63, description="draws the rounds' heats (who races whom); "
                                                                "default: drawn. Tracks are drawn secretly per round")
+    assignment: int | None = Field(None, ge=1, description="an assignment of your course (its id): the rounds race "
+                                   "each student's final submission of it (their selection, else their best on "
+                                   "its public board); default: none, each student's active submission")
 
 
 class RoundOut(BaseModel):
@@ -343,6 +346,7 @@ class ChampionshipOut(BaseModel):
     points: list[int]
     include_baselines: bool
     seed: int = Field(description="draws each round's heats; the tracks do not derive from it")
+    assignment_id: int | None = Field(description="whose final submissions race; null: the students' active ones")
     created_at: datetime
     rounds: list[RoundOut]
 

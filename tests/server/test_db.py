@@ -329,3 +329,41 @@ def test_assignments_gain_a_rubric_with_their_rows_kept_and_lose_it_on_downgrade
         assert connection.execute(text("SELECT name, private_seed FROM assignments")).one() == ("hw1", 77)
     migrate(engine)
     engine.dispose()
+
+
+# --------------------------------------------------------------------------- 0017: championships of an assignment
+
+
+def test_championships_keep_their_rows_belong_to_no_assignment_and_lose_the_column_on_downgrade(backend):
+    """0017 on a 0014 database that holds a championship: the row kept, of no assignment (it races the
+    active submissions, as before); one can then belong to an assignment; the downgrade keeps the row."""
+    _, database_url = backend
+    engine = make_engine(database_url)
+    config = alembic_config(database_url)
+    with engine.connect() as connection:
+        config.attributes["connection"] = connection
+        command.upgrade(config, "0014")
+        connection.commit()
+    now = datetime(2026, 11, 1)
+    with engine.begin() as connection:
+        connection.execute(text("INSERT INTO courses (id, name, created_at, updated_at) VALUES (1, 'c', :now, :now)"),
+                           {"now": now})
+        connection.execute(text(
+            "INSERT INTO assignments (id, course_id, name, description, seed, episodes, env_options, private_seed, "
+            "auto_publish, created_at, updated_at) VALUES (1, 1, 'hw1', '', 3, 5, '{}', 77, false, :now, :now)"),
+            {"now": now})
+        connection.execute(text(
+            "INSERT INTO championships (id, course_id, name, env_options, heat_size, points, include_baselines, seed, "
+            "created_at) VALUES (1, 1, 'cup', '{}', 4, '[3, 1]', true, 9, :now)"), {"now": now})
+    migrate(engine)
+    with engine.begin() as connection:
+        assert connection.execute(text("SELECT name, seed, assignment_id FROM championships")).one() == ("cup", 9, None)
+        connection.execute(text("UPDATE championships SET assignment_id = 1"))
+    with engine.connect() as connection:
+        config.attributes["connection"] = connection
+        command.downgrade(config, "0014")
+        connection.commit()
+        assert "assignment_id" not in {c["name"] for c in inspect(connection).get_columns("championships")}
+        assert connection.execute(text("SELECT name, seed FROM championships")).one() == ("cup", 9)
+    migrate(engine)
+    engine.dispose()

@@ -722,3 +722,58 @@ def test_a_board_for_members_prompts_a_visitor_to_log_in_and_a_student_picks_a_d
             expect(web.page.locator("#display-message")).to_contain_text("Saved: visitors of public boards see")
         finally:
             assert instructor.put("/api/settings/privacy", json={"board_visibility": "public"}).status_code == 200
+
+
+def test_a_student_selects_a_final_submission_then_sees_the_private_result_and_grade(web, web_server, agent_files):
+    """The student's Assignments table: their best on the public board until they select another on
+    the page (the API then shows that selection); nothing private before publication (the grade is
+    not even asked for); once the instructor publishes, the private result and their grade."""
+    token = instructor_of_a_new_course(web_server)  # publication waits for every student of the course
+    with web_server.client(token) as instructor:
+        student = instructor.post("/api/users", json={"name": unique("sel")}).json()
+        sprint = instructor.post("/api/assignments", json={"name": "Sprint", "episodes": 2,
+                                                            "due_at": "2099-01-01T00:00:00+00:00"}).json()
+        assert instructor.put(f"/api/assignments/{sprint['id']}/rubric", json={
+            "kind": "formula", "max_points": 10, "formula": "10 * completed"}).status_code == 200
+    ids = []
+    with web_server.client(student["token"]) as client:
+        for speed in ("0.2", "0.3"):
+            with open(agent_files[f"driver_{speed}"], "rb") as handle:
+                response = client.post("/api/submissions", files={"file": ("agent.onnx", handle)},
+                                       data={"name": f"driver {speed}", "assignment": str(sprint["id"])})
+            assert response.status_code == 201, response.text
+            ids.append(wait_settled(client, response.json()["id"])["id"])
+        best = client.get(f"/api/assignments/{sprint['id']}").json()["final"]["submission_id"]
+    chosen = next(i for i in ids if i != best)
+    names = {ids[0]: "driver 0.2", ids[1]: "driver 0.3"}
+
+    web.login(student["token"])
+    web.goto("/submissions")
+    row = web.page.locator("#assignments tbody tr", has_text="Sprint")
+    expect(row).to_contain_text(f"best on the public board: {names[best]}")
+    expect(row).to_contain_text("after publication")
+    web.page.select_option(f"#final-{sprint['id']}", str(chosen))
+    web.page.get_by_role("button", name="Select: the final submission of Sprint").click()
+    expect(web.page.locator("#assignment-message")).to_have_text(f"{names[chosen]} is your final submission of Sprint.")
+    expect(row).to_contain_text(f"{names[chosen]} (selected)")
+    expect(web.page.get_by_role("button", name="Select: the final submission of Sprint")).to_be_focused()
+    with web_server.client(student["token"]) as client:
+        final = client.get(f"/api/assignments/{sprint['id']}").json()["final"]
+    assert (final["submission_id"], final["selected"]) == (chosen, True)
+    assert not [url for url in web.requests if "/grades/me" in url]  # not published: not asked
+
+    with web_server.client(token) as instructor:  # the due time passes: the finals are frozen and tested privately
+        assert instructor.patch(f"/api/assignments/{sprint['id']}",
+                                json={"due_at": "2020-01-01T00:00:00+00:00"}).status_code == 200
+        rows = wait_for(lambda: instructor.get(f"/api/assignments/{sprint['id']}/grades").json()["rows"],
+                        lambda rows: [r["status"] for r in rows if r["role"] == "student"] == ["graded"], timeout=120)
+        assert instructor.post(f"/api/assignments/{sprint['id']}/publish").status_code == 200
+    graded = next(r for r in rows if r["role"] == "student")
+    with web_server.client(student["token"]) as client:
+        mine = client.get(f"/api/assignments/{sprint['id']}").json()["final"]["evaluation"]
+    web.page.reload()
+    expect(row).to_contain_text(f"{names[chosen]} (selected), frozen")
+    expect(row).to_contain_text(f"{mine['completed']}/{mine['episodes_total']} laps, return {mine['mean_return']:.2f}; "
+                                f"grade {graded['points']:.1f} of 10.0, rank 1 of 1")
+    assert graded["submission_id"] == chosen
+    web.screenshot("student-final-and-grade")

@@ -309,6 +309,8 @@ class Championship(Base):
 
     id: Mapped[int] = mapped_column(primary_key=True)
     course_id: Mapped[int | None] = mapped_column(ForeignKey("courses.id"), index=True)
+    # its rounds race each student's final choice of this assignment; none: their active submission
+    assignment_id: Mapped[int | None] = mapped_column(ForeignKey("assignments.id"), default=None)
     name: Mapped[str] = mapped_column(String(100))
     env_options: Mapped[dict[str, Any]] = mapped_column(default=dict)
     heat_size: Mapped[int] = mapped_column(Integer)

@@ -16,7 +16,7 @@ from league.server.api.deps import (
     board_names, check_env_options, csv_response, user_course,
 )
 from league.server.db import crud
-from league.server.db.models import Championship, ChampionshipRound, User
+from league.server.db.models import Assignment, Championship, ChampionshipRound, User
 from league.server.privacy import Names
 from league.server.rounds import RoundRefused, retry_round, round_summary, start_round
 from league.server.standings import STANDINGS_GRADES, grade_rows, standings_rows
@@ -35,7 +35,11 @@ def create_championship(body: ChampionshipCreate, instructor: InstructorUser, se
                             f"heat_size {body.heat_size} is too large: a race takes at most {settings.max_race_cars} cars")
     if any(p < 0 for p in body.points):
         raise HTTPException(status.HTTP_422_UNPROCESSABLE_CONTENT, "points must not be negative")
-    championship = Championship(course_id=user_course(session, instructor).id, name=body.name.strip(),
+    course = user_course(session, instructor)
+    assignment = session.get(Assignment, body.assignment) if body.assignment is not None else None
+    if body.assignment is not None and (assignment is None or assignment.course_id != course.id):
+        raise HTTPException(status.HTTP_404_NOT_FOUND, f"no assignment {body.assignment} in your course")
+    championship = Championship(course_id=course.id, assignment_id=body.assignment, name=body.name.strip(),
                                 env_options=body.env_options, heat_size=body.heat_size, points=body.points,
                                 include_baselines=body.include_baselines, created_by_id=instructor.id,
                                 seed=body.seed if body.seed is not None else secrets.randbelow(2**31))
@@ -167,5 +171,6 @@ def championship_out(championship: Championship) -> ChampionshipOut:
     return ChampionshipOut(id=championship.id, name=championship.name, env_options=championship.env_options,
                            heat_size=championship.heat_size, points=championship.points,
                            include_baselines=championship.include_baselines, seed=championship.seed,
+                           assignment_id=championship.assignment_id,
                            created_at=championship.created_at,
                            rounds=[round_summary(r) for r in championship.rounds])

@@ -57,7 +57,9 @@ export function zonedTime(iso) {
   if (!iso) return "–";
   const date = new Date(iso);
   return Number.isNaN(date.getTime()) ? iso
-    : date.toLocaleString([], { dateStyle: "medium", timeStyle: "short", timeZoneName: "short" });
+    // (dateStyle and timeStyle refuse timeZoneName: a TypeError that left the tables unfilled)
+    : date.toLocaleString([], { year: "numeric", month: "short", day: "numeric", hour: "2-digit", minute: "2-digit",
+                                timeZoneName: "short" });
 }
 
 /** What is left from `now` (the server's clock) to `until`: "3 d 4 h", "5 h 12 min", "closed". */

@@ -364,3 +364,37 @@ def test_an_assignments_board_is_shown_as_the_courses_board_visibility_allows(le
         finally:
             instructor.put("/api/settings/privacy", json=before).raise_for_status()
         assert visitor.get(f"/api/assignments/{hw['id']}/board").status_code == 200
+
+
+def test_a_championship_of_an_assignment_races_the_final_choices_not_the_active_submissions(league, clock):
+    """The round's entrants follow final_choices (the private test's and the grades' rule): the
+    selected submission, else the best on the assignment's board; a championship without an
+    assignment still races each student's active submission."""
+    hw = create(league)
+    chooser_user, chooser = league.student("racer")
+    best_user, _ = league.student("racer")
+    selected = ready(league, chooser_user, hw["id"], completed=1)
+    active = ready(league, chooser_user, hw["id"], completed=4)  # their best, and their active submission
+    weaker = ready(league, best_user, hw["id"], completed=2)
+    strongest = ready(league, best_user, hw["id"], completed=3)
+    assert chooser.patch(f"/api/submissions/{active}", json={"active": True}).status_code == 200
+    assert chooser.post(f"/api/assignments/{hw['id']}/selection", json={"submission_id": selected}).status_code == 200
+
+    def first_round_entrants(**body) -> set[int]:
+        with league.client(league.instructor_token) as instructor:
+            created = instructor.post("/api/championships", json={"name": unique("cup"), "heat_size": 10,
+                                                                  "include_baselines": False, **body})
+            assert created.status_code == 201, created.text
+            assert created.json()["assignment_id"] == body.get("assignment")
+            started = instructor.post(f"/api/championships/{created.json()['id']}/rounds")
+            assert started.status_code == 202, started.text
+            return {i for heat in started.json()["heats"] for i in heat}
+
+    of_hw = first_round_entrants(assignment=hw["id"])
+    assert of_hw == {selected, strongest}  # other students of the module have no submission of hw
+    of_course = first_round_entrants()
+    assert active in of_course and selected not in of_course and weaker not in of_course
+
+    with league.client(league.instructor_token) as instructor:
+        unknown = instructor.post("/api/championships", json={"name": unique("cup"), "assignment": 999999})
+    assert (unknown.status_code, unknown.json()["detail"]) == (404, "no assignment 999999 in your course")

@@ -13,6 +13,7 @@ const watched = new Map(); // "championship/round" -> Poller
 
 export async function setUpChampionships() {
   const options = new EnvOptionsFields($("champ-options"), "champ");
+  $("new-championship").addEventListener("toggle", () => $("new-championship").open && fillAssignments());
   onSubmit($("championship-form"), async () => {
     try {
       const created = await api("/api/championships", { method: "POST", json: championshipBody(options) });
@@ -38,7 +39,22 @@ function championshipBody(options) {
     env_options: options.read(),
   };
   if ($("champ-seed").value.trim() !== "") body.seed = Number($("champ-seed").value);
+  if ($("champ-assignment").value) body.assignment = Number($("champ-assignment").value);
   return body;
+}
+
+/** The assignment menu, read again whenever the form opens (one may have been created meanwhile). */
+async function fillAssignments() {
+  const menu = $("champ-assignment");
+  const kept = menu.value;
+  try {
+    const assignments = await api("/api/assignments");
+    menu.replaceChildren(element("option", { text: "none", attrs: { value: "" } }),
+      ...assignments.map((a) => element("option", { text: a.name, attrs: { value: a.id } })));
+    menu.value = assignments.some((a) => String(a.id) === kept) ? kept : "";
+  } catch (error) {
+    say($("championships-message"), `The assignments could not be read: ${error.message}`, "error");
+  }
 }
 
 async function refreshChampionships() {
@@ -62,7 +78,9 @@ function championshipCard(championship) {
   const run = element("button", { text: `Run round ${rounds.length + 1}`, attrs: { type: "button", "data-focus-key": `run-${championship.id}` } });
   run.addEventListener("click", () => runRound(championship, run));
   const facts = [`${championship.heat_size} cars per heat`, `points ${(championship.points || []).join("-")}`,
-    championship.include_baselines ? "baselines take part" : "students only", describeOptions(championship.env_options),
+    championship.include_baselines ? "baselines take part" : "students only",
+    championship.assignment_id ? `final submissions of assignment ${championship.assignment_id}` : null,
+    describeOptions(championship.env_options),
     championship.seed !== null && championship.seed !== undefined ? `heats drawn with seed ${championship.seed}` : null].filter(Boolean);
   return element("article", { className: "panel", attrs: { "data-championship": championship.id, "aria-label": championship.name } },
     element("div", { className: "row" },

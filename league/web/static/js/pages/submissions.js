@@ -1,5 +1,6 @@
 // My submissions (/submissions): upload a model, watch its status change live, read why it
-// failed, see its evaluation chart, pick the championship's active submission, start a friendly race.
+// failed, see its evaluation chart, select the final submission of each assignment (then see its
+// private result and grade), pick the championship's active submission, start a friendly race.
 
 import { api } from "../api.js";
 import { $, badge, element, focusOn, onSubmit, replaceKeepingFocus, say } from "../dom.js";
@@ -62,19 +63,76 @@ async function refreshAssignments() {
     attrs: { value: a.id } })));
   if (open.some((a) => String(a.id) === kept)) picker.value = kept;
   picker.closest(".field").hidden = open.length < 2; // one open: the server takes it, nothing to choose
-  replaceKeepingFocus($("assignments").tBodies[0], ...assignments.map((a) => {
-    const final = a.final || {};
-    const result = final.evaluation && final.evaluation.status === "done"
-      ? `${final.evaluation.completed}/${final.evaluation.episodes_total} laps, return ${number(final.evaluation.mean_return, 2)}`
-      : (a.published_at ? "–" : "after publication");
-    return element("tr", {},
-      element("td", { text: a.name, attrs: { title: a.description || "" } }), element("td", {}, badge(a.state)),
-      element("td", { text: zonedTime(a.opens_at) }),
-      element("td", { text: zonedTime(a.my_due_at) + (a.extended ? " (extension)" : "") }),
-      element("td", { text: timeLeft(a.my_due_at, a.now) }), element("td", { text: zonedTime(a.late_until) }),
-      element("td", { text: final.submission_id ? `#${final.submission_id}${final.selected ? " (selected)" : " (best)"}` : "–" }),
-      element("td", { text: result }));
-  }));
+  const grades = await Promise.all(assignments.map(myGrade));
+  replaceKeepingFocus($("assignments").tBodies[0], ...assignments.map((a, k) => element("tr", {},
+    element("td", { text: a.name, attrs: { title: a.description || "" } }), element("td", {}, badge(a.state)),
+    element("td", { text: zonedTime(a.opens_at) }),
+    element("td", { text: zonedTime(a.my_due_at) + (a.extended ? " (extension)" : "") }),
+    element("td", { text: timeLeft(a.my_due_at, a.now) }), element("td", { text: zonedTime(a.late_until) }),
+    element("td", {}, finalCell(a)), element("td", { text: privateResult(a, grades[k]) }))));
+}
+
+/** The submission's name as this page lists it (the final one is always the student's own). */
+function nameOf(id) {
+  return submissions.find((s) => s.id === id)?.name || `#${id}`;
+}
+
+const choices = new Map(); // assignment id -> the option picked in its menu, kept across the polls' redraws
+
+/** The student's final submission of an assignment and, until it is frozen, a menu to select another. */
+function finalCell(a) {
+  const final = a.final || {};
+  const text = !final.submission_id ? "none yet"
+    : final.selected ? `${nameOf(final.submission_id)} (selected)` : `best on the public board: ${nameOf(final.submission_id)}`;
+  const cell = element("div", {}, element("span", { text: final.frozen_at ? `${text}, frozen` : text }));
+  const ready = submissions.filter((s) => s.assignment_id === a.id && s.status === "ready");
+  if (final.frozen_at || !["open", "late"].includes(a.state) || !ready.length) return cell;
+  const menu = element("select", { attrs: { id: `final-${a.id}`, "aria-label": `Final submission of ${a.name}`,
+                                            "data-focus-key": `final-${a.id}` } },
+    element("option", { text: "my best on the public board", attrs: { value: "" } }),
+    ...ready.map((s) => element("option", { text: `${s.name} (#${s.id})`, attrs: { value: s.id } })));
+  menu.value = choices.get(a.id) ?? (final.selected ? String(final.submission_id) : "");
+  menu.addEventListener("change", () => choices.set(a.id, menu.value));
+  const button = element("button", { className: "secondary small", text: "Select",
+    attrs: { type: "button", "aria-label": `Select: the final submission of ${a.name}`, "data-focus-key": `select-${a.id}` } });
+  button.addEventListener("click", () => selectFinal(a, menu.value));
+  cell.append(element("span", { className: "row" }, menu, button));
+  return cell;
+}
+
+async function selectFinal(a, value) {
+  const submissionId = value ? Number(value) : null;
+  try {
+    await api(`/api/assignments/${a.id}/selection`, { method: "POST", json: { submission_id: submissionId } });
+    choices.delete(a.id);
+    say($("assignment-message"), submissionId ? `${nameOf(submissionId)} is your final submission of ${a.name}.`
+      : `Your best on the public board is your final submission of ${a.name}.`, "success");
+    await poller.poll();
+  } catch (error) {
+    say($("assignment-message"), `Not selected: ${error.message}`, "error");
+  }
+}
+
+const gradeCache = new Map(); // "id:published:rubric" -> the grade, or null (not published, no rubric)
+
+/** The student's grade once the assignment is published (403/404/409 before: none, nothing shown). */
+async function myGrade(a) {
+  if (!a.published_at) return null;
+  const key = `${a.id}:${a.published_at}:${JSON.stringify(a.rubric)}`;
+  if (!gradeCache.has(key)) {
+    gradeCache.set(key, await api(`/api/assignments/${a.id}/grades/me`).catch(() => null));
+  }
+  return gradeCache.get(key);
+}
+
+function privateResult(a, grade) {
+  if (!a.published_at) return "after publication";
+  const evaluation = a.final?.evaluation;
+  const result = evaluation?.status === "done"
+    ? `${evaluation.completed}/${evaluation.episodes_total} laps, return ${number(evaluation.mean_return, 2)}` : "–";
+  if (!grade || grade.points === null) return result;
+  const rank = grade.rank ? `, rank ${grade.rank} of ${grade.students}` : "";
+  return `${result}; grade ${number(grade.points, 1)} of ${number(grade.max_points, 1)}${rank}${grade.late ? " (late)" : ""}`;
 }
 
 /** Uploads left today: read again when a submission comes or changes status (a rejected one is free). */
