@@ -52,7 +52,8 @@ def ready_submission(session, owner: User, sha256: str, public: bool = False) ->
     submission, job = crud.create_submission(session, owner=owner, name=unique(f"{owner.name}-agent"),
                                              filename="a.onnx", kind="onnx", sha256=sha256, size=7, max_attempts=1)
     submission.status, submission.public, submission.obs_dim, job.status = READY, public, 5, DONE
-    evaluation, eval_job = crud.create_evaluation(session, submission=submission, course=owner.course,
+    evaluation, eval_job = crud.create_evaluation(session, submission=submission,
+                                                  assignment=crud.default_assignment(session, course_id=owner.course_id),
                                                   settings={"seed": 0, "episodes": 3, "env_options": {}},
                                                   result_key="k", max_attempts=1)
     evaluation.status, evaluation.completed, evaluation.episodes_total, eval_job.status = DONE, 2, 3, DONE

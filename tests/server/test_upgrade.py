@@ -30,6 +30,14 @@ RELEASES = {
 CORE_SOURCES = ("league/lidar.pyx", "league/constants.py", "setup.py")  # what league/lidar.*.so is built from
 
 
+def csv_rank(key: str) -> bool:
+    return key == "rank"
+
+
+def no_key(key: str) -> bool:
+    return False
+
+
 def core_sources(commit: str | None) -> bytes:
     """The sources of the compiled core at `commit` (None: this checkout)."""
     if commit is None:
@@ -108,4 +116,7 @@ def test_a_league_written_by_an_earlier_release_answers_the_same_after_the_upgra
         finally:
             new.stop_all()
     assert before.keys() == after.keys()
-    assert [d for path in before for d in differences(before[path], after[path], path, common_fields_only=True)] == []
+    # the grade sheets rank among students since issue 23 (the baselines took ranks 1-6 before): their rows,
+    # in the same order, are compared field by field but for the rank
+    assert [d for path in before for d in differences(before[path], after[path], path, common_fields_only=True,
+                                                      ignore=csv_rank if path.endswith(".csv") else no_key)] == []

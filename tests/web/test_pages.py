@@ -155,7 +155,8 @@ def test_student_uploads_an_agent_and_sees_it_ready_with_its_chart(web, web_serv
     web.page.wait_for_selector("#chart-box:not([hidden])", timeout=90_000)
 
     seen = web.page.evaluate("window.seenStatuses")[str(submission_id)]
-    assert seen[0] == "pending" and seen[-1] == "ready", seen
+    # a worker may claim the job before the page's first look (workers wake on the upload's commit)
+    assert seen[0] in ("pending", "validating") and seen[-1] == "ready", seen
     assert seen == [s for s in ("pending", "validating", "ready") if s in seen], seen  # in order, no reload
 
     api = wait_settled(web_server.client(token), submission_id)

@@ -169,7 +169,7 @@ def test_a_settings_change_never_mixes_results_on_the_board_or_in_the_grades(kin
             assert [(r["rank"], r["owner"], r["stale"], r["completed"], r["episodes"]) for r in board] == [
                 (1, "ann", False, 7, 7), (2, "baselines", False, 6, 7), (3, "bob", False, 4, 7), (4, "cy", False, 3, 7)]
             assert [(g["rank"], g["student"], g["stale"], g["completed"]) for g in grades] == \
-                [("1", "ann", "", "7"), ("3", "bob", "", "4"), ("4", "cy", "", "3")]
+                [("1", "ann", "", "7"), ("2", "bob", "", "4"), ("3", "cy", "", "3")]  # ranked among students
 
             assert instructor.put("/api/settings/evaluation", json=new).json()["reevaluating"] == []
             back = instructor.put("/api/settings/evaluation", json=old).json()
