@@ -14,7 +14,7 @@ from sqlalchemy import func, select
 from league.evaluation import league_versions
 from league.server.db import crud
 from league.server.db.models import (
-    DELETED, DONE, READY, STUDENT, AuditEvent, Blob, Evaluation, Job, Race, RaceReplay, Submission, User,
+    DELETED, DONE, READY, STUDENT, Assignment, AuditEvent, Blob, Evaluation, Job, Race, RaceReplay, Submission, User,
 )
 from league.server.jobs.race import RaceOutcome, car_name
 from league.server.rounds import create_race
@@ -134,9 +134,11 @@ def test_a_deleted_student_is_gone_everywhere_and_others_keep_their_results(kind
         # walk every GET route of the contract as another student and as the instructor
         with league.sessions() as session:
             race_ids = list(session.scalars(select(Race.id)))
-        everything = {"races": race_ids, "championships": [cup["id"]],
+            assignment_ids = list(session.scalars(select(Assignment.id)))
+        everything = {"races": race_ids, "championships": [cup["id"]], "assignments": assignment_ids,
                       "submissions": [ids["ann"], ids["bob"], *ids["dora"]]}
         schema_ids = {"race_id": race_ids, "championship_id": [cup["id"]], "number": [1, 2],
+                      "assignment_id": assignment_ids,
                       "submission_id": everything["submissions"], "filename": ["none.whl"]}
         urls = {url for path in contract_get_paths() for url in filled(path, everything)}
         urls |= {url for url in every_get(league.app, schema_ids)  # every GET route the app has, /metrics too
