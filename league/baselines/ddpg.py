@@ -1,10 +1,13 @@
 """Deep Deterministic Policy Gradient (DDPG) for MicroRacer.
 
 Lillicrap et al., "Continuous control with deep reinforcement learning", 2016
-(https://arxiv.org/abs/1509.02971). As in Stable-Baselines3, DDPG is TD3 (`td3.py`) with its
-three tricks removed: one critic, no policy delay, no target policy smoothing. What is DDPG's
-own here are the thesis' networks (section 4.1): a two-tower actor and a critic that
-processes the state and the action apart before joining them.
+(https://arxiv.org/abs/1509.02971). As in Stable-Baselines3, DDPG is TD3 with its three tricks
+switched off, and this module reuses `td3.py` rather than copying it: `Args` subclasses
+`td3.Args` with one critic (`n_critics=1`: no clipped double-Q), no policy delay
+(`policy_frequency=1`) and no target policy smoothing (`policy_noise=0`); the learner is
+`td3.TD3` and the training loop `td3.train`. What is DDPG's own here are the thesis' networks
+(section 4.1): a two-tower actor and a critic that processes the state and the action apart
+before joining them.
 Thesis: section 1.7.1 (algorithm), section 4.1 (networks), table 4.1 (hyperparameters).
 
     league train ddpg --steps 50000 --seed 1 --out runs/ddpg-1

@@ -5,7 +5,11 @@ Plappert et al., "Parameter Space Noise for Exploration", 2018
 copy of the actor whose weights are perturbed, θ̃ = θ + N(0, σ²), resampled at each episode.
 σ adapts so that the perturbed actions stay at a distance δ from the actor's (section 3,
 "adaptive noise scaling"), as OpenAI Baselines' ``adaptive-param_0.2``: σ₀ = δ = 0.2.
-The learning is DDPG's (`ddpg.py`, i.e. `td3.py` without its tricks).
+The learning is DDPG's, that is TD3's with its tricks switched off (`ddpg.py`): `Args`
+subclasses `ddpg.Args` (no action noise), `ParamNoiseDDPG` subclasses `td3.TD3` and overrides
+only acting, the actor update (which adapts σ), the end of an episode, the observation
+statistics' fit and the checkpoint state (for its perturbed copies), and the training loop is
+`td3.train`.
 Thesis: section 4.1 (DDPG2: the actor of TD3, the critic of DDPG), table 4.1 (std 0.2).
 
     league train ddpg_param_noise --steps 50000 --seed 1 --out runs/ddpg2-1
