@@ -234,7 +234,7 @@ def bench_first_torchscript(model: Path, episodes: int, settle_s: float, uploads
             for _ in range(uploads):
                 start = time.perf_counter()
                 submission_id = upload_file(client, model)
-                while (status := evaluation_status(client, submission_id)) in ("pending", "validating"):
+                while evaluation_status(client, submission_id) in ("pending", "validating"):
                     time.sleep(0.02)
                 ready = time.perf_counter() - start
                 wait_evaluated(client, [submission_id])

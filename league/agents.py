@@ -18,8 +18,9 @@ import sys
 import unicodedata
 import warnings
 import zipfile
+from collections.abc import Callable
 from pathlib import Path
-from typing import Any, Callable
+from typing import Any
 
 import numpy as np
 
@@ -120,7 +121,7 @@ class Agent:
     def close(self) -> None:
         """Release what the agent holds (a session, a process); a no-op by default."""
 
-    def __enter__(self) -> "Agent":
+    def __enter__(self) -> Agent:
         return self
 
     def __exit__(self, *exc_info) -> None:

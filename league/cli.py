@@ -18,7 +18,7 @@ import argparse
 import json
 import os
 import sys
-from typing import Sequence
+from collections.abc import Sequence
 
 EXIT_ERROR = 2
 EXIT_CLOSED_PIPE = 128 + 13  # as a command that SIGPIPE ended: the reader of its output had quit

@@ -10,9 +10,10 @@ import math
 import os
 import sys
 import weakref
+from collections.abc import Iterator, Sequence
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any, Iterator, Sequence
+from typing import Any
 
 import numpy as np
 
@@ -81,7 +82,7 @@ class TrackImage:
         return left, left + (cols.stop - cols.start) * scale, top - (rows.stop - rows.start) * scale, top
 
 
-_track_images: "weakref.WeakKeyDictionary[Any, TrackImage]" = weakref.WeakKeyDictionary()
+_track_images: weakref.WeakKeyDictionary[Any, TrackImage] = weakref.WeakKeyDictionary()
 
 
 def track_image(track: Any) -> TrackImage:

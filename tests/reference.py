@@ -192,7 +192,7 @@ def _obstacles(rng, outer, width, count):
 def grid(inner, outer, obstacles, width):
     """SPEC's map (VALID = 1, FREE = 2, ROAD = 4), painted with numpy fancy indexing."""
     valid, road = np.zeros((GRID, GRID), bool), np.zeros((GRID, GRID), bool)
-    for mask, a, b, half, value in ((road, _eval_polar(inner, RASTER_PHI), _eval_polar(outer, RASTER_PHI), 1, True),
+    for _mask, a, b, half, value in ((road, _eval_polar(inner, RASTER_PHI), _eval_polar(outer, RASTER_PHI), 1, True),
                                     (valid, obstacles[:, 0], obstacles[:, 1], int(width * 500 / 4), False)):
         if value:
             _paint(road, a, b, half)

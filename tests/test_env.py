@@ -229,7 +229,7 @@ def test_rgb_array_render_draws_track_obstacles_car_and_trail_without_a_display(
 def test_parallel_render_draws_every_car():
     penv = league.parallel_env(n_cars=3, render_mode="rgb_array")
     observations, _ = penv.reset(seed=2)
-    for step in range(60):
+    for _step in range(60):
         actions = {a: np.array(reference.heuristic(observations[a])) * (1 + 0.3 * int(a[4:])) for a in penv.agents}
         observations, *_ = penv.step(actions)
     frame = penv.render()

@@ -157,7 +157,7 @@ def test_start_speed_floor():
 
 def test_time_limit_truncates():
     env, obs, _ = start(seed=5, max_episode_steps=20)
-    for step in range(20):
+    for _step in range(20):
         obs, _, terminated, truncated, info = env.step(reference.heuristic(obs))
     assert truncated and not terminated and info["outcome"] == "running"
 

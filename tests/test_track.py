@@ -234,7 +234,7 @@ def test_splines_evaluate_as_scipy_does_everywhere():
 def test_a_spline_needs_increasing_angles():
     track = generate_track(np.random.default_rng(9))
     with pytest.raises(ValueError, match="strictly increasing"):
-        Track(track.control_theta[::-1].copy(), track.control_points).midline
+        _ = Track(track.control_theta[::-1].copy(), track.control_points).midline
 
 
 def test_the_compiled_unwrap_is_numpys():
