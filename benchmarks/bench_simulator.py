@@ -203,7 +203,8 @@ def main():
 
     rows = [
         ("MicroRacerEnv.step, one car", bench_step(league.MicroRacerEnv(), int(20000 * scale)), "us", "<= 5"),
-        ("gym.make(...).step (with Gymnasium's wrappers)", bench_step(gym.make("league/MicroRacer-v0"), int(20000 * scale)), "us", ""),
+        ("gym.make(...).step (with Gymnasium's wrappers)",
+         bench_step(gym.make("league/MicroRacer-v0"), int(20000 * scale)), "us", ""),
     ]
     if args.reference:
         rows.append(("  Racer.step of the reference implementation", reference["step_us"], "us", ""))
