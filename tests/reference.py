@@ -46,7 +46,8 @@ def fine_ray(valid, x, y, angle, step=1 / 5000):
     dx, dy = math.cos(angle), math.sin(angle)
     own = (cell(x), cell(y))
     k = 1
-    while (cell(x + k * step * dx), cell(y + k * step * dy)) == own or is_free(valid, x + k * step * dx, y + k * step * dy):
+    while ((cell(x + k * step * dx), cell(y + k * step * dy)) == own
+           or is_free(valid, x + k * step * dx, y + k * step * dy)):
         k += 1
     return (k - 1) * step
 

@@ -134,7 +134,8 @@ def test_checks_run_in_order():
 
 
 def test_lap_is_completed_clockwise():
-    env, obs, info = start(seed=5, **{k: False for k in ("obstacles", "chicanes", "turn_limit", "low_speed_termination")})
+    env, obs, info = start(seed=5,
+                           **{k: False for k in ("obstacles", "chicanes", "turn_limit", "low_speed_termination")})
     progress = [info["progress"]]
     while True:
         obs, reward, terminated, truncated, info = env.step(reference.heuristic(obs))

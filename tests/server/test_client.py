@@ -260,7 +260,8 @@ def test_standings_by_name_for_anyone_and_names_that_name_none_or_several(server
         second = instructor.post("/api/championships", json={"name": cup}).json()["id"]
     twice = league("standings", cup, "--server", server.url, config=tmp_path)
     assert twice.returncode == 2
-    assert twice.stderr == f"league: error: 2 championships are named {cup!r}: give the id of one of {first}, {second}\n"
+    assert twice.stderr == (f"league: error: 2 championships are named {cup!r}: "
+                            f"give the id of one of {first}, {second}\n")
 
 
 def test_a_bad_token_a_spent_quota_and_a_server_down_say_so(server, models, tmp_path):

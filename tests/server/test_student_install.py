@@ -210,8 +210,9 @@ def _closed_port() -> int:
 
 TENSORFLOW = ("tensorflow-cpu==2.21.0", "tf2onnx==1.17.0")  # pinned: a new release changes the test when we choose
 TENSORFLOW_VENV = Path("/tmp/league-tensorflow-venv")  # never /tmp/league-venv: TensorFlow pins numpy and protobuf
-# The thesis' DDPG actor (its section 4.1, "Implemented methods"): two towers of two 32-unit relu layers, each ending in one
-# tanh unit (acceleration, direction), concatenated; exported both ways the guide shows.
+# The thesis' DDPG actor (its section 4.1, "Implemented methods"): two towers of two 32-unit relu
+# layers, each ending in one tanh unit (acceleration, direction), concatenated; exported both ways
+# the guide shows.
 KERAS_ACTOR = """
 import keras
 import numpy as np

@@ -222,14 +222,16 @@ def test_finals_are_frozen_at_the_due_time_tested_privately_and_shown_only_once_
             crud.select(StudentAssignment).where(StudentAssignment.assignment_id == hw["id"]))}
 
     # before publication: nothing a student can obtain shows the private seed, tracks or figures
-    secrets_ = [str(private_seed), *map(str, episode_seeds(private_seed, 5)), "777.125", "333.375", "seed " + str(private_seed)]
+    secrets_ = [str(private_seed), *map(str, episode_seeds(private_seed, 5)), "777.125", "333.375",
+                "seed " + str(private_seed)]
     extra = [f"/api/assignments/{hw['id']}/board?board=private", f"/api/assignments/{hw['id']}/board.csv?board=private",
              f"/api/submissions/{chosen}/episodes?evaluation_id={evaluation_ids[chosen]}",
              f"/api/submissions/{chosen}/episodes", "/api/submissions", "/api/assignments", "/api/leaderboard.csv",
              f"/api/assignments/{hw['id']}/board.csv", "/openapi.json"]
     ids = {"id": hw["id"], "user_id": chooser_user.id, "filename": "none"}
     for client, submission_id in ((chooser, chosen), (best, weaker), (idle, chosen)):
-        text = walk(client, contract_gets(), {**ids, "id": submission_id}, extra) + walk(client, contract_gets(), ids, [])
+        text = (walk(client, contract_gets(), {**ids, "id": submission_id}, extra)
+                + walk(client, contract_gets(), ids, []))
         assert [secret for secret in secrets_ if secret in text] == []
     assert chooser.get(extra[0]).status_code == 404
     assert chooser.get(extra[2]).status_code == 404

@@ -49,8 +49,8 @@ def groups_by_kind(report: dict) -> dict[str, list[dict]]:
 
 def league_cli(server, token: str, *args: str) -> subprocess.CompletedProcess:
     """`league ARGS` in a terminal with the server and token in the environment."""
-    env = {**{k: v for k, v in os.environ.items() if not k.startswith("LEAGUE_")}, "PYTHONPATH": server.env["PYTHONPATH"],
-           "LEAGUE_SERVER": server.url, "LEAGUE_TOKEN": token}
+    env = {**{k: v for k, v in os.environ.items() if not k.startswith("LEAGUE_")},
+           "PYTHONPATH": server.env["PYTHONPATH"], "LEAGUE_SERVER": server.url, "LEAGUE_TOKEN": token}
     return subprocess.run([sys.executable, "-m", "league.cli", *args], env=env, capture_output=True, text=True,
                           timeout=120)
 
