@@ -152,7 +152,8 @@ class League:
         """Each process in a session of its own, as services run (systemd starts each so): Linux then
         schedules it as a group of its own, and the benchmark's clients do not share the API's."""
         with open(self.folder / log, "ab") as output:
-            return subprocess.Popen([sys.executable, "-m", "league.server", *args], env={**self.env, **(settings or {})},
+            return subprocess.Popen([sys.executable, "-m", "league.server", *args],
+                                    env={**self.env, **(settings or {})},
                                     cwd=self.root, stdout=output, stderr=subprocess.STDOUT, start_new_session=True)
 
     def _wait_healthy(self, timeout: float = 60) -> None:

@@ -67,8 +67,8 @@ def run_record(folder: Path, which: str) -> dict:
 
 def table(records: dict[str, list[dict]], which: str) -> str:
     lines = [
-        f"| method | seeds | training time (mean) | completed / 100: mean (best) | mean return | mean steps | "
-        f"mean speed | thesis: time, completed mean (best), return, speed |",
+        "| method | seeds | training time (mean) | completed / 100: mean (best) | mean return | mean steps | "
+        "mean speed | thesis: time, completed mean (best), return, speed |",
         "|---|---|---|---|---|---|---|---|",
     ]
     for algorithm in ALGORITHMS:

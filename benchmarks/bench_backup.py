@@ -6,8 +6,9 @@
 Builds a semester through the API, as bench_rush.py's course does: --students students (a roster)
 upload --uploads agents (its mix of formats and observations, --distinct different files, 10 %
 broken), evaluated with --episodes episodes by two `league worker`s, then --rounds championship
-rounds of every student in heats of 10 (each heat's replay stored). Then, with the server still running, times the commands an
-administrator runs (each a new process, as from cron): `league backup FILE` (--repeats times), and
+rounds of every student in heats of 10 (each heat's replay stored). Then, with the server still
+running, times the commands an administrator runs (each a new process, as from cron):
+`league backup FILE` (--repeats times), and
 `league restore FILE` into a fresh data directory (SQLite) or an empty database (PostgreSQL), of the
 same backend and of the other one (the backup format is the same for both). Printed: the database's
 size and rows, each command's wall time (median, range) and the file's size; checked, exit status 1

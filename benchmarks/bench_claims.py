@@ -181,7 +181,8 @@ def main(argv: list[str] | None = None) -> int:
             found = audit(url, claimed)
         p50, p99 = np.percentile(np.array(seconds) * 1000, [50, 99])
         print(f"  queue of {depth} jobs: {len(claimed)} claimed and completed in {wall:.2f} s: "
-              f"{len(claimed) / wall:.0f} jobs/s; {misses} claims found no job while jobs were queued; a claim p50 {p50:.1f} ms, p99 {p99:.1f} ms; PostgreSQL CPU "
+              f"{len(claimed) / wall:.0f} jobs/s; {misses} claims found no job while jobs were queued; "
+              f"a claim p50 {p50:.1f} ms, p99 {p99:.1f} ms; PostgreSQL CPU "
               f"{1000 * cpu / max(1, len(claimed)):.2f} ms per job ({cpu:.1f} s in all); double claims: "
               f"{len(claimed) - len(set(claimed))}{'' if not found else '; FAILED: ' + '; '.join(found)}",
               flush=True)

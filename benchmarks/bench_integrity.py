@@ -27,11 +27,11 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
-from league.agents import export_onnx, export_torchscript, load_agent  # noqa: E402
-from league.server.config import BUNDLED_BASELINES  # noqa: E402
-from league.server.integrity import Candidate, integrity_report  # noqa: E402
-from league.validation.probes import PROBES, probe_actions_bytes, probe_key, probe_observations  # noqa: E402
-from tests.toolkit_models import thesis_driver  # noqa: E402
+from league.agents import export_onnx, export_torchscript, load_agent
+from league.server.config import BUNDLED_BASELINES
+from league.server.integrity import Candidate, integrity_report
+from league.validation.probes import PROBES, probe_actions_bytes, probe_key, probe_observations
+from tests.toolkit_models import thesis_driver
 
 
 def distances() -> None:
@@ -90,8 +90,8 @@ def main() -> None:
     rng = np.random.default_rng(0)
     for n in args.submissions:
         submissions = course(n, rng)
-        seconds, report = timed(lambda: integrity_report(submissions, bundled={}, tolerance=1e-3), args.repeats)
-        replaced, _ = timed(lambda: every_pair(submissions, 1e-3), 1)
+        seconds, report = timed(lambda: integrity_report(submissions, bundled={}, tolerance=1e-3), args.repeats)  # noqa: B023 - called in this iteration
+        replaced, _ = timed(lambda: every_pair(submissions, 1e-3), 1)  # noqa: B023 - called in this iteration
         print(f"(b) {n} submissions: report {seconds * 1000:.0f} ms (median of {args.repeats}), "
               f"{len(report.groups)} groups; every pair's distance alone {replaced * 1000:.0f} ms")
 

@@ -85,7 +85,7 @@ def bench_heat(models: list[Path], repeats: int) -> float:
 
             def start(model: Path, name: str):
                 agent = SandboxedAgent(model, "onnx", limits, name=name)
-                started.append(time.perf_counter())
+                started.append(time.perf_counter())  # noqa: B023 - called in this iteration
                 return agent
 
             begin = time.perf_counter()
@@ -330,7 +330,8 @@ def bench_league(models: list[Path], *, backend_kind: str, eval_episodes: int, r
                 league.start_worker()
             setup_students(league, models, timeout=120 + 20 * len(models))
             league.stop_workers()
-            print(f"    {len(models)} submissions ready and evaluated in {time.perf_counter() - begin:.0f} s", flush=True)
+            print(f"    {len(models)} submissions ready and evaluated in {time.perf_counter() - begin:.0f} s",
+                  flush=True)
 
             # (b) the same heats (same seed; each round a track of its own) with one worker, then with two
             medians, two_id = compare_workers(league, client, len(models), seed, round_repeats, round_timeout,
@@ -371,7 +372,8 @@ def bench_league(models: list[Path], *, backend_kind: str, eval_episodes: int, r
           f"{P99_TARGET_MS:g} ms", flush=True)
     bursts = slow_bursts(np.array(sent), latencies, P99_TARGET_MS)
     if bursts:
-        print(f"    the slow requests came in {len(bursts)} burst(s) (sent at {', '.join(f'{t:.1f}' for t in bursts)} s; "
+        print(f"    the slow requests came in {len(bursts)} burst(s) "
+              f"(sent at {', '.join(f'{t:.1f}' for t in bursts)} s; "
               f"the answer says Cache-Control: {cache_control!r})", flush=True)
     return medians, float(p99)
 

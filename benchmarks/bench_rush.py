@@ -493,7 +493,8 @@ def parse(argv: list[str] | None) -> argparse.Namespace:
     parser.add_argument("--board-clients", type=int, default=100, help="clients polling the leaderboard every 5 s")
     parser.add_argument("--idle-s", type=float, default=10.0, help="polling after the queue emptied (idle figures)")
     parser.add_argument("--faults", action="store_true",
-                        help="halfway through: kill -9 a worker running a job, restart the API, then start a worker again")
+                        help="halfway through: kill -9 a worker running a job, restart the API, "
+                             "then start a worker again")
     args = parser.parse_args(argv)
     if args.uploads < args.students:
         parser.error("every student uploads at least once: --uploads must be >= --students")

@@ -163,8 +163,8 @@ def bench_status(model: Path, rate: float, seconds: float, embedded: bool, root:
     import numpy as np
 
     with tempfile.TemporaryDirectory(prefix="league-bench-") as tmp:
-        with League(Path(tmp), embedded=embedded, workers=0 if embedded else 1, settings={"LEAGUE_EVAL_EPISODES": "100"},
-                    **({"root": root} if root else {})) as league:
+        with League(Path(tmp), embedded=embedded, workers=0 if embedded else 1,
+                    settings={"LEAGUE_EVAL_EPISODES": "100"}, **({"root": root} if root else {})) as league:
             client = league.client()
             polled, evaluating = evaluated(client, model), evaluated(client, model)
             path = f"/api/submissions/{polled}"
@@ -234,7 +234,7 @@ def bench_first_torchscript(model: Path, episodes: int, settle_s: float, uploads
             for _ in range(uploads):
                 start = time.perf_counter()
                 submission_id = upload_file(client, model)
-                while (status := evaluation_status(client, submission_id)) in ("pending", "validating"):
+                while evaluation_status(client, submission_id) in ("pending", "validating"):
                     time.sleep(0.02)
                 ready = time.perf_counter() - start
                 wait_evaluated(client, [submission_id])
@@ -250,7 +250,8 @@ def bench_first_torchscript(model: Path, episodes: int, settle_s: float, uploads
 
 def fork_servers(worker: int) -> list[int]:
     """The worker's fork servers (children of its job threads: /proc/PID/task/TID/children each)."""
-    children = [pid for task in Path(f"/proc/{worker}/task").iterdir() for pid in (task / "children").read_text().split()]
+    children = [pid for task in Path(f"/proc/{worker}/task").iterdir()
+                for pid in (task / "children").read_text().split()]
     return [int(pid) for pid in children if b"--fork-server" in Path(f"/proc/{pid}/cmdline").read_bytes()]
 
 

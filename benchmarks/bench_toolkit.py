@@ -91,7 +91,8 @@ def main() -> None:
         seeds = episode_seeds(0, args.episodes)
 
         n = args.episodes
-        completed, plain = timed(f"(a) plain loop, gym.make + ONNX Runtime, {n} episodes", lambda: plain_loop(paths[5], seeds))
+        completed, plain = timed(f"(a) plain loop, gym.make + ONNX Runtime, {n} episodes",
+                                 lambda: plain_loop(paths[5], seeds))
         env = league.MicroRacerEnv()
         alone, _ = timed("    run_episode, one episode at a time (before issue 12)",
                          lambda: [run_episode(env, agent, seed) for seed in seeds])

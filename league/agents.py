@@ -18,8 +18,9 @@ import sys
 import unicodedata
 import warnings
 import zipfile
+from collections.abc import Callable
 from pathlib import Path
-from typing import Any, Callable
+from typing import Any
 
 import numpy as np
 
@@ -120,7 +121,7 @@ class Agent:
     def close(self) -> None:
         """Release what the agent holds (a session, a process); a no-op by default."""
 
-    def __enter__(self) -> "Agent":
+    def __enter__(self) -> Agent:
         return self
 
     def __exit__(self, *exc_info) -> None:
@@ -134,7 +135,8 @@ class Agent:
         if obs.ndim == 1:
             obs = obs[None, :]
         if obs.ndim != 2 or obs.shape[1] != self.obs_dim:
-            raise ValueError(f"agent {self.name!r} expects observations of shape (batch, {self.obs_dim}), got {obs.shape}")
+            raise ValueError(f"agent {self.name!r} expects observations of shape (batch, {self.obs_dim}), "
+                             f"got {obs.shape}")
         return obs
 
 
@@ -316,7 +318,8 @@ def _refuse_pickles(path: Path) -> None:
         with zipfile.ZipFile(path) as archive:
             names = archive.namelist()
     except zipfile.BadZipFile as error:
-        raise AgentError(f"{path.name} is a damaged zip archive (truncated?), not a loadable TorchScript file") from error
+        raise AgentError(f"{path.name} is a damaged zip archive (truncated?), "
+                         "not a loadable TorchScript file") from error
     if not any("/code/" in entry for entry in names) or not any(entry.endswith("constants.pkl") for entry in names):
         raise AgentError(f"{path.name} is a torch.save checkpoint (a pickle), not TorchScript; it is never loaded. "
                          "Export with torch.jit.script(model).save(path) or torch.onnx.export")
@@ -374,7 +377,8 @@ def _load_onnx(path: Path, obs_dim: int | None, name: str) -> Agent:
     model_input = session.get_inputs()[0]
     shape = list(model_input.shape)
     if model_input.type not in ONNX_INPUT_DTYPES:
-        raise AgentError(f"the model's input {model_input.name!r} is {model_input.type}; it must be float32 observations")
+        raise AgentError(f"the model's input {model_input.name!r} is {model_input.type}; "
+                         "it must be float32 observations")
     if len(shape) not in (1, 2):
         raise AgentError(f"the model's input has shape {shape}; expected (batch, 5) or (batch, 20)")
     size = shape[-1]

@@ -18,7 +18,7 @@ import argparse
 import json
 import os
 import sys
-from typing import Sequence
+from collections.abc import Sequence
 
 EXIT_ERROR = 2
 EXIT_CLOSED_PIPE = 128 + 13  # as a command that SIGPIPE ended: the reader of its output had quit
@@ -43,7 +43,8 @@ def _env_options(args: argparse.Namespace) -> dict:
     return {switch: getattr(args, switch) for switch in ENV_SWITCHES}
 
 
-def _save_or_show(parser: argparse.ArgumentParser, save_help: str, show_help: str = "play it in a window (needs a display)") -> None:
+def _save_or_show(parser: argparse.ArgumentParser, save_help: str,
+                  show_help: str = "play it in a window (needs a display)") -> None:
     group = parser.add_mutually_exclusive_group()
     group.add_argument("--show", action="store_true", help=show_help)
     group.add_argument("--save", metavar="FILE", help=save_help)

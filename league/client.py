@@ -723,7 +723,8 @@ def add_commands(subparsers) -> None:
         "  league assignments extend NAME STUDENT --due T     (that student's own due time)\n"
         "  league assignments publish NAME                    (show the private board to the students)\n"
         "Times without a zone are this machine's.")
-    assignments.add_argument("action", nargs="?", default="list", choices=["list", "create", "edit", "extend", "publish"])
+    assignments.add_argument("action", nargs="?", default="list",
+                             choices=["list", "create", "edit", "extend", "publish"])
     assignments.add_argument("names", nargs="*", metavar="NAME", help="the assignment (extend: and the student)")
     assignments.add_argument("--description")
     assignments.add_argument("--seed", type=int, help="the public tracks' seed")

@@ -11,9 +11,10 @@ import functools
 import hashlib
 import json
 import os
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any, Callable, Sequence
+from typing import Any
 
 import numpy as np
 from tqdm.auto import tqdm
@@ -60,7 +61,8 @@ def observation_mode(obs_dim: int) -> str:
 
 def _checked_options(env_options: dict) -> dict:
     if "observation" in env_options:
-        raise ValueError("the observation follows the agent's obs_dim (5: compact, 20: lidar); do not pass observation=")
+        raise ValueError("the observation follows the agent's obs_dim (5: compact, 20: lidar); "
+                         "do not pass observation=")
     return dict(env_options)
 
 
@@ -173,7 +175,8 @@ class MetricsResult:
             lines.append(f"{'episode':>7}  {'seed':>10}  {'steps':>5}  {'return':>7}  {'speed':>6}  outcome")
             for i, e in enumerate(self.episodes):
                 outcome = e.outcome if e.reason is None or e.outcome != "dnf" else f"dnf: {e.reason}"
-                lines.append(f"{i:>7}  {e.seed:>10}  {e.steps:>5}  {e.episode_return:>7.3f}  {e.mean_speed:>6.3f}  {outcome}")
+                lines.append(f"{i:>7}  {e.seed:>10}  {e.steps:>5}  {e.episode_return:>7.3f}  "
+                             f"{e.mean_speed:>6.3f}  {outcome}")
             lines.append("")
         s = self.settings
         lines.append(f"{s.get('agent', 'agent')}: {self.episodes_total} episodes, seed {s.get('seed')}, "
@@ -458,7 +461,8 @@ def race(agents: Sequence[Agent | str | os.PathLike], seed: int = 0, names: Sequ
     options = _checked_options(env_options)
     mode = "lidar" if any(a.obs_dim == LIDAR_DIM for a in agents) else "compact"
     penv = parallel_env(n_cars=len(agents), observation=mode, **options)
-    reset_options = {key: value for key, value in (("track", track), ("initial_speed", initial_speed)) if value is not None}
+    reset_options = {key: value for key, value in (("track", track), ("initial_speed", initial_speed))
+                     if value is not None}
     obs, infos = penv.reset(seed=seed, options=reset_options or None)
     cars = [CarLog(name) for name in names]
     for agent, car in zip(agents, cars):
@@ -580,7 +584,8 @@ def load_replay(path: str | os.PathLike) -> dict:
     if not isinstance(replay, dict) or replay.get("format") != REPLAY_FORMAT:
         raise ValueError(f"{path} is not a MicroRacer replay (no \"format\": \"{REPLAY_FORMAT}\")")
     if replay.get("version") != REPLAY_VERSION:
-        raise ValueError(f"{path} is a replay of version {replay.get('version')}; this league reads version {REPLAY_VERSION}")
+        raise ValueError(f"{path} is a replay of version {replay.get('version')}; "
+                         f"this league reads version {REPLAY_VERSION}")
     return replay
 
 
@@ -591,7 +596,8 @@ def replay_track(replay: dict) -> Track:
 
 def race_again(replay: dict, agents: Sequence[Agent | str | os.PathLike]) -> RaceResult:
     """Re-run a replay's race from its seed and options with the given agents (one per car)."""
-    given = {"track": replay_track(replay), "initial_speed": replay["initial_speed"]} if replay.get("track_given") else {}
+    given = ({"track": replay_track(replay), "initial_speed": replay["initial_speed"]}
+             if replay.get("track_given") else {})
     return race(agents, seed=replay["seed"], names=replay["names"], **given, **replay["env_options"])
 
 

@@ -46,7 +46,8 @@ class RaceOptions:
     n_obstacles: int = N_OBSTACLES
     tstep: float = TSTEP
     observation: str = "compact"
-    max_episode_steps: int | None = MAX_EPISODE_STEPS  # None: no limit of the env's own (gym.make's TimeLimit keeps time)
+    # None: no limit of the env's own (gym.make's TimeLimit keeps time)
+    max_episode_steps: int | None = MAX_EPISODE_STEPS
 
     def __post_init__(self):
         for name in ("obstacles", "chicanes", "turn_limit", "low_speed_termination"):

@@ -10,9 +10,10 @@ import math
 import os
 import sys
 import weakref
+from collections.abc import Iterator, Sequence
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any, Iterator, Sequence
+from typing import Any
 
 import numpy as np
 
@@ -81,7 +82,7 @@ class TrackImage:
         return left, left + (cols.stop - cols.start) * scale, top - (rows.stop - rows.start) * scale, top
 
 
-_track_images: "weakref.WeakKeyDictionary[Any, TrackImage]" = weakref.WeakKeyDictionary()
+_track_images: weakref.WeakKeyDictionary[Any, TrackImage] = weakref.WeakKeyDictionary()
 
 
 def track_image(track: Any) -> TrackImage:
@@ -138,7 +139,8 @@ def render_frame(track: Any, xs: Sequence[float], ys: Sequence[float], headings:
     image = track_image(track)
     frame = image.rgb.copy()
     xs, ys, headings = (np.atleast_1d(np.asarray(v, dtype=np.float64)) for v in (xs, ys, headings))
-    colors = [tuple(c) for c in colors] if colors is not None else [CAR_COLORS[i % len(CAR_COLORS)] for i in range(len(xs))]
+    colors = ([tuple(c) for c in colors] if colors is not None
+              else [CAR_COLORS[i % len(CAR_COLORS)] for i in range(len(xs))])
     for i, trail in enumerate(trails or []):
         if trail is not None and len(trail) > 1:
             trail = np.asarray(trail, dtype=np.float64)
@@ -162,7 +164,8 @@ def _draw_polyline(frame: np.ndarray, rows: np.ndarray, cols: np.ndarray, color:
     _paint(frame, np.repeat(r, offsets.size), (c[:, None] + offsets[None, :]).ravel(), color)
 
 
-_DISC = np.argwhere(np.hypot(*np.mgrid[-CAR_RADIUS:CAR_RADIUS + 1, -CAR_RADIUS:CAR_RADIUS + 1]) <= CAR_RADIUS + 0.3) - CAR_RADIUS
+_DISC = (np.argwhere(np.hypot(*np.mgrid[-CAR_RADIUS:CAR_RADIUS + 1, -CAR_RADIUS:CAR_RADIUS + 1]) <= CAR_RADIUS + 0.3)
+         - CAR_RADIUS)
 
 
 def _draw_disc(frame: np.ndarray, row: float, col: float, color: tuple) -> None:
@@ -241,7 +244,8 @@ def _draw_start(axes: Any, track: Any) -> None:
     axes.plot(*line, color="black", lw=4.5, solid_capstyle="butt")
     axes.plot(*line, color=START_COLOR, lw=3, solid_capstyle="butt")
     axes.annotate("", xy=(x, y) + START_ARROW * along, xytext=(x, y),
-                  arrowprops={"arrowstyle": "simple", "fc": START_COLOR, "ec": "black", "lw": 0.8, "mutation_scale": 20})
+                  arrowprops={"arrowstyle": "simple", "fc": START_COLOR, "ec": "black", "lw": 0.8,
+                              "mutation_scale": 20})
 
 
 def _track_picture(figure: Any, track: Any, title: str | None) -> None:
@@ -253,7 +257,8 @@ def _track_picture(figure: Any, track: Any, title: str | None) -> None:
     if title:
         figure.suptitle(title)
     handles = [Patch(fc=np.array(ROAD) / 255, label="road"), Patch(fc=np.array(OBSTACLE) / 255, label="obstacle"),
-               Line2D([], [], ls="none", marker=">", ms=10, mfc=START_COLOR, mec="black", label="start, and the way to race")]
+               Line2D([], [], ls="none", marker=">", ms=10, mfc=START_COLOR, mec="black",
+                      label="start, and the way to race")]
     figure.legend(handles=handles, loc="lower center", ncol=3, frameon=False)
 
 
@@ -496,7 +501,8 @@ def _show_animation(replay: dict, stride: int, fps: int) -> Any:
 
 def require_display() -> None:
     """Raise RenderError when a window cannot be opened (no X/Wayland display, or a non-GUI backend)."""
-    headless_linux = sys.platform.startswith("linux") and not (os.environ.get("DISPLAY") or os.environ.get("WAYLAND_DISPLAY"))
+    headless_linux = sys.platform.startswith("linux") and not (
+        os.environ.get("DISPLAY") or os.environ.get("WAYLAND_DISPLAY"))
     backend = os.environ.get("MPLBACKEND", "").lower()
     if headless_linux or backend in ("agg", "pdf", "svg", "ps", "cairo", "template"):
         raise RenderError("no display available to show a window; save to a file instead (e.g. --save race.gif)")

@@ -46,7 +46,8 @@ def fine_ray(valid, x, y, angle, step=1 / 5000):
     dx, dy = math.cos(angle), math.sin(angle)
     own = (cell(x), cell(y))
     k = 1
-    while (cell(x + k * step * dx), cell(y + k * step * dy)) == own or is_free(valid, x + k * step * dx, y + k * step * dy):
+    while ((cell(x + k * step * dx), cell(y + k * step * dy)) == own
+           or is_free(valid, x + k * step * dx, y + k * step * dy)):
         k += 1
     return (k - 1) * step
 
@@ -192,7 +193,7 @@ def _obstacles(rng, outer, width, count):
 def grid(inner, outer, obstacles, width):
     """SPEC's map (VALID = 1, FREE = 2, ROAD = 4), painted with numpy fancy indexing."""
     valid, road = np.zeros((GRID, GRID), bool), np.zeros((GRID, GRID), bool)
-    for mask, a, b, half, value in ((road, _eval_polar(inner, RASTER_PHI), _eval_polar(outer, RASTER_PHI), 1, True),
+    for _mask, a, b, half, value in ((road, _eval_polar(inner, RASTER_PHI), _eval_polar(outer, RASTER_PHI), 1, True),
                                     (valid, obstacles[:, 0], obstacles[:, 1], int(width * 500 / 4), False)):
         if value:
             _paint(road, a, b, half)

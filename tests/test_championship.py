@@ -8,7 +8,8 @@ def names(n):
     return [f"s{i:02d}" for i in range(n)]
 
 
-@pytest.mark.parametrize("n, heat_size, sizes", [(10, 10, [10]), (11, 10, [6, 5]), (40, 10, [10] * 4), (41, 10, [9, 8, 8, 8, 8]), (3, 10, [3])])
+@pytest.mark.parametrize("n, heat_size, sizes", [(10, 10, [10]), (11, 10, [6, 5]), (40, 10, [10] * 4),
+                                                 (41, 10, [9, 8, 8, 8, 8]), (3, 10, [3])])
 def test_heats_are_balanced_in_size(n, heat_size, sizes):
     heats = split_into_heats(names(n), heat_size, np.random.default_rng(0))
     assert sorted(map(len, heats), reverse=True) == sizes
@@ -57,7 +58,8 @@ def test_standings_break_ties_by_wins_then_best_finishes():
     table = standings(heats)
     assert [(s.entrant, s.points, s.wins) for s in table] == [("c", 58, 1), ("a", 55, 1), ("b", 44, 1)]
     # equal points and wins: the one with more 2nd places is ahead
-    tie = standings([[row("x", 1), row("y", 2)], [row("y", 1), row("z", 2)], [row("z", 1), row("x", 3)]], table=(10, 10, 10))
+    tie = standings([[row("x", 1), row("y", 2)], [row("y", 1), row("z", 2)], [row("z", 1), row("x", 3)]],
+                    table=(10, 10, 10))
     assert [s.entrant for s in tie] == ["y", "z", "x"]
     # countback compares equal depths: a 4th place beats no result at all
     depth = standings([[row("p", 1), row("q", 2)], [row("q", 1), row("p", 2)], [row("q", 4)]], table=(10, 10, 0, 0))

@@ -26,18 +26,21 @@ def drive_until_done(racer, action):
 
 def test_racer_takes_the_thesis_options_in_the_thesis_order():
     racer = compat.Racer(True, False, False, False, seed=1)
-    assert (racer.obstacles, racer.turn_limit, racer.chicanes, racer.low_speed_termination) == (True, False, False, False)
+    assert ((racer.obstacles, racer.turn_limit, racer.chicanes, racer.low_speed_termination)
+            == (True, False, False, False))
     racer.reset()
     assert len(racer.obs_pos) == 6  # obstacles on
     assert len(racer.track.control_points) == 20  # no chicane: its five points replace one of the 20
     options = racer.env.options
-    assert (options.obstacles, options.turn_limit, options.chicanes, options.low_speed_termination) == (True, False, False, False)
+    assert ((options.obstacles, options.turn_limit, options.chicanes, options.low_speed_termination)
+            == (True, False, False, False))
     assert compat.Racer().chicanes and compat.Racer().turn_limit  # all on by default
 
 
 def test_racer_has_the_thesis_attributes():
     racer = compat.Racer(seed=2)
-    assert (racer.curves, racer.tstep, racer.max_acc, racer.track_width, racer.obstacles_number) == (20, 0.04, 0.1, 0.04, 6)
+    assert ((racer.curves, racer.tstep, racer.max_acc, racer.track_width, racer.obstacles_number)
+            == (20, 0.04, 0.1, 0.04, 6))
     assert racer.max_turn == pytest.approx(np.pi / 6)
     state = racer.reset()
     assert (racer.done, racer.completation, racer.cartheta) == (False, 0, 0.0)
@@ -46,7 +49,8 @@ def test_racer_has_the_thesis_attributes():
     assert racer.sinit_v >= 0.07  # low-speed termination on
     assert racer.map.shape == (1300, 1300) and racer.map.dtype == bool
     assert racer.map[int(racer.carx * 500) + 650, int(racer.cary * 500) + 650]
-    assert np.allclose(racer.csin(1.0), racer.track.inner(1.0)) and np.allclose(racer.csout(1.0), racer.track.outer(1.0))
+    assert np.allclose(racer.csin(1.0), racer.track.inner(1.0))
+    assert np.allclose(racer.csout(1.0), racer.track.outer(1.0))
     state, reward, done = racer.step([0.5, 0.2])
     assert np.arctan2(racer.cary, racer.carx) == pytest.approx(racer.cartheta)
     assert np.hypot(racer.carvx, racer.carvy) == pytest.approx(state[4])

@@ -15,7 +15,8 @@ from . import reference
 ALL_OFF = dict(obstacles=False, chicanes=False, turn_limit=False, low_speed_termination=False)
 
 
-@pytest.mark.parametrize("options", [{}, ALL_OFF, {"observation": "lidar"}, {"curves": 12, "n_obstacles": 3, "track_width": 0.05}])
+@pytest.mark.parametrize("options", [{}, ALL_OFF, {"observation": "lidar"},
+                                     {"curves": 12, "n_obstacles": 3, "track_width": 0.05}])
 def test_gymnasium_env_checker(options):
     env = gym.make("league/MicroRacer-v0", **options)
     check_env(env.unwrapped, skip_render_check=True)
@@ -174,7 +175,8 @@ def test_info_fields():
     env = league.MicroRacerEnv()
     obs, info = env.reset(seed=0)
     assert set(info) == {"outcome", "outcome_code", "progress", "time", "distance", "speed"}
-    assert info["outcome"] == "running" and info["outcome_code"] == 0 and info["progress"] == 0.0 and info["time"] == 0.0
+    assert info["outcome"] == "running" and info["outcome_code"] == 0
+    assert info["progress"] == 0.0 and info["time"] == 0.0
     obs, reward, *_, info = env.step(reference.heuristic(obs))
     assert info["time"] == pytest.approx(0.04) and info["distance"] == pytest.approx(reward)
     assert 0 < info["progress"] < 0.01
@@ -229,7 +231,7 @@ def test_rgb_array_render_draws_track_obstacles_car_and_trail_without_a_display(
 def test_parallel_render_draws_every_car():
     penv = league.parallel_env(n_cars=3, render_mode="rgb_array")
     observations, _ = penv.reset(seed=2)
-    for step in range(60):
+    for _step in range(60):
         actions = {a: np.array(reference.heuristic(observations[a])) * (1 + 0.3 * int(a[4:])) for a in penv.agents}
         observations, *_ = penv.step(actions)
     frame = penv.render()

@@ -191,7 +191,8 @@ def test_truncated_episodes_are_timeouts():
 def test_result_converts_to_json_and_table_and_back():
     result = metrics_run("heuristic", episodes=4, seed=9, obstacles=False)
     data = json.loads(json.dumps(result.to_dict()))
-    assert set(data) == {"episodes", "completed", "episodes_total", "mean_return", "mean_steps", "mean_speed", "settings"}
+    assert set(data) == {"episodes", "completed", "episodes_total", "mean_return", "mean_steps", "mean_speed",
+                         "settings"}
     assert set(data["episodes"][0]) == {"seed", "steps", "return", "mean_speed", "outcome", "reason"}
     assert data["settings"]["env_options"]["obstacles"] is False and data["settings"]["seed"] == 9
     assert MetricsResult.from_dict(data).to_dict() == data

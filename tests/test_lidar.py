@@ -96,7 +96,8 @@ def test_observation_is_built_from_the_lidar(observation):
         assert not terminated
         cars = env.unwrapped.cars
         readings = reference.lidar(env.unwrapped.track.valid, cars.x[0], cars.y[0], cars.heading[0])
-        expected = reference.compact(readings, cars.speed[0]) if observation == "compact" else readings + [cars.speed[0]]
+        expected = (reference.compact(readings, cars.speed[0]) if observation == "compact"
+                    else readings + [cars.speed[0]])
         np.testing.assert_allclose(obs, np.float32(expected), atol=1 / 500)
         assert obs.dtype == np.float32 and env.observation_space.contains(obs)
 

@@ -134,7 +134,8 @@ def test_checks_run_in_order():
 
 
 def test_lap_is_completed_clockwise():
-    env, obs, info = start(seed=5, **{k: False for k in ("obstacles", "chicanes", "turn_limit", "low_speed_termination")})
+    env, obs, info = start(seed=5,
+                           **{k: False for k in ("obstacles", "chicanes", "turn_limit", "low_speed_termination")})
     progress = [info["progress"]]
     while True:
         obs, reward, terminated, truncated, info = env.step(reference.heuristic(obs))
@@ -157,7 +158,7 @@ def test_start_speed_floor():
 
 def test_time_limit_truncates():
     env, obs, _ = start(seed=5, max_episode_steps=20)
-    for step in range(20):
+    for _step in range(20):
         obs, _, terminated, truncated, info = env.step(reference.heuristic(obs))
     assert truncated and not terminated and info["outcome"] == "running"
 

@@ -56,7 +56,8 @@ def test_pictures_crop_the_frame_to_the_track(track):
     for edge in (picture[0], picture[-1], picture[:, 0], picture[:, -1]):  # a margin of field around the road
         assert (edge == render.OFF_ROAD).all()
     left, right, bottom, top = image.extent()
-    assert (right - left) * 250 == pytest.approx(picture.shape[1]) and (top - bottom) * 250 == pytest.approx(picture.shape[0])
+    assert (right - left) * 250 == pytest.approx(picture.shape[1])
+    assert (top - bottom) * 250 == pytest.approx(picture.shape[0])
 
 
 def test_start_is_on_the_road_and_obstacles_where_the_map_says(track):
@@ -115,7 +116,8 @@ def test_track_png(track, tmp_path):
 def test_track_picture_has_a_legend_and_a_white_start_unlike_the_dark_obstacles(track):
     figure = render._agg_figure((6.5, 6.5))
     render._track_picture(figure, track, "seed 5")
-    assert [text.get_text() for text in figure.legends[0].get_texts()] == ["road", "obstacle", "start, and the way to race"]
+    assert ([text.get_text() for text in figure.legends[0].get_texts()]
+            == ["road", "obstacle", "start, and the way to race"])
     figure.canvas.draw()
     rgb = np.asarray(figure.canvas.buffer_rgba())[..., :3]
     col, up = figure.axes[0].transData.transform(track.start_position)
@@ -146,7 +148,8 @@ def test_legend_shows_actions_then_places_or_reasons(small_race):
     assert animation.status[0].get_text() == render.action_text(car["acc"][10], car["turn"][10], car["speed"][10])
     animation.draw(animation.total_steps)
     for i, row in enumerate(r for r in sorted(replay["classification"], key=lambda r: r["car"])):
-        expected = f"{render.ordinal(row['position'])}  {row['time']:.1f} s" if row["outcome"] == "finished" else "off road"
+        expected = (f"{render.ordinal(row['position'])}  {row['time']:.1f} s" if row["outcome"] == "finished"
+                    else "off road")
         assert animation.status[i].get_text() == expected
 
 
@@ -187,7 +190,8 @@ def test_league_replay_saves_an_mp4_with_every_frame_through_the_video_extras_ff
     imageio = pytest.importorskip("imageio.v3", reason="counting MP4 frames needs imageio (the test extra)")
     replay = save_replay(small_race, tmp_path / "race.json")
     env = {**os.environ, "PATH": os.path.dirname(sys.executable), "PYTHONPATH": str(REPO), "MPLBACKEND": "agg"}
-    done = subprocess.run([sys.executable, "-m", "league.cli", "replay", str(replay), "--save", str(tmp_path / "race.mp4")],
+    done = subprocess.run([sys.executable, "-m", "league.cli", "replay", str(replay),
+                           "--save", str(tmp_path / "race.mp4")],
                           env=env, capture_output=True, text=True, timeout=300)
     assert done.returncode == 0, done.stderr
     assert shutil.which("ffmpeg", path=env["PATH"]) is None  # the extra's binary, not the system's

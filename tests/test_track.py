@@ -141,10 +141,13 @@ HOSTILE_TRACKS = {  # what a request or a replay file may hold instead of a trac
     "many points": (lambda d: d | {"control_theta": list(np.linspace(0, 2 * np.pi, 20_000)),
                                    "control_points": [[1.0, 0.0]] * 20_000},
                     "control_theta must be a list of 5 to 64 items, got 20000"),
-    "few points": (lambda d: d | {"control_theta": [0, 2 * np.pi]}, "control_theta must be a list of 5 to 64 items, got 2"),
+    "few points": (lambda d: d | {"control_theta": [0, 2 * np.pi]},
+                   "control_theta must be a list of 5 to 64 items, got 2"),
     "no points": (lambda d: {k: v for k, v in d.items() if k != "control_points"}, "control_points must be a list of"),
-    "points unlike angles": (lambda d: d | {"control_points": d["control_points"][:-1]}, "control_points must be a list of"),
-    "text": (lambda d: d | {"control_theta": ["0"] * len(d["control_theta"])}, "control_theta must be numbers of shape"),
+    "points unlike angles": (lambda d: d | {"control_points": d["control_points"][:-1]},
+                             "control_points must be a list of"),
+    "text": (lambda d: d | {"control_theta": ["0"] * len(d["control_theta"])},
+             "control_theta must be numbers of shape"),
     "nested": (lambda d: d | {"control_points": [[[1.0, 0.0]]] * len(d["control_points"])},
                "control_points must be numbers of shape"),
     "ragged": (lambda d: d | {"obstacles": [[[0, 0], [1]]]}, "obstacles must be numbers of shape"),
@@ -155,7 +158,8 @@ HOSTILE_TRACKS = {  # what a request or a replay file may hold instead of a trac
                               "control_theta must increase strictly from 0 to 2\\*pi"),
     "open mid-line": (lambda d: d | {"control_points": [[0.5, 0.5], *d["control_points"][1:]]},
                       "the last control point must equal the first"),
-    "many obstacles": (lambda d: d | {"obstacles": [[[0.0, 0.0], [0.1, 0.0]]] * 21}, "obstacles must be a list of 0 to 20"),
+    "many obstacles": (lambda d: d | {"obstacles": [[[0.0, 0.0], [0.1, 0.0]]] * 21},
+                       "obstacles must be a list of 0 to 20"),
     "wide": (lambda d: d | {"width": 1e9}, r"width must be a number in \(0, 0.08\], got 1000000000.0"),
     "width true": (lambda d: d | {"width": True}, "width must be a number"),
     "not a dict": (lambda d: [d], "a track is a JSON object, got list"),
@@ -234,7 +238,7 @@ def test_splines_evaluate_as_scipy_does_everywhere():
 def test_a_spline_needs_increasing_angles():
     track = generate_track(np.random.default_rng(9))
     with pytest.raises(ValueError, match="strictly increasing"):
-        Track(track.control_theta[::-1].copy(), track.control_points).midline
+        _ = Track(track.control_theta[::-1].copy(), track.control_points).midline
 
 
 def test_the_compiled_unwrap_is_numpys():

@@ -162,7 +162,8 @@ def test_numeric_infos_leave_the_outcome_name_out_as_sync_vector_env_does():
     for _ in range(90):  # two truncations at least: final infos
         step, sync_step = native.step(drive(obs)), sync.step(drive(obs))
         infos, sync_infos = step[4], sync_step[4]
-        assert set(infos) == set(sync_infos) and set(infos.get("final_info", {})) == set(sync_infos.get("final_info", {}))
+        assert set(infos) == set(sync_infos)
+        assert set(infos.get("final_info", {})) == set(sync_infos.get("final_info", {}))
         for key in INFO_KEYS[1:]:
             np.testing.assert_array_equal(infos[key], sync_infos[key])
         finals += "final_info" in infos

@@ -148,7 +148,7 @@ def ppo_update(agent: Agent, optimizer: torch.optim.Optimizer, b: dict, args: Ar
     stopped early when the approximate KL to the rollout's policy exceeds `target_kl`."""
     batch_size = len(b["obs"])
     clipfracs, approx_kl = [], torch.zeros(())
-    for epoch in range(args.update_epochs):
+    for epoch in range(args.update_epochs):  # noqa: B007 - read after the loop ("epochs")
         order = rng.permutation(batch_size)
         for start in range(0, batch_size, args.minibatch_size):
             mb = order[start:start + args.minibatch_size]

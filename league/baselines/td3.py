@@ -80,7 +80,7 @@ def make_policy(args: Args) -> nn.Module:
     return Actor(obs_dim_of(args), args.hidden)
 
 
-def make_learner(args: Args) -> "TD3":
+def make_learner(args: Args) -> TD3:
     obs_dim = obs_dim_of(args)
     return TD3(Actor(obs_dim, args.hidden), [QNetwork(obs_dim, args.hidden) for _ in range(args.n_critics)], args)
 

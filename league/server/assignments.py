@@ -143,7 +143,8 @@ def final_choices(session: Session, assignment: Assignment, user_ids: list[int])
     return chosen
 
 
-def select_final(session: Session, *, assignment: Assignment, user: User, submission_id: int | None, now: datetime) -> None:
+def select_final(session: Session, *, assignment: Assignment, user: User, submission_id: int | None,
+                 now: datetime) -> None:
     """Select the user's final submission (None: back to their best); refused after their close time."""
     row = crud.student_assignment(session, assignment_id=assignment.id, user_id=user.id, create=True)
     closes = window(assignment, row).closes_at

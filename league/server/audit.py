@@ -19,7 +19,8 @@ CLI_ACTOR = "league CLI"  # admin commands run on the server's machine: no accou
 AUDIT_COLUMNS = ["at", "actor_id", "actor_name", "action", "target_kind", "target_id", "details"]
 
 # actions (one vocabulary for the API, the console and the CSV)
-REVOKE, TOKEN, CANCEL, RERUN, SETTINGS = "user.revoke", "user.token", "job.cancel", "evaluation.rerun", "settings.evaluation"
+REVOKE, TOKEN, CANCEL, RERUN = "user.revoke", "user.token", "job.cancel", "evaluation.rerun"
+SETTINGS = "settings.evaluation"
 CREATE_USER, IMPORT_ROSTER, DELETE_USER = "user.create", "user.import", "user.delete"
 CREATE_CHAMPIONSHIP, RUN_ROUND, RETRY_ROUND = "championship.create", "round.run", "round.retry"
 PROBE = "integrity.probe"

@@ -74,9 +74,9 @@ def _register(sessions: sessionmaker[Session], store: BlobStore, files: list[Pat
         for path in files:
             sha256, size = store.add_file(path)
             crud.save_blob(session, sha256=sha256, data=path.read_bytes())
-            submission, job = crud.create_submission(session, owner=owner, assignment=assignment, name=path.stem, filename=path.name,
-                                                     kind=model_kind_of(path.name), sha256=sha256, size=size,
-                                                     max_attempts=max_attempts)
+            submission, job = crud.create_submission(session, owner=owner, assignment=assignment, name=path.stem,
+                                                     filename=path.name, kind=model_kind_of(path.name), sha256=sha256,
+                                                     size=size, max_attempts=max_attempts)
             submission.public = True
             job_ids.append(job.id)
     return job_ids

@@ -1,7 +1,8 @@
 """The league server's settings: one pydantic-settings class, read from LEAGUE_* variables and `.env`.
 
 Every default runs the embedded league (an SQLite database in the data directory); point
-`database_url` at PostgreSQL to run workers on several machines (the database is the job queue). docs/SETTINGS.md is generated from this class (`league config --markdown`).
+`database_url` at PostgreSQL to run workers on several machines (the database is the job queue).
+docs/SETTINGS.md is generated from this class (`league config --markdown`).
 
 A setting cannot be wrong silently: `load_settings` names the variable of a value it cannot
 read, `unknown_variables` the LEAGUE_* names that are no setting (with the closest one), and
@@ -13,8 +14,9 @@ import difflib
 import json
 import os
 import tempfile
+from collections.abc import Mapping
 from pathlib import Path
-from typing import Any, Literal, Mapping
+from typing import Any, Literal
 from urllib.parse import urlsplit
 
 from dotenv import dotenv_values
@@ -123,9 +125,10 @@ class Settings(BaseSettings):
     sandbox_uid_base: int = Field(LIMITS.uid_base, ge=0, lt=2**31 - 2**22,
                                   description="a root worker runs each sandbox as user id sandbox_uid_base + its pid "
                                               "(no account needed); 0: as root without capabilities")
-    sandbox_require_isolation: bool = Field(LIMITS.require_isolation, description="run no uploaded model unless sandboxes get Landlock "
-                                                              "and seccomp (the start-up log and /api/health say "
-                                                              "what they get)")
+    sandbox_require_isolation: bool = Field(LIMITS.require_isolation,
+                                            description="run no uploaded model unless sandboxes get Landlock "
+                                                        "and seccomp (the start-up log and /api/health say "
+                                                        "what they get)")
     sandbox_max_restarts: int = Field(LIMITS.max_restarts, description="sandbox crashes tolerated in one "
                                                                        "evaluation")
     log_limit_kb: int = Field(LIMITS.log_limit // 1024, description="sandbox output kept per run")

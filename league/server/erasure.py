@@ -20,8 +20,8 @@ from sqlalchemy import delete, or_, select, update
 from sqlalchemy.orm import Session
 
 from league.server.db.models import (
-    DELETED, DONE, FAILED, STUDENT, Blob, ChampionshipRound, EpisodeResult, Evaluation, Job, Race, RaceReplay, Submission,
-    User, utcnow,
+    DELETED, DONE, FAILED, STUDENT, Blob, ChampionshipRound, EpisodeResult, Evaluation, Job, Race, RaceReplay,
+    Submission, User, utcnow,
 )
 from league.server.jobs.race import car_name
 

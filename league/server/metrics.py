@@ -64,7 +64,8 @@ class DatabaseCollector(Collector):
 
 def jobs_by_state(session: Session) -> Iterator:
     jobs = GaugeMetricFamily("league_jobs", "Jobs in the database by kind and status", labels=["kind", "status"])
-    for kind, state, count in session.execute(select(Job.kind, Job.status, func.count()).group_by(Job.kind, Job.status)):
+    counts = select(Job.kind, Job.status, func.count()).group_by(Job.kind, Job.status)
+    for kind, state, count in session.execute(counts):
         jobs.add_metric([kind, state], count)
     yield jobs
 

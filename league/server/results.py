@@ -23,7 +23,8 @@ from league.server.db import crud
 from league.server.db.models import LOW, NORMAL, PUBLIC, READY, Assignment, Job, Submission
 
 log = logging.getLogger("league.server.results")
-SUPERSEDED = "superseded: the evaluation settings changed before it ran, to settings its submission has an evaluation of"
+SUPERSEDED = ("superseded: the evaluation settings changed before it ran, "
+              "to settings its submission has an evaluation of")
 
 
 def settings_key(settings: dict[str, Any]) -> str:
@@ -108,5 +109,6 @@ def change_settings(session: Session, *, assignment: Assignment, settings: dict[
             change.queued.append(queue_evaluation(session, submission=submission, max_attempts=max_attempts,
                                                   assignment=assignment, priority=LOW))
     log.info("assignment %s: new evaluation settings %s; %d re-evaluations queued, %d queued evaluations "
-             "retargeted, %d superseded", assignment.id, key, len(change.queued), len(change.retargeted), len(change.superseded))
+             "retargeted, %d superseded", assignment.id, key, len(change.queued), len(change.retargeted),
+             len(change.superseded))
     return change

@@ -19,7 +19,8 @@ from league import championship as rules
 from league.server.assignments import final_choices
 from league.server.db import crud
 from league.server.db.models import (
-    BASELINE, DONE, FAILED, PENDING, RACE, READY, RUNNING, Assignment, Championship, ChampionshipRound, Job, Race, Submission, User,
+    BASELINE, DONE, FAILED, PENDING, RACE, READY, RUNNING, Assignment, Championship, ChampionshipRound, Job, Race,
+    Submission, User,
 )
 from league.server.standings import championship_standings
 

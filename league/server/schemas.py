@@ -265,7 +265,8 @@ class Page(BaseModel):
 
 
 class RaceCreate(BaseModel):
-    submission_ids: list[DbId] = Field(min_length=2, max_length=100, description="one car each, in this order (car_0 first)")
+    submission_ids: list[DbId] = Field(min_length=2, max_length=100,
+                                       description="one car each, in this order (car_0 first)")
     seed: int | None = Field(None, ge=0, lt=2**63, description="the track and start; default: drawn and stored")
     env_options: dict[str, Any] = Field(default_factory=dict, description="options of league.MicroRacerEnv")
 

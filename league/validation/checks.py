@@ -10,8 +10,9 @@ from __future__ import annotations
 
 import ast
 import zipfile
+from collections.abc import Iterator
 from pathlib import Path
-from typing import Any, Iterator
+from typing import Any
 
 from league.constants import PICKLE_MARK
 

@@ -2,8 +2,9 @@
 
 Two uploads that answer the probe set with the same actions (within a tolerance) are one policy,
 whatever their files: one network exported to ONNX and to TorchScript differs by float rounding
-(~2e-7), two trained agents by far more (0.8 to 2: benchmarks/bench_integrity.py). The server records each submission's actions on it in
-the sandbox that validates it (league.server.sandbox.validation) and its integrity report
+(~2e-7), two trained agents by far more (0.8 to 2: benchmarks/bench_integrity.py). The server
+records each submission's actions on it in the sandbox that validates it
+(league.server.sandbox.validation) and its integrity report
 compares them (league.server.integrity).
 
 The observations are drawn once from PROBE_SEED on real tracks: a driver with a target speed of

@@ -9,8 +9,8 @@ import pytest
 
 pytest.importorskip("torch")
 
-from league.baselines import ALGORITHMS, load_algorithm  # noqa: E402
-from league.baselines.cli import algorithm_parser  # noqa: E402
+from league.baselines import ALGORITHMS, load_algorithm
+from league.baselines.cli import algorithm_parser
 
 pytestmark = pytest.mark.slow  # trainings and `league` subprocesses: the full suite's tier
 

@@ -39,7 +39,8 @@ TEST_SETTINGS = {
     "LEAGUE_REAPER_INTERVAL_S": "0.5",
     "LEAGUE_WORKER_HEARTBEAT_S": "0.5",
     "LEAGUE_WORKER_THREADS": "2",
-    "LEAGUE_BOARD_VISIBILITY": "public",  # the tests read boards as visitors; tests/server/api/routes/test_privacy.py the rest
+    # the tests read boards as visitors; tests/server/api/routes/test_privacy.py the rest
+    "LEAGUE_BOARD_VISIBILITY": "public",
 }
 
 

@@ -236,7 +236,6 @@ def torchscript_runs_code_at_load(path: Path, spelling: str = "plain", target: s
     """A loadable module whose __setstate__ (run by torch.jit.load) maps a file of its own choosing
     with aten::from_file, written in the archive's code as LOAD_HOOK_SPELLINGS[spelling]."""
     torch = _torch()
-    from typing import Tuple
 
     class LoadTimeWriter(torch.nn.Module):
         def __init__(self, target: str):
@@ -247,11 +246,11 @@ def torchscript_runs_code_at_load(path: Path, spelling: str = "plain", target: s
             return torch.tanh(obs[:, 0:2])
 
         @torch.jit.export
-        def __getstate__(self) -> Tuple[str, bool]:
+        def __getstate__(self) -> tuple[str, bool]:
             return (self.target, self.training)
 
         @torch.jit.export
-        def __setstate__(self, state: Tuple[str, bool]) -> None:
+        def __setstate__(self, state: tuple[str, bool]) -> None:
             self.target = state[0]
             mapped = torch.from_file(self.target, shared=True, size=1, dtype=torch.uint8)  # creates the file
             self.training = state[1] or bool(mapped[0] > 1)  # used, so the compiler keeps the call

@@ -4,15 +4,17 @@ restored copy; a database before and after an upgrade).
 `semester` writes a small one (students, evaluated submissions, a friendly race, a championship
 round). `collect` reads what users see: the leaderboard (every page) and its CSV (rows by column),
 the accounts, every submission with its episodes, every race with its replay and log, every
-championship with its rounds and standings (and CSV), and each student's own view. `differences` compares two collections field by
-field, over the fields both have (an upgrade may add fields), and lists what differs.
+championship with its rounds and standings (and CSV), and each student's own view. `differences`
+compares two collections field by field, over the fields both have (an upgrade may add fields),
+and lists what differs.
 """
 from __future__ import annotations
 
 import csv
 import io
+from collections.abc import Callable
 from pathlib import Path
-from typing import Any, Callable
+from typing import Any
 
 import httpx
 from sqlalchemy import text

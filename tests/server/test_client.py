@@ -150,7 +150,7 @@ def test_a_student_logs_in_submits_waits_and_races_from_the_terminal(server, mod
     raced = league("race-server", rows[0]["id"], str(baseline["id"]), "--seed", "5",
                    "--replay", str(tmp_path / "race.json"), config=tmp_path)
     assert raced.returncode == EXIT_OK, raced.stderr
-    assert raced.stdout.startswith(f"race ") and " on seed 5\n" in raced.stdout
+    assert raced.stdout.startswith("race ") and " on seed 5\n" in raced.stdout
     assert "my actor" in raced.stdout and (tmp_path / "race.json").stat().st_size > 1000
     replayed = league("replay", str(tmp_path / "race.json"), config=tmp_path)
     assert replayed.returncode == EXIT_OK and replayed.stdout.splitlines()[1:] == raced.stdout.splitlines()[1:]
@@ -255,12 +255,13 @@ def test_standings_by_name_for_anyone_and_names_that_name_none_or_several(server
         assert table.returncode == EXIT_OK, table.stderr
         assert table.stdout.split() == ["rank", "student", "agent", "id", "points", "wins", "heats", "rating"]
         unknown = league("standings", "no such cup", "--server", server.url, config=tmp_path)
-        assert unknown.returncode == 2 and f"no championship named 'no such cup'; the championships: " in unknown.stderr
+        assert unknown.returncode == 2 and "no championship named 'no such cup'; the championships: " in unknown.stderr
         assert f"{first} ({cup})" in unknown.stderr  # what there is to ask for
         second = instructor.post("/api/championships", json={"name": cup}).json()["id"]
     twice = league("standings", cup, "--server", server.url, config=tmp_path)
     assert twice.returncode == 2
-    assert twice.stderr == f"league: error: 2 championships are named {cup!r}: give the id of one of {first}, {second}\n"
+    assert twice.stderr == (f"league: error: 2 championships are named {cup!r}: "
+                            f"give the id of one of {first}, {second}\n")
 
 
 def test_a_bad_token_a_spent_quota_and_a_server_down_say_so(server, models, tmp_path):

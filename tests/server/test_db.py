@@ -80,7 +80,8 @@ def fill_0006(database_url: str) -> None:
         # submission: (owner, [(evaluation settings, completed of 3 or 7, status)...])
         agents = {1: (1, [(COURSE_SETTINGS, 1, "done")]),
                   2: (2, [(COURSE_SETTINGS, 3, "done")]), 3: (2, [(COURSE_SETTINGS, 2, "done")]),
-                  4: (3, [(COURSE_SETTINGS, 2, "done"), (EARLIER_SETTINGS, 7, "done"), (COURSE_SETTINGS, None, "failed")]),
+                  4: (3, [(COURSE_SETTINGS, 2, "done"), (EARLIER_SETTINGS, 7, "done"),
+                          (COURSE_SETTINGS, None, "failed")]),
                   5: (4, [(EARLIER_SETTINGS, 6, "done")]),
                   6: (2, [(COURSE_SETTINGS, None, "queued")])}
         evaluation_id = 0
@@ -160,7 +161,8 @@ def test_users_gain_email_and_student_id_with_their_data_kept(backend):
                            [{"id": 1, "name": "default", "now": created}, {"id": 2, "name": "other", "now": created}])
         connection.execute(text("INSERT INTO users (id, name, role, course_id, token_hash, created_at) "
                                 "VALUES (:id, :name, :role, :course, :hash, :now)"),
-                           [{"id": 1, "name": "prof", "role": "instructor", "course": 1, "hash": "a" * 64, "now": created},
+                           [{"id": 1, "name": "prof", "role": "instructor", "course": 1, "hash": "a" * 64,
+                             "now": created},
                             {"id": 2, "name": "Ada", "role": "student", "course": 1, "hash": "b" * 64, "now": created},
                             {"id": 3, "name": "Bea", "role": "student", "course": 2, "hash": None, "now": created}])
     migrate(engine)
@@ -178,7 +180,7 @@ def test_users_gain_email_and_student_id_with_their_data_kept(backend):
                                             (3, "Bea", "student", 2, None, None, None)]
 
 
-# --------------------------------------------------------------------------- 0010: a course becomes its default assignment
+# ------------------------------------------------------------------------ 0010: a course becomes its default assignment
 
 
 @pytest.mark.parametrize("kind", BACKENDS)
@@ -276,7 +278,8 @@ def test_existing_courses_stay_public_and_get_pseudonym_keys_users_no_display_na
         connection.execute(text("INSERT INTO users (id, name, role, course_id, email, created_at) "
                                 "VALUES (:id, :name, :role, :course, :email, :now)"),
                            [{"id": 1, "name": "prof", "role": "instructor", "course": 1, "email": None, "now": created},
-                            {"id": 2, "name": "Ada", "role": "student", "course": 1, "email": "a@u.edu", "now": created},
+                            {"id": 2, "name": "Ada", "role": "student", "course": 1, "email": "a@u.edu",
+                             "now": created},
                             {"id": 3, "name": "Bea", "role": "student", "course": 2, "email": None, "now": created}])
     migrate(engine)
     with engine.begin() as connection:

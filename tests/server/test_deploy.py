@@ -338,7 +338,8 @@ def test_nginx_in_front_of_league_serve_answers_over_tls_and_bounds_bodies(leagu
 
 def test_nginx_cuts_a_client_whose_request_head_never_ends(proxy):
     http_port, https_port = proxy
-    watched = subprocess.run([sys.executable, "-m", "tests.server.slow_clients", "127.0.0.1", str(http_port), "3", "30"],
+    watched = subprocess.run([sys.executable, "-m", "tests.server.slow_clients", "127.0.0.1", str(http_port),
+                              "3", "30"],
                              cwd=REPO, capture_output=True, text=True, timeout=120)
     ends = json.loads(watched.stdout.splitlines()[-1])
     assert all(end["end"] != "open" for end in ends), ends

@@ -52,8 +52,8 @@ def ready_submission(session, owner: User, sha256: str, public: bool = False) ->
     submission, job = crud.create_submission(session, owner=owner, name=unique(f"{owner.name}-agent"),
                                              filename="a.onnx", kind="onnx", sha256=sha256, size=7, max_attempts=1)
     submission.status, submission.public, submission.obs_dim, job.status = READY, public, 5, DONE
-    evaluation, eval_job = crud.create_evaluation(session, submission=submission,
-                                                  assignment=crud.default_assignment(session, course_id=owner.course_id),
+    assignment = crud.default_assignment(session, course_id=owner.course_id)
+    evaluation, eval_job = crud.create_evaluation(session, submission=submission, assignment=assignment,
                                                   settings={"seed": 0, "episodes": 3, "env_options": {}},
                                                   result_key="k", max_attempts=1)
     evaluation.status, evaluation.completed, evaluation.episodes_total, eval_job.status = DONE, 2, 3, DONE
@@ -143,7 +143,8 @@ def test_a_deleted_student_is_gone_everywhere_and_others_keep_their_results(kind
         urls = {url for path in contract_get_paths() for url in filled(path, everything)}
         urls |= {url for url in every_get(league.app, schema_ids)  # every GET route the app has, /metrics too
                  if not url.startswith("/api/package")}  # (the package's files hold no names; built on request)
-        urls |= {"/api/races?size=100", "/api/leaderboard?size=100", f"/api/championships/{cup['id']}/standings?size=100",
+        urls |= {"/api/races?size=100", "/api/leaderboard?size=100",
+                 f"/api/championships/{cup['id']}/standings?size=100",
                  "/api/submissions?all=true", "/api/jobs?limit=1000", "/api/audit?size=100"}
         bodies = []
         for token in (tokens["bob"], league.instructor_token):

@@ -166,7 +166,8 @@ def student(name: str, completed: float | None = 1.0, mean_return: float = 1.0, 
     kw.setdefault("submission_id", 100 + len(name))
     return Entry(name=name, user_id=user_id or hash(name) % 10_000 + 1, email=f"{name}@uni.example",
                  student_id=f"S-{name}", completed=completed,
-                 mean_return=mean_return if completed is not None else None, mean_speed=0.5 if completed is not None else None, **kw)
+                 mean_return=mean_return if completed is not None else None,
+                 mean_speed=0.5 if completed is not None else None, **kw)
 
 
 def baseline(name: str, completed: float, mean_return: float) -> Entry:
@@ -208,7 +209,8 @@ def test_a_revoked_student_is_flagged_and_moves_no_one():
 
 def test_no_final_is_zero_and_a_final_without_a_private_result_is_empty():
     rows = grade([student("ann", 0.9), student("none", None, submission_id=None),
-                  student("pending", None, submission_id=7), student("stale", None, submission_id=8, stale=True), student("open", 1.0, closed=False)],
+                  student("pending", None, submission_id=7), student("stale", None, submission_id=8, stale=True),
+                  student("open", 1.0, closed=False)],
                  read_rubric(RANK_ONLY))
     assert [(r.entry.name, r.status, r.rank, r.penalty, r.points) for r in rows] == [
         ("ann", "graded", 1, 1.0, 10), ("open", "open", None, None, None), ("pending", "pending", None, None, None),

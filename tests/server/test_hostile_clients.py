@@ -81,7 +81,8 @@ def hostile_requests(rng: np.random.Generator):
     yield "GET", "/api/leaderboard?filler=" + "x" * 20_000, None, {}, {200}
     yield "GET", "/api/health", None, {"X-Filler": "x" * 40_000}, {431}
     for path in ("/", "/login", "/submissions", "/races/1", "/replay", "/instructor", "/docs", "/redoc",
-                 "/openapi.json", "/static/js/api.js", "/static/../../etc/passwd", "/api/health", "/api/settings/limits",
+                 "/openapi.json", "/static/js/api.js", "/static/../../etc/passwd", "/api/health",
+                 "/api/settings/limits",
                  "/api/championships", "/api/races/1/replay", "/api/races/1"):
         yield "GET", path, None, {}, {200, 404}
 

@@ -220,7 +220,7 @@ def submissions_of(server: LeagueServer, ids: list[int]) -> dict[int, dict]:
 # --------------------------------------------------------------------------- the test
 
 
-def test_workers_on_other_hosts_share_the_league_and_survive_a_cut_link(tmp_path, drivers):
+def test_workers_on_other_hosts_share_the_league_and_survive_a_cut_link(tmp_path, drivers):  # noqa: F811 - an imported fixture
     with contextlib.ExitStack() as stack:
         net = stack.enter_context(network(HOSTS))
         database_url = stack.enter_context(services(net))

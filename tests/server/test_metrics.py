@@ -77,7 +77,8 @@ def test_metrics_equal_the_database_after_jobs_ran(kind, tmp_path):
     assert {dict(labels)["kind"] for labels in samples["league_job_duration_seconds_count"]} == set(durations)
     for job_kind, seconds in durations.items():
         assert samples["league_job_duration_seconds_count"][(("kind", job_kind),)] == len(seconds)
-        assert samples["league_job_duration_seconds_sum"][(("kind", job_kind),)] == pytest.approx(sum(seconds), abs=1e-3)
+        assert (samples["league_job_duration_seconds_sum"][(("kind", job_kind),)]
+                == pytest.approx(sum(seconds), abs=1e-3))
         for bound in JOB_BUCKETS:
             assert samples["league_job_duration_seconds_bucket"][(("kind", job_kind), ("le", str(float(bound))))] == \
                 sum(s <= bound for s in seconds)

@@ -249,7 +249,8 @@ def test_a_failed_round_races_its_failed_heats_again(tmp_path, drivers):
     """A heat whose job fails for good (here: its worker is killed and no attempt is left) fails
     the round, which counts for nothing until an instructor races its failed heats again."""
     with fresh_backend("sqlite", tmp_path) as database_url:
-        server = make_server(tmp_path, database_url, LEAGUE_MAX_JOB_ATTEMPTS="1", LEAGUE_BOOTSTRAP="false", **ROUND_SETTINGS)
+        server = make_server(tmp_path, database_url, LEAGUE_MAX_JOB_ATTEMPTS="1", LEAGUE_BOOTSTRAP="false",
+                             **ROUND_SETTINGS)
         server.start_api(embedded_worker=False)
         doomed = server.start_worker(**ONE_AT_A_TIME)
         instructor, student = server.client(server.instructor_token), create_student(server, "sam")

@@ -11,7 +11,7 @@ import pytest
 from .conftest import REPO
 
 sys.path.insert(0, str(REPO / "benchmarks"))
-import bench_rush  # noqa: E402
+import bench_rush
 
 
 @pytest.mark.long

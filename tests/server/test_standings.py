@@ -13,7 +13,8 @@ def add_evaluated(session, owner, name: str, completed: int) -> int:
                                            sha256=name.ljust(64, "0"), size=1, max_attempts=1)
     submission.status = READY
     settings = {"seed": 0, "episodes": 10, "env_options": {}}
-    evaluation, _ = crud.create_evaluation(session, submission=submission, assignment=session.get(Assignment, submission.assignment_id),
+    evaluation, _ = crud.create_evaluation(session, submission=submission,
+                                           assignment=session.get(Assignment, submission.assignment_id),
                                            settings=settings,
                                            result_key=settings_key(settings), max_attempts=1)
     evaluation.status, evaluation.completed, evaluation.episodes_total = DONE, completed, 10

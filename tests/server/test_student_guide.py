@@ -45,7 +45,8 @@ def test_every_block_of_the_student_guide_runs(tmp_path):
             for number, (kind, code) in enumerate(guide_blocks()):
                 if '--assignment "time trial"' in code:  # the instructor opened a second assignment meanwhile
                     with server.client(server.instructor_token) as instructor:
-                        instructor.post("/api/assignments", json={"name": "time trial", "episodes": 3}).raise_for_status()
+                        instructor.post("/api/assignments",
+                                        json={"name": "time trial", "episodes": 3}).raise_for_status()
                 if "$MY_SUBMISSION" in code:  # the id of the upload a block before made
                     with server.client(token) as student:
                         env["MY_SUBMISSION"] = str(student.get("/api/submissions").json()[0]["id"])

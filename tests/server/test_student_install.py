@@ -68,7 +68,7 @@ EXPORTS = ["onnx", "onnx-legacy", "jit-script", "jit-trace"]
 
 
 @pytest.mark.long
-def test_every_common_export_is_checked_submitted_and_evaluated_as_league_evaluate_does(server, tmp_path):
+def test_every_common_export_is_checked_submitted_and_evaluated_as_league_evaluate_does(server, tmp_path):  # noqa: F811 - an imported fixture
     """Each export checked (one `league check` of them all), then submitted and waited for (all at once,
     one student each) and evaluated here: the server's figures are `league evaluate`'s."""
     paths = {}
@@ -132,7 +132,7 @@ class Student:
 
 
 @pytest.fixture(scope="module")
-def student(server):
+def student(server):  # noqa: F811 - an imported fixture
     """The toolkit installed as the server says, in a fresh venv of an ordinary user."""
     require_root_tools()
     package = httpx.get(f"{server.url}/api/package", timeout=120).json()
@@ -147,7 +147,7 @@ def student(server):
 
 
 @pytest.mark.long
-def test_a_fresh_venv_installs_the_servers_own_package_and_evaluates_as_the_server(server, student, tmp_path):
+def test_a_fresh_venv_installs_the_servers_own_package_and_evaluates_as_the_server(server, student, tmp_path):  # noqa: F811 - an imported fixture
     where = student.run("python", "-c", "import league; print(league.__file__, league.__version__)").stdout.split()
     assert Path(where[0]).is_relative_to(student.venv) and where[1] == httpx.get(f"{server.url}/api/package").json()[
         "version"]
@@ -210,8 +210,9 @@ def _closed_port() -> int:
 
 TENSORFLOW = ("tensorflow-cpu==2.21.0", "tf2onnx==1.17.0")  # pinned: a new release changes the test when we choose
 TENSORFLOW_VENV = Path("/tmp/league-tensorflow-venv")  # never /tmp/league-venv: TensorFlow pins numpy and protobuf
-# The thesis' DDPG actor (its section 4.1, "Implemented methods"): two towers of two 32-unit relu layers, each ending in one
-# tanh unit (acceleration, direction), concatenated; exported both ways the guide shows.
+# The thesis' DDPG actor (its section 4.1, "Implemented methods"): two towers of two 32-unit relu
+# layers, each ending in one tanh unit (acceleration, direction), concatenated; exported both ways
+# the guide shows.
 KERAS_ACTOR = """
 import keras
 import numpy as np
@@ -247,7 +248,7 @@ def tensorflow_python() -> Path:
 @pytest.mark.slow
 @pytest.mark.long
 def test_the_thesis_keras_actor_goes_to_onnx_both_ways_and_is_evaluated_as_league_evaluate_does(
-        server, tensorflow_python, tmp_path):
+        server, tensorflow_python, tmp_path):  # noqa: F811 - an imported fixture
     import numpy as np
 
     from league.agents import load_agent

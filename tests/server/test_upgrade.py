@@ -107,9 +107,9 @@ def test_a_league_written_by_an_earlier_release_answers_the_same_after_the_upgra
                 f"{head_revision()}: run `league migrate` (back it up first: `league backup FILE`)")
         migrated = new.command("migrate")
         assert migrated.returncode == 0, migrated.stderr
-        assert migrated.stderr.splitlines()[-1] in (f"league: migrated from schema revision {RELEASES[commit]} to "
-                                                    f"{head_revision()}",
-                                                    f"league: already at schema revision {head_revision()}: nothing to do")
+        assert migrated.stderr.splitlines()[-1] in (
+            f"league: migrated from schema revision {RELEASES[commit]} to {head_revision()}",
+            f"league: already at schema revision {head_revision()}: nothing to do")
         new.start_api()
         try:
             after = collect(new.url, new.instructor_token, tokens)  # the old tokens still work, too

@@ -1,5 +1,6 @@
-"""How different two colours look, and how they contrast. CIEDE2000 (Sharma, Wu and Dalal, "The CIEDE2000 color-difference
-formula", 2005) between sRGB colours, also as seen with protanopia or deuteranopia (Machado, Oliveira
+"""How different two colours look, and how they contrast. CIEDE2000 (Sharma, Wu and Dalal,
+"The CIEDE2000 color-difference formula", 2005) between sRGB colours, also as seen with
+protanopia or deuteranopia (Machado, Oliveira
 and Fernandes, "A physiologically-based model for simulation of color vision deficiency", 2009,
 severity 1: the two common red-green deficiencies); WCAG 2's contrast ratio of relative luminances
 (what its contrast criteria 1.4.3 and 1.4.11 measure)."""

@@ -128,7 +128,8 @@ class RecordedPage:
 
     def foreign_hosts(self) -> set[str]:
         own = urlsplit(self.base).netloc
-        hosts = {urlsplit(url).netloc for url in self.requests if urlsplit(url).scheme in ("http", "https", "ws", "wss")}
+        hosts = {urlsplit(url).netloc for url in self.requests
+                 if urlsplit(url).scheme in ("http", "https", "ws", "wss")}
         return hosts - {own}
 
     def drop_file(self, selector: str, path: Path, name: str | None = None) -> None:

@@ -50,14 +50,19 @@ ANNOUNCEMENTS = """
 window.announcements = [];
 (() => {
   const REGIONS = "[aria-live], [role=status], [role=alert]";
-  const politeness = (region) => region.getAttribute("aria-live") || (region.getAttribute("role") === "alert" ? "assertive" : "polite");
+  const politeness = (region) => region.getAttribute("aria-live")
+    || (region.getAttribute("role") === "alert" ? "assertive" : "polite");
   const rendered = new WeakMap();
-  const scan = () => document.querySelectorAll(REGIONS).forEach((region) => rendered.set(region, region.checkVisibility()));
+  const scan = () => document.querySelectorAll(REGIONS)
+    .forEach((region) => rendered.set(region, region.checkVisibility()));
   const observer = new MutationObserver((mutations) => {
-    const changed = new Set(mutations.map((m) => (m.target.nodeType === Node.ELEMENT_NODE ? m.target : m.target.parentElement)?.closest(REGIONS)));
+    const changed = new Set(mutations.map((m) =>
+      (m.target.nodeType === Node.ELEMENT_NODE ? m.target : m.target.parentElement)?.closest(REGIONS)));
     for (const region of changed) {
       const text = region?.textContent.replace(/\\s+/g, " ").trim();
-      if (text && rendered.get(region) && politeness(region) !== "off") window.announcements.push([politeness(region), text]);
+      if (text && rendered.get(region) && politeness(region) !== "off") {
+        window.announcements.push([politeness(region), text]);
+      }
     }
     scan();
   });
@@ -75,7 +80,8 @@ def announcements(web) -> list[tuple[str, str]]:
 
 def wait_announced(web, politeness: str, text: str) -> None:
     try:
-        web.page.wait_for_function("([politeness, text]) => window.announcements.some(([p, t]) => p === politeness && t === text)",
+        web.page.wait_for_function("([politeness, text]) => "
+                                   "window.announcements.some(([p, t]) => p === politeness && t === text)",
                                    arg=[politeness, text], timeout=90_000)
     except Exception:
         pytest.fail(f"never announced ({politeness}): {text!r}; announced: {announcements(web)}")
@@ -84,7 +90,8 @@ def wait_announced(web, politeness: str, text: str) -> None:
 def focused(web, selector: str) -> None:
     """Wait until the keyboard focus is on `selector` (fail saying where it is)."""
     try:
-        web.page.wait_for_function("(selector) => document.activeElement.matches(selector)", arg=selector, timeout=30_000)
+        web.page.wait_for_function("(selector) => document.activeElement.matches(selector)", arg=selector,
+                                   timeout=30_000)
     except Exception:
         where = web.page.evaluate("document.activeElement.outerHTML.slice(0, 200)")
         pytest.fail(f"the focus is not on {selector} but on {where}")
@@ -151,7 +158,8 @@ def course(web_server, agent_files, tmp_path_factory):
     with web_server.client(instructor) as client:
         leaver = client.post("/api/users", json={"name": unique("leaver")}).json()
         assert client.post(f"/api/users/{leaver['id']}/revoke").status_code == 200
-        championship = client.post("/api/championships", json={"name": unique("Cup"), "heat_size": 10, "seed": 5}).json()
+        championship = client.post("/api/championships",
+                                   json={"name": unique("Cup"), "heat_size": 10, "seed": 5}).json()
         assert client.post(f"/api/championships/{championship['id']}/rounds").status_code == 202
         done = wait_for(lambda: client.get(f"/api/championships/{championship['id']}/rounds/1").json(),
                         lambda r: r["status"] in ("done", "failed"), timeout=120)
@@ -251,8 +259,10 @@ FOCUSED_BOX = """() => {
   if (box.width < 4 || box.height < 4 || getComputedStyle(focused).opacity === "0") {
     box = (focused.closest("label") || focused).getBoundingClientRect();
   }
-  const name = focused.id || focused.dataset.focusKey || focused.getAttribute("aria-label") || focused.textContent.trim();
-  return {left: box.left, top: box.top, right: box.right, bottom: box.bottom, name: `${focused.tagName} ${name.slice(0, 50)}`};
+  const name = focused.id || focused.dataset.focusKey || focused.getAttribute("aria-label")
+    || focused.textContent.trim();
+  return {left: box.left, top: box.top, right: box.right, bottom: box.bottom,
+          name: `${focused.tagName} ${name.slice(0, 50)}`};
 }"""
 RING_DEPTH = 7  # CSS px outside the box where the ring is looked for (the site's: 5)
 CORNER = 8  # CSS px at each end of a side where a rounded ring curves away
@@ -408,7 +418,8 @@ def test_round_by_keyboard(web, web_server):
     heats = web_server.client().get(f"/api/championships/{championship_id}/rounds/1").json()["heats_total"]
     heats_text = f"{heats} heat{'s' if heats > 1 else ''}"
     wait_announced(web, "polite", f"Round 1 of {name} started: {heats_text} to race.")
-    wait_announced(web, "polite", f"Round 1 of {name} is over: {heats} of {heats_text} done; the standings are updated.")
+    wait_announced(web, "polite",
+                   f"Round 1 of {name} is over: {heats} of {heats_text} done; the standings are updated.")
     said = [text for _, text in announcements(web) if text.startswith(f"Round 1 of {name}")]
     assert said == sorted(set(said), key=said.index), said  # each said once, in order
     expect(card.locator("[data-round='1'] .badge")).to_have_text("done")
@@ -480,7 +491,8 @@ def test_new_tokens_stay_until_dismissed(web, web_server):
     first_token = rows.nth(1).locator(".token").inner_text()
 
     web.page.locator("#users button", has_text="New token").first.click()  # ann's: the list is oldest first
-    expect(web.page.locator("#students-message")).to_have_text(f"New token for {names[0]} below (the old one no longer works).")
+    expect(web.page.locator("#students-message")).to_have_text(
+        f"New token for {names[0]} below (the old one no longer works).")
     expect(rows).to_have_count(2)  # ann's new token replaced her old one, at the top
     assert rows.nth(0).inner_text().startswith(names[0])
     assert rows.nth(0).locator(".token").inner_text() != first_token
@@ -525,7 +537,8 @@ def test_car_markers_carry_their_number_and_stand_out(web, course):
           ctx.fillRect(0, 0, size, size);
           painter.paintMarker(ctx, index, size / 2, size / 2, Math.PI / 2);
           return {...carStyle(index), pixels: [...ctx.getImageData(0, 0, size, size).data],
-                  size, radius: painter.MARKER_RADIUS, road: painter.ROAD, offRoad: painter.OFF_ROAD, edge: painter.MARKER_EDGE};
+                  size, radius: painter.MARKER_RADIUS, road: painter.ROAD, offRoad: painter.OFF_ROAD,
+                  edge: painter.MARKER_EDGE};
         });
     }""")
     first = drawn[0]
@@ -535,10 +548,13 @@ def test_car_markers_carry_their_number_and_stand_out(web, course):
         assert marker["label"] == str(index + 1)
         assert contrast(hex_rgb(marker["labelColor"]), hex_rgb(marker["color"])) >= 4.5, marker  # text: 4.5:1
         pixels = np.array(marker["pixels"], dtype=float).reshape(marker["size"], marker["size"], 4)[..., :3]
-        centre = pixels[marker["size"] // 2 - 4: marker["size"] // 2 + 4, marker["size"] // 2 - 5: marker["size"] // 2 + 5]
+        centre = pixels[marker["size"] // 2 - 4: marker["size"] // 2 + 4,
+                        marker["size"] // 2 - 5: marker["size"] // 2 + 5]
         on_label = np.abs(centre - hex_rgb(marker["labelColor"])).sum(axis=-1) < 60
         on_fill = np.abs(centre - hex_rgb(marker["color"])).sum(axis=-1) < 60
-        assert on_label.sum() >= 6 and on_fill.sum() >= 6, (index, on_label.sum(), on_fill.sum())  # the number, on the colour
+        # the number, on the colour
+        assert on_label.sum() >= 6 and on_fill.sum() >= 6, (index, on_label.sum(), on_fill.sum())
     legend = web.page.locator("#car-legend li svg text")
     assert legend.all_text_contents() == [str(i + 1) for i in range(legend.count())]
-    web.page.locator(".race-stage").screenshot(path=str(web.screenshot("race-markers", full_page=False).parent / "race-markers-stage.png"))
+    web.page.locator(".race-stage").screenshot(
+        path=str(web.screenshot("race-markers", full_page=False).parent / "race-markers-stage.png"))

@@ -172,7 +172,8 @@ def test_student_uploads_an_agent_and_sees_it_ready_with_its_chart(web, web_serv
         f"Simulator: physics {versions['physics']}, track format {versions['track_format']} "
         f"(league {versions['package']}) · result key {evaluation['result_key']}")
     assert_drawn(canvas_pixels(web, "#episode-chart", [FINISHED_COLOR]), [FINISHED_COLOR])
-    assert web.page.get_attribute("#episode-chart", "aria-label").startswith(f"Chart of {evaluation['episodes_total']} episodes")
+    assert web.page.get_attribute("#episode-chart", "aria-label").startswith(
+        f"Chart of {evaluation['episodes_total']} episodes")
     legend = web.page.inner_text("#chart-legend")
     assert "finished" in legend and "mean speed" in legend
     assert web.page.locator("#episodes tbody tr").count() == evaluation["episodes_total"]
@@ -212,7 +213,8 @@ def test_bad_uploads_show_the_servers_error(web, web_server, agent_files, tmp_pa
 
     web.page.set_input_files("#model-file", str(agent_files["empty"]))
     web.page.click("#upload-button")
-    web.page.wait_for_function("() => document.querySelector('#upload-message').textContent.startsWith('Upload refused: the')")
+    web.page.wait_for_function(
+        "() => document.querySelector('#upload-message').textContent.startsWith('Upload refused: the')")
     assert web.page.inner_text("#upload-message") == "Upload refused: the file is empty"
 
     # accepted, then rejected by the sandbox: the stored error, on the upload and in the details
@@ -356,7 +358,8 @@ def test_instructor_creates_students_changes_settings_and_reruns(web, web_server
     roster.write_bytes(f"\ufeffName;E-Mail\r\n{first};{first}@uni.de\r\n{second};{second}@uni.de\r\n".encode())
     web.page.set_input_files("#roster-file", str(roster))
     web.page.click("#roster-form button[type=submit]")
-    web.page.wait_for_function("() => document.querySelector('#students-message').textContent.includes('Created 2 students')")
+    web.page.wait_for_function(
+        "() => document.querySelector('#students-message').textContent.includes('Created 2 students')")
     assert web.page.inner_text("#students-message") == \
         "Created 2 students from roster.csv (semicolon-separated, columns Name, E-Mail)."
     assert web.page.locator("#token-table tbody tr").count() == 3  # carol's stays until dismissed
@@ -371,7 +374,8 @@ def test_instructor_creates_students_changes_settings_and_reruns(web, web_server
                        f"=cmd|' /C calc'!A0;\n".encode())
     web.page.set_input_files("#roster-file", str(roster))
     web.page.click("#roster-form button[type=submit]")
-    web.page.wait_for_function("() => document.querySelector('#students-message').textContent.includes('Created 1 student ')")
+    web.page.wait_for_function(
+        "() => document.querySelector('#students-message').textContent.includes('Created 1 student ')")
     assert web.page.inner_text("#students-message") == (
         "Created 1 student from roster.csv (semicolon-separated, columns Name, E-Mail). Skipped 2 lines naming "
         "students already enrolled. 1 line with errors not created: fix them and upload the roster again.")
@@ -424,7 +428,8 @@ def test_instructor_creates_students_changes_settings_and_reruns(web, web_server
     assert web.page.is_hidden("#rerun-dialog") and posts == []
     web.page.click("#rerun-all")
     web.page.locator("#rerun-confirm", has_text=f"Re-run {evaluations}").click()
-    web.page.wait_for_function("() => /Queued \\d+ evaluations?/.test(document.querySelector('#settings-message').textContent)")
+    web.page.wait_for_function(
+        "() => /Queued \\d+ evaluations?/.test(document.querySelector('#settings-message').textContent)")
     assert web.page.inner_text("#settings-message") == f"Queued {evaluations} with the current settings."
     web.page.wait_for_selector("#all-submissions tbody tr")
     web.screenshot("instructor-console")
@@ -545,7 +550,8 @@ def test_a_settings_change_shows_every_earlier_result_apart_as_stale(web, web_se
             web.goto("/")
             stale = web.page.locator("#leaderboard tbody tr.apart")
             stale.first.wait_for()
-            board = web_server.client().get("/api/leaderboard?page=1&size=50").json()["items"]  # as the page (a visitor)
+            # as the page (a visitor)
+            board = web_server.client().get("/api/leaderboard?page=1&size=50").json()["items"]
             assert board and all(row["stale"] and row["rank"] is None for row in board)
             assert stale.count() == web.page.locator("#leaderboard tbody tr").count() == len(board)
             assert stale.locator("td:first-child .badge.stale").count() == len(board)
@@ -615,7 +621,8 @@ def test_instructor_runs_a_round_opens_a_replay_and_the_standings_break_ties(web
 
     # the standings say what broke each tie on points
     web.goto(f"/?championship={championship_id}")
-    rows = web_server.client(web_server.instructor_token).get(f"/api/championships/{championship_id}/standings").json()["items"]
+    rows = web_server.client(web_server.instructor_token).get(
+        f"/api/championships/{championship_id}/standings").json()["items"]
     web.page.wait_for_selector(f"#standings tbody tr[data-key='{rows[-1]['submission_id']}']")
     notes = [tie_break(row, above) for above, row in zip([None] + rows, rows)]
     for row, note in zip(rows, notes):

@@ -1,7 +1,7 @@
 """Pieces of the networks and their updates: layers, observation statistics, Polyak update, Adam."""
 from __future__ import annotations
 
-from typing import Iterable
+from collections.abc import Iterable
 
 import numpy as np
 import torch

@@ -361,7 +361,8 @@ def latest_evaluations(session: Session, *, submission_ids: list[int],
 def submissions_with_results(session: Session, *, result_key: str) -> set[int]:
     """Submissions with a public evaluation of `result_key` done, running or queued."""
     return set(session.scalars(select(Evaluation.submission_id).distinct().where(
-        Evaluation.result_key == result_key, Evaluation.track == PUBLIC, Evaluation.status.in_((DONE, RUNNING, QUEUED)))))
+        Evaluation.result_key == result_key, Evaluation.track == PUBLIC,
+        Evaluation.status.in_((DONE, RUNNING, QUEUED)))))
 
 
 def queued_evaluations(session: Session, *, assignment_id: int, other_than: str) -> list[Any]:
@@ -448,8 +449,9 @@ def active_students(session: Session, *, course_id: int | None) -> list[User]:
 def leaderboard_entries(session: Session, *, assignment: Assignment, result_key: str | None,
                         track: str = PUBLIC) -> list[Any]:
     """Every ready submission of the assignment's active students and of the baselines' account with a
-    finished evaluation of `track` (private: of the finals' evaluations only), newest first, with its owner and the figures of its newest finished
-    evaluation of `result_key`, else (`stale`) of its newest finished one: plain rows (one query,
+    finished evaluation of `track` (private: of the finals' evaluations only), newest first, with its
+    owner and the figures of its newest finished evaluation of `result_key`, else (`stale`) of its
+    newest finished one: plain rows (one query,
     no objects: the board is recomputed after every evaluation of a deadline rush)."""
     # joined to a derived table of the newest ids, of the key and of any, from one pass over the
     # finished evaluations (not `id IN (subquery)`, which SQLite's planner ran 50x slower: 111 ms

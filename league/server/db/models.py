@@ -244,7 +244,8 @@ class Evaluation(Base):
     # every row has one (crud.create_evaluation); nullable in the schema only: SQLite cannot make an existing
     # column NOT NULL without copying the table, which the foreign keys to it forbid (migration 0007)
     result_key: Mapped[str] = mapped_column(String(16), nullable=True)
-    versions: Mapped[dict[str, Any] | None] = mapped_column(JSON, default=None)  # {"physics", "track_format", "package"} once done
+    # {"physics", "track_format", "package"} once done
+    versions: Mapped[dict[str, Any] | None] = mapped_column(JSON, default=None)
     created_at: Mapped[datetime] = mapped_column(default=utcnow)
     finished_at: Mapped[datetime | None] = mapped_column(default=None)
 
@@ -377,7 +378,8 @@ class Race(Base):
     error: Mapped[str | None] = mapped_column(Text, default=None)
     log: Mapped[str | None] = mapped_column(Text, default=None)  # what the cars' sandboxes printed, truncated
     classification: Mapped[list[Any] | None] = mapped_column(JSON, default=None)
-    versions: Mapped[dict[str, Any] | None] = mapped_column(JSON, default=None)  # the simulator's and package's, once raced
+    # the simulator's and package's, once raced
+    versions: Mapped[dict[str, Any] | None] = mapped_column(JSON, default=None)
     created_at: Mapped[datetime] = mapped_column(default=utcnow)
     started_at: Mapped[datetime | None] = mapped_column(default=None)
     finished_at: Mapped[datetime | None] = mapped_column(default=None)

@@ -19,8 +19,9 @@ Each function takes the job handlers (kind -> JobHandler, league.server.jobs.han
 from __future__ import annotations
 
 import logging
+from collections.abc import Mapping
 from datetime import datetime, timedelta
-from typing import Any, Mapping
+from typing import Any
 
 from sqlalchemy import case, func, select, update
 from sqlalchemy.orm import Session, sessionmaker

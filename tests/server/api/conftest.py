@@ -32,7 +32,7 @@ def unique(name: str) -> str:
 class Client(TestClient):
     """A client of the app whose `with` block only closes it: the fixture ran the app's lifespan once."""
 
-    def __enter__(self) -> "Client":
+    def __enter__(self) -> Client:
         return self
 
     def __exit__(self, *exc_info) -> None:

@@ -26,7 +26,8 @@ def test_a_car_whose_agent_could_not_start_is_a_dnf_with_the_reason():
     cars = [lambda: FailedAgent(5, "broken", "the model did not load: truncated file"), heuristic_agent]
     result = race_in_sandboxes(cars, ["broken", "driver"], seed=3, env_options={})
     by_name = {row["name"]: row for row in result.classification}
-    assert (by_name["broken"]["outcome"], by_name["broken"]["reason"]) == ("dnf", "the model did not load: truncated file")
+    assert by_name["broken"]["outcome"] == "dnf"
+    assert by_name["broken"]["reason"] == "the model did not load: truncated file"
     assert by_name["broken"]["distance"] == 0.0 and by_name["driver"]["outcome"] != "dnf"
     assert [row["position"] for row in result.classification] == [1, 2] and by_name["driver"]["position"] == 1
 

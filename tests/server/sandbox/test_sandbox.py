@@ -315,7 +315,8 @@ def test_without_landlock_and_seccomp_no_model_runs_unless_allowed():
     assert partial.missing == ["Landlock, which keeps sandboxes from files their user may read (Linux 5.13 or "
                                "later, with landlock in its lsm= boot parameter)"]
     with pytest.raises(IsolationUnavailable, match=r"not run here: the sandbox is Landlock ABI 0, .*; NOT fully "
-                                                   r"isolated, missing Landlock, .*LEAGUE_SANDBOX_REQUIRE_ISOLATION=false"):
+                                                   r"isolated, missing Landlock, .*"
+                                                   r"LEAGUE_SANDBOX_REQUIRE_ISOLATION=false"):
         partial.check(SandboxLimits())
     assert partial.check(SandboxLimits(require_isolation=False)) is partial
     broken = Isolation("unknown", "unknown", 0, False, 0, problem="ModuleNotFoundError: No module named 'torch'")

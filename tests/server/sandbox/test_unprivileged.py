@@ -45,8 +45,9 @@ def test_the_sandbox_tests_pass_as_an_ordinary_user(shared_tmp):
     os.chown(home, uid, uid)
     env = {"PATH": os.defpath, "HOME": str(home), "PYTHONPATH": str(source), "LANG": "C.UTF-8",
            "TMPDIR": str(home)}
-    result = subprocess.run([shutil.which("runuser"), "-u", USER, "--", str(python), "-m", "pytest", "-p", "no:cacheprovider",
-                             "-q", "-rs", "-m", "not slow", "tests/server/sandbox"], cwd=source, env=env,
+    result = subprocess.run([shutil.which("runuser"), "-u", USER, "--", str(python), "-m", "pytest",
+                             "-p", "no:cacheprovider", "-q", "-rs", "-m", "not slow", "tests/server/sandbox"],
+                            cwd=source, env=env,
                             capture_output=True, text=True, timeout=900)
     summary = result.stdout.strip().splitlines()[-1] if result.stdout.strip() else ""
     assert result.returncode == 0, result.stdout[-6000:] + result.stderr[-2000:]

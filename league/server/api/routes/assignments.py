@@ -220,7 +220,8 @@ async def read_board(assignment_id: Id, request: Request, viewer: OptionalUser, 
 
 
 @router.get("/{assignment_id}/board.csv", response_class=Response, responses={200: {"content": {"text/csv": {}}}})
-def read_board_csv(assignment_id: Id, session: SessionDep, instructor: InstructorUser, board: Board = "public") -> Response:
+def read_board_csv(assignment_id: Id, session: SessionDep, instructor: InstructorUser,
+                   board: Board = "public") -> Response:
     """The board as grades (instructors): one line per student of your course, as /api/leaderboard.csv.
     The private board: before publication too (instructors see it)."""
     assignment = course_assignment(session, instructor, assignment_id)

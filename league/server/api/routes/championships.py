@@ -32,7 +32,8 @@ def create_championship(body: ChampionshipCreate, instructor: InstructorUser, se
     check_env_options(body.env_options)
     if body.heat_size > settings.max_race_cars:
         raise HTTPException(status.HTTP_422_UNPROCESSABLE_CONTENT,
-                            f"heat_size {body.heat_size} is too large: a race takes at most {settings.max_race_cars} cars")
+                            f"heat_size {body.heat_size} is too large: "
+                            f"a race takes at most {settings.max_race_cars} cars")
     if any(p < 0 for p in body.points):
         raise HTTPException(status.HTTP_422_UNPROCESSABLE_CONTENT, "points must not be negative")
     course = user_course(session, instructor)

@@ -19,8 +19,9 @@ from league.server.schemas import (
 from league.validation.probes import PROBES
 
 router = APIRouter(prefix="/integrity", tags=["integrity"])
-Assignment = Annotated[int | None, Query(ge=1, le=MAX_ID, description="one assignment's submissions (once submissions belong to "
-                                                      "assignments); default: every submission of the course")]
+Assignment = Annotated[int | None, Query(ge=1, le=MAX_ID,
+                                         description="one assignment's submissions (once submissions belong to "
+                                                     "assignments); default: every submission of the course")]
 
 
 def course_report(request: Request, session: SessionDep, instructor: InstructorUser,

@@ -44,4 +44,4 @@ def _files(settings: SettingsDep):
     try:
         return package_files(settings.data_dir)
     except RuntimeError as error:  # a source tree whose sdist does not build
-        raise HTTPException(status.HTTP_503_SERVICE_UNAVAILABLE, f"the package could not be built: {error}")
+        raise HTTPException(status.HTTP_503_SERVICE_UNAVAILABLE, f"the package could not be built: {error}") from error

@@ -73,7 +73,8 @@ def mount_web(app: FastAPI, directory: Path | None = None) -> None:
     pages.add_api_route("/login", page("login.html"), methods=["GET", "HEAD"])
     pages.add_api_route("/submissions", page("submissions.html"), methods=["GET", "HEAD"])
     pages.add_api_route("/races/{race_id}", page("race.html"), methods=["GET", "HEAD"])
-    pages.add_api_route("/replay", page("race.html"), methods=["GET", "HEAD"])  # the viewer for a replay file saved by `league race`
+    # the viewer for a replay file saved by `league race`
+    pages.add_api_route("/replay", page("race.html"), methods=["GET", "HEAD"])
     pages.add_api_route("/instructor", page("instructor.html"), methods=["GET", "HEAD"])
     pages.add_api_route("/integrity", page("integrity.html"), methods=["GET", "HEAD"])
     app.include_router(pages)

@@ -117,7 +117,8 @@ def read_replay(race_id: Id, request: Request, session: SessionDep, viewer: Opti
     if replay is None and race.status == FAILED:
         raise HTTPException(status.HTTP_409_CONFLICT, f"race {race_id} failed, so it has no replay: {race.error}")
     if replay is None:
-        raise HTTPException(status.HTTP_409_CONFLICT, f"race {race_id} is {race.status}: its replay exists once it is done")
+        raise HTTPException(status.HTTP_409_CONFLICT,
+                            f"race {race_id} is {race.status}: its replay exists once it is done")
     renamed = names.replay(replay.data, race.entrants, owners)
     if renamed is not None:
         return Response(renamed, media_type="application/json")
@@ -164,7 +165,8 @@ def read_race_log(race_id: Id, instructor: InstructorUser, session: SessionDep) 
     if race.course_id != instructor.course_id:
         raise HTTPException(status.HTTP_403_FORBIDDEN, "this race belongs to another course")
     if race.status not in (DONE, FAILED):
-        raise HTTPException(status.HTTP_409_CONFLICT, f"race {race_id} is {race.status}: its log exists once it is over")
+        raise HTTPException(status.HTTP_409_CONFLICT,
+                            f"race {race_id} is {race.status}: its log exists once it is over")
     return race.log or ""
 
 

@@ -153,7 +153,8 @@ def read_episodes(submission_id: Id, request: Request, user: CurrentUser, sessio
     evaluation = (crud.latest_evaluation(session, submission_id=submission.id, result_key=key)
                   if evaluation_id is None else session.get(Evaluation, evaluation_id))
     if evaluation is None or evaluation.submission_id != submission.id or (
-            evaluation.track != PUBLIC and not private_visible(session.get(Assignment, evaluation.assignment_id), user)):
+            evaluation.track != PUBLIC
+            and not private_visible(session.get(Assignment, evaluation.assignment_id), user)):
         raise HTTPException(status.HTTP_404_NOT_FOUND, "no such evaluation of this submission")
     rows, total = crud.episode_page(session, evaluation_id=evaluation.id, offset=offset, limit=limit)
     page = EpisodePage(evaluation_id=evaluation.id, total=total, items=[EpisodeOut.model_validate(r) for r in rows])

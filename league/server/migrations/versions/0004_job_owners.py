@@ -19,8 +19,8 @@ def upgrade() -> None:
         batch.add_column(sa.Column('owner_id', sa.Integer(), nullable=True))
         batch.create_foreign_key('fk_jobs_owner_id_users', 'users', ['owner_id'], ['id'])
         batch.create_index('ix_jobs_status_owner', ['status', 'owner_id'])
-    op.execute("UPDATE jobs SET owner_id = (SELECT owner_id FROM submissions WHERE submissions.id = jobs.submission_id) "
-               "WHERE submission_id IS NOT NULL")
+    op.execute("UPDATE jobs SET owner_id = (SELECT owner_id FROM submissions "
+               "WHERE submissions.id = jobs.submission_id) WHERE submission_id IS NOT NULL")
     op.execute("UPDATE jobs SET owner_id = (SELECT created_by_id FROM races WHERE races.id = jobs.race_id) "
                "WHERE race_id IS NOT NULL")
 

@@ -222,14 +222,16 @@ def test_finals_are_frozen_at_the_due_time_tested_privately_and_shown_only_once_
             crud.select(StudentAssignment).where(StudentAssignment.assignment_id == hw["id"]))}
 
     # before publication: nothing a student can obtain shows the private seed, tracks or figures
-    secrets_ = [str(private_seed), *map(str, episode_seeds(private_seed, 5)), "777.125", "333.375", "seed " + str(private_seed)]
+    secrets_ = [str(private_seed), *map(str, episode_seeds(private_seed, 5)), "777.125", "333.375",
+                "seed " + str(private_seed)]
     extra = [f"/api/assignments/{hw['id']}/board?board=private", f"/api/assignments/{hw['id']}/board.csv?board=private",
              f"/api/submissions/{chosen}/episodes?evaluation_id={evaluation_ids[chosen]}",
              f"/api/submissions/{chosen}/episodes", "/api/submissions", "/api/assignments", "/api/leaderboard.csv",
              f"/api/assignments/{hw['id']}/board.csv", "/openapi.json"]
     ids = {"id": hw["id"], "user_id": chooser_user.id, "filename": "none"}
     for client, submission_id in ((chooser, chosen), (best, weaker), (idle, chosen)):
-        text = walk(client, contract_gets(), {**ids, "id": submission_id}, extra) + walk(client, contract_gets(), ids, [])
+        text = (walk(client, contract_gets(), {**ids, "id": submission_id}, extra)
+                + walk(client, contract_gets(), ids, []))
         assert [secret for secret in secrets_ if secret in text] == []
     assert chooser.get(extra[0]).status_code == 404
     assert chooser.get(extra[2]).status_code == 404
@@ -271,7 +273,7 @@ def test_a_server_stopped_across_a_due_time_evaluates_the_finals_when_it_starts(
     from league.server.app import catch_up
 
     catch_up(league.app.state.league)  # earlier tests' students without a final are frozen too
-    for submission_id, job_id in private_jobs(league, hw["id"]).items():
+    for job_id in private_jobs(league, hw["id"]).values():
         with league.sessions() as session:
             if session.get(Job, job_id).status == "queued":
                 league.finish_job(job_id, private_outcome({**hw, "private_seed": private_seed_of(league, hw)}, 2, 1.5))

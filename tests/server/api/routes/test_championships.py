@@ -88,7 +88,8 @@ def test_an_instructor_creates_a_championship_with_the_defaults(app_league):
     ({"heat_size": 11}, "heat_size 11 is too large: a race takes at most 10 cars"),
     ({"points": [25, 18, -1]}, "points must not be negative"),
     ({"env_options": {"curves": 2}}, "invalid env_options: curves must be an integer in [5, 60], got 2"),
-    ({"env_options": {"bogus": True}}, "invalid env_options: RaceOptions() got an unexpected keyword argument 'bogus'; valid options: "),
+    ({"env_options": {"bogus": True}},
+     "invalid env_options: RaceOptions() got an unexpected keyword argument 'bogus'; valid options: "),
     ({"env_options": {"observation": "lidar"}},
      "observation is not an evaluation setting: it follows each agent's input size"),
 ])
@@ -363,7 +364,8 @@ def test_a_round_with_students_baselines_and_a_broken_agent_completes(season):
         assert created["track_seed"] is None  # drawn secretly, shown once the round is over
         assert done["status"] == "done"
         assert done["heats_done"] == done["heats_total"] == 2 == len(done["heats"])
-        assert isinstance(done["track_seed"], int) and done["track_seed"] != episode_seeds(SEASON_SEED, number)[number - 1]
+        assert isinstance(done["track_seed"], int)
+        assert done["track_seed"] != episode_seeds(SEASON_SEED, number)[number - 1]
         assert sorted(i for heat in done["heats"] for i in heat) == entrant_ids(season)
         assert [len(heat) for heat in done["heats"]] == [3, 3]  # 6 entrants in heats of at most 3
         for k, (heat, race) in enumerate(zip(done["heats"], races), start=1):

@@ -67,7 +67,8 @@ def test_rerun_all_queues_every_ready_submission_including_the_baselines(league_
 
 @pytest.mark.parametrize("options, message", [
     ({"observation": "lidar"}, "observation is not an evaluation setting: it follows each agent's input size"),
-    ({"warp_drive": True}, "invalid env_options: RaceOptions() got an unexpected keyword argument 'warp_drive'; valid options: "),
+    ({"warp_drive": True},
+     "invalid env_options: RaceOptions() got an unexpected keyword argument 'warp_drive'; valid options: "),
     ({"track_width": 5.0}, "invalid env_options: track_width must be in (0, "),
 ])
 def test_invalid_env_options_are_refused(app_league, options, message):

@@ -34,7 +34,7 @@ def upload_all(uploads: dict[str, tuple]) -> dict[str, int]:
         assert response.status_code == 201, response.text
         sent[key] = response.json()["id"]
     for key, (client, _) in uploads.items():
-        done = wait_for(lambda: submission(client, sent[key]),
+        done = wait_for(lambda: submission(client, sent[key]),  # noqa: B023 - called in this iteration
                         lambda s: s["status"] in ("ready", "rejected", "failed"), timeout=180)
         assert done["status"] == "ready", done["error"]
     return sent
@@ -49,8 +49,8 @@ def groups_by_kind(report: dict) -> dict[str, list[dict]]:
 
 def league_cli(server, token: str, *args: str) -> subprocess.CompletedProcess:
     """`league ARGS` in a terminal with the server and token in the environment."""
-    env = {**{k: v for k, v in os.environ.items() if not k.startswith("LEAGUE_")}, "PYTHONPATH": server.env["PYTHONPATH"],
-           "LEAGUE_SERVER": server.url, "LEAGUE_TOKEN": token}
+    env = {**{k: v for k, v in os.environ.items() if not k.startswith("LEAGUE_")},
+           "PYTHONPATH": server.env["PYTHONPATH"], "LEAGUE_SERVER": server.url, "LEAGUE_TOKEN": token}
     return subprocess.run([sys.executable, "-m", "league.cli", *args], env=env, capture_output=True, text=True,
                           timeout=120)
 
