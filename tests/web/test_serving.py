@@ -1,4 +1,4 @@
-"""How the server serves the pages (league/server/api/routes/pages.py), over real HTTP."""
+"""How the server serves the pages (league/server/pages.py), over real HTTP."""
 from __future__ import annotations
 
 import re
