@@ -15,7 +15,7 @@ from league import championship as rules
 from league.server import results
 from league.server.db import crud
 from league.server.db.models import (
-    BASELINE, DELETED, DONE, PUBLIC, STUDENT, Assignment, Championship, ChampionshipRound, Course,
+    BASELINE, DELETED, DONE, PUBLIC, STUDENT, Assignment, Championship, ChampionshipRound,
 )
 
 

@@ -5,7 +5,6 @@ from __future__ import annotations
 
 import csv
 import io
-import time
 import uuid
 
 import pytest
@@ -16,7 +15,7 @@ from league.server.db.models import INSTRUCTOR, Submission
 from ....test_spreadsheet import formula_cells
 from ... import model_factory as mf
 from ...conftest import (
-    add_user_in_new_course, baseline_submission, create_student, fresh_backend, make_server, upload_ready, wait_for,
+    add_user_in_new_course, baseline_submission, create_student, fresh_backend, make_server, upload_ready,
 )
 
 def unique(name: str) -> str:
