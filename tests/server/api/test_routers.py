@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import importlib
 import pkgutil
+from pathlib import Path
 
 from fastapi.routing import APIRoute
 
@@ -28,3 +29,9 @@ def test_every_api_route_is_one_of_the_listed_routers(tmp_path):
               if path.startswith("/api/") for method in operations}
     assert served == module_routes()
     assert ("POST", "/api/tracks/geometry") in served
+
+
+def test_routes_reach_the_services_through_dependencies_only():
+    """league.server.api.deps is the one reader of app.state (the league's services, the response cache)."""
+    readers = [path.name for path in Path(routes.__file__).parent.glob("*.py") if "app.state" in path.read_text()]
+    assert readers == []
