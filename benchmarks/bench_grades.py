@@ -43,7 +43,7 @@ def build(app, students: int) -> tuple[str, list[int]]:
     from league.server.db.models import BASELINE, INSTRUCTOR, READY, STUDENT, StudentAssignment, Submission, User
 
     due = datetime(2001, 1, 1, tzinfo=timezone.utc)
-    with app.state.sessions.begin() as session:
+    with app.state.league.sessions.begin() as session:
         course = crud.first_course(session)
         _, token = crud.create_user(session, name="prof", role=INSTRUCTOR, course=course)
         users = [crud.create_user(session, name=f"student {k:03d}", role=STUDENT, course=course)[0]

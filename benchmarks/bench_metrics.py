@@ -98,7 +98,7 @@ def main() -> None:
         app = create_app(settings)
         with TestClient(app) as client:
             begin = time.perf_counter()
-            fill(app.state.sessions, args)
+            fill(app.state.league.sessions, args)
             print(f"{args.backend}: {args.students} students, {args.uploads} submissions, "
                   f"{args.uploads * args.episodes} episodes, {2 * args.uploads + args.races} jobs "
                   f"(written in {time.perf_counter() - begin:.0f} s)", flush=True)

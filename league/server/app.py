@@ -1,53 +1,36 @@
-"""The FastAPI application: `create_app(settings)` builds it; nothing else happens at import."""
+"""The FastAPI application, the server's one entry module: `create_app(settings)` builds it; nothing
+else happens at import. `league serve` (league.server.cli) migrates the database, builds the app and
+starts a worker beside it; `uvicorn --factory league.server.app:create_app` serves the API alone, with
+the environment's settings, on a database `league migrate` brought up to date.
+"""
 from __future__ import annotations
 
 from contextlib import asynccontextmanager
-from dataclasses import dataclass, field
 
 from fastapi import FastAPI, Request
 from fastapi.exceptions import RequestValidationError
 from fastapi.concurrency import run_in_threadpool
 from fastapi.responses import JSONResponse
 from fastapi_offline import FastAPIOffline
-from sqlalchemy import Engine
-from sqlalchemy.orm import Session, sessionmaker
 from starlette.exceptions import HTTPException as StarletteHTTPException
 
 import league
 from league.server.api.cache import ResponseCache
 from league.server.api.limits import KB, BodyLimits, Limit
-from league.server.api.main import api_router
-from league.server.api.routes.pages import MAX_TRACK_BYTES, mount_web
+from league.server.api.routes import api_router
+from league.server.api.routes.tracks import MAX_TRACK_BYTES
 from league.server import metrics
 from league.server.bootstrap import bootstrap
-from league.server.clock import Clock
 from league.server.config import Settings, load_settings
-from league.server.db.session import check_schema, make_engine, make_sessionmaker, revision_of
-from league.server.jobs.queue import JobQueue
+from league.server.db.session import check_schema, revision_of
 from league.server.jobs.runner import close_due_now
 from league.server.jobs.worker import sweep_store
+from league.server.pages import mount_web
 from league.server.roster import MAX_ROSTER_BYTES
 from league.server.sandbox.process import ForkServer, sandbox_isolation
-from league.server.storage import BlobStore
+from league.server.services import League, open_league
 
 MULTIPART_SLACK = 64 * 1024  # bytes of multipart framing and form fields allowed on top of the file
-
-
-@dataclass
-class League:
-    """What the app works with (its worker process opens its own)."""
-
-    settings: Settings
-    engine: Engine
-    sessions: sessionmaker[Session]
-    queue: JobQueue
-    store: BlobStore
-    clock: Clock = field(default_factory=Clock)  # what upload windows and due times are decided by
-
-
-def open_league(settings: Settings, engine: Engine | None = None) -> League:
-    engine = engine or make_engine(settings.resolved_database_url)
-    return League(settings, engine, make_sessionmaker(engine), JobQueue(engine), BlobStore(settings.data_dir))
 
 
 def prepare_league(league_: League) -> None:
@@ -83,13 +66,13 @@ def create_app(settings: Settings | None = None, league_: League | None = None) 
     app = FastAPIOffline(title="MicroRacer League", version=league.__version__, lifespan=lifespan,  # /docs: no CDN
                          description="Upload TorchScript or ONNX agents; they are validated in a sandbox and "
                                      "evaluated on the course's tracks.")
-    app.state.league, app.state.settings, app.state.sessions = league_, settings, league_.sessions
-    app.state.queue, app.state.store = league_.queue, league_.store
+    # what the routes' dependencies (league.server.api.deps) hand them
+    app.state.league = league_
     app.state.cache = ResponseCache(settings.public_cache_s, settings.public_cache_max_age_s)
     app.include_router(api_router, prefix="/api")
     app.add_exception_handler(StarletteHTTPException, _http_error)
     app.add_exception_handler(RequestValidationError, _validation_error)
-    mount_web(app)
+    mount_web(app, settings)
     metrics.install(app, league_.sessions)
     app.add_middleware(BodyLimits, default=Limit.of(64 * KB), limits=body_limits(settings),
                        read_timeout_s=settings.request_body_timeout_s)

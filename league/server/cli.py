@@ -196,7 +196,8 @@ def run_serve(args: argparse.Namespace) -> int:
     import uvicorn
 
     from league.server.api.connections import connection_limits, uvicorn_protocols
-    from league.server.app import create_app, open_league
+    from league.server.app import create_app
+    from league.server.services import open_league
     from league.server.db.session import migrate
     from league.server.logs import log_config
 

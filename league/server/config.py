@@ -167,7 +167,7 @@ class Settings(BaseSettings):
                                                                  "no worker is")
     max_job_attempts: int = Field(3, description="a job whose worker dies this many times fails for good")
 
-    # monitoring (league/server/observability.py)
+    # monitoring (league/server/metrics.py, logs.py)
     metrics_token: SecretStr | None = Field(None, description="a bearer token that reads /metrics (Prometheus' "
                                                               "`authorization` credentials) and nothing else; "
                                                               "instructors' tokens read it too")

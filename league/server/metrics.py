@@ -15,8 +15,9 @@ from __future__ import annotations
 import hmac
 import time
 from collections.abc import Iterator
+from typing import Annotated
 
-from fastapi import APIRouter, HTTPException, Request, Response, status
+from fastapi import APIRouter, Depends, HTTPException, Request, Response, status
 from fastapi.concurrency import run_in_threadpool
 from prometheus_client import (
     CONTENT_TYPE_LATEST, CollectorRegistry, Histogram, disable_created_metrics, generate_latest,
@@ -27,6 +28,8 @@ from sqlalchemy import Float, case, cast, func, select
 from sqlalchemy.orm import Session, sessionmaker
 from starlette.routing import Mount
 
+from league.server.api.deps import SessionsDep, SettingsDep
+from league.server.config import Settings
 from league.server.db import crud
 from league.server.db.models import DONE, INSTRUCTOR, EpisodeResult, Job, Submission, WorkerProcess
 
@@ -161,25 +164,31 @@ def install(app, sessions: sessionmaker[Session]) -> None:
     app.include_router(router)
 
 
+async def get_registry(request: Request) -> CollectorRegistry:
+    """The app's registry (`install`)."""
+    return request.app.state.metrics
+
+
 @router.get("/metrics", response_class=Response, include_in_schema=True, tags=["monitoring"],
             responses={200: {"content": {CONTENT_TYPE_LATEST: {}}}})
-async def read_metrics(request: Request) -> Response:
+async def read_metrics(request: Request, settings: SettingsDep, sessions: SessionsDep,
+                       registry: Annotated[CollectorRegistry, Depends(get_registry)]) -> Response:
     """Prometheus metrics (text format): the metrics_token or an instructor's token, as a bearer token."""
-    await run_in_threadpool(check_scraper, request)
-    body = await run_in_threadpool(generate_latest, request.app.state.metrics)
+    await run_in_threadpool(check_scraper, request.headers.get("authorization", ""), settings, sessions)
+    body = await run_in_threadpool(generate_latest, registry)
     return Response(body, media_type=CONTENT_TYPE_LATEST)
 
 
-def check_scraper(request: Request) -> None:
-    scheme, _, token = request.headers.get("authorization", "").partition(" ")
+def check_scraper(authorization: str, settings: Settings, sessions: sessionmaker[Session]) -> None:
+    scheme, _, token = authorization.partition(" ")
     if scheme.lower() != "bearer" or not token:
         raise HTTPException(status.HTTP_401_UNAUTHORIZED, "send the metrics_token or an instructor's token: "
                             "Authorization: Bearer TOKEN", headers={"WWW-Authenticate": "Bearer"})
-    expected = request.app.state.settings.metrics_token
+    expected = settings.metrics_token
     secret = expected.get_secret_value() if expected is not None else ""
     if secret and hmac.compare_digest(token.encode(), secret.encode()):
         return
-    with request.app.state.sessions() as session:
+    with sessions() as session:
         user = crud.user_by_token(session, token=token)
     if user is None or not user.active:
         raise HTTPException(status.HTTP_401_UNAUTHORIZED, "unknown token: send the metrics_token or an "

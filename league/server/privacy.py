@@ -21,7 +21,6 @@ from typing import Any
 from league.server.accounts import clean_name
 from league.server.db.models import BASELINE, INSTRUCTORS, MEMBERS, PUBLIC
 
-VISIBILITIES = (PUBLIC, MEMBERS, INSTRUCTORS)
 AUDIENCE = {PUBLIC: "anyone", MEMBERS: "the course's students and instructors, logged in",
             INSTRUCTORS: "the course's instructors only"}
 PSEUDONYM_MODULUS = 999_983  # a prime: user ids below it get distinct pseudonyms

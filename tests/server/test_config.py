@@ -9,6 +9,7 @@ from pydantic import SecretStr
 from league.server.config import (
     ConfigError, Settings, load_settings, setting_sources, settings_markdown, shown_value, unknown_variables,
 )
+from league.validation.limits import SandboxLimits
 
 from .conftest import REPO, server_command
 
@@ -90,6 +91,14 @@ def test_an_unreachable_database_is_named_with_its_setting_and_host(tmp_path):
         assert last.startswith("league: error: LEAGUE_DATABASE_URL: cannot connect to "
                                "postgresql+psycopg://league:***@127.0.0.1:1/league: connection failed: "), last
         assert "Traceback" not in failed.stderr and "unexpected" not in failed.stderr
+
+
+def test_the_sandbox_settings_default_to_the_toolkits_limits():
+    """One home for the limits' defaults (league.validation.limits): the settings only show some of them in
+    other units (ms, KB), and convert back exactly."""
+    assert Settings.model_construct().sandbox_limits() == SandboxLimits()
+    assert Settings.model_construct(step_deadline_ms=50, log_limit_kb=4).sandbox_limits() == \
+        SandboxLimits(step_deadline_s=0.05, log_limit=4096)
 
 
 def test_the_settings_table_of_the_docs_is_generated_from_settings():

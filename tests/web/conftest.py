@@ -73,7 +73,7 @@ def web_server(tmp_path_factory):
             home = httpx.get(f"{server.url}/", timeout=10)
             if home.status_code != 200 or "text/html" not in home.headers.get("content-type", ""):
                 pytest.fail("the web pages are not served: create_app must call "
-                            "league.server.api.routes.pages.mount_web(app)")
+                            "league.server.pages.mount_web(app, settings)")
             wait_for_the_baselines(server)
             yield server
         finally:

@@ -17,6 +17,7 @@ import pytest
 from playwright.sync_api import expect
 
 from league import render
+from league.evaluation import OUTCOME_TEXT
 
 from ..server.conftest import upload, wait_for, wait_settled
 from .colours import DEFICIENCIES, delta_e, hex_rgb
@@ -308,6 +309,15 @@ def test_the_first_ten_cars_are_told_apart(web):
             for deficiency in DEFICIENCIES:
                 assert delta_e(color1, color2, deficiency) > CLEARLY_DIFFERENT, (color1, color2, deficiency)
     assert len({(style["color"], style["shape"]) for style in styles}) == 50  # fifty cars, fifty markers
+
+
+def test_outcomes_are_worded_as_the_toolkit_words_them(web):
+    web.goto("/replay")
+    texts = web.page.evaluate("""async (outcomes) => {
+        const { finalText, outcomeText } = await import("/static/js/format.js");
+        return [outcomes.map(outcomeText), finalText({ outcome: "off_road" }), outcomeText("running")];
+    }""", list(OUTCOME_TEXT))
+    assert texts == [list(OUTCOME_TEXT.values()), OUTCOME_TEXT["off_road"], "running"]
 
 
 def test_replay_viewer_refuses_a_file_that_is_not_a_replay(web, tmp_path):

@@ -1,6 +1,8 @@
-"""How the server serves the pages (league/server/api/routes/pages.py), over real HTTP."""
+"""How the server serves the pages (league/server/pages.py), over real HTTP."""
 from __future__ import annotations
 
+import html
+import json
 import re
 
 import httpx
@@ -25,6 +27,14 @@ def test_pages_are_html_that_may_load_from_their_own_server_only(web_server, pat
     policy = response.headers["content-security-policy"]
     assert "default-src 'self'" in policy and "unsafe-inline" not in policy
     assert "http://" not in response.text.replace(web_server.url, "") and "https://" not in response.text
+
+
+def test_pages_carry_the_toolkits_outcome_texts(web_server):
+    from league.evaluation import OUTCOME_TEXT
+
+    page = httpx.get(web_server.url + "/replay").text
+    carried = re.search(r'<body [^>]*data-outcome-text="([^"]*)"', page).group(1)
+    assert json.loads(html.unescape(carried)) == OUTCOME_TEXT
 
 
 def test_assets_are_served_under_static(web_server):

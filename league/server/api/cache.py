@@ -111,12 +111,12 @@ def read_stamp(sessions) -> tuple:
         return crud.public_state_stamp(session)
 
 
-async def cached_json(request: Request, key: Hashable, compute: Callable[[], bytes],
+async def cached_json(request: Request, cache: ResponseCache, sessions, key: Hashable, compute: Callable[[], bytes],
                       cache_control: str = PUBLIC) -> Response:
-    """A JSON response from the app's cache (computed in the thread pool when none may be served);
-    `key` says whose answer it is (the course, real or public names)."""
-    cache: ResponseCache = request.app.state.cache
-    stamp = await run_in_threadpool(read_stamp, request.app.state.sessions)
+    """A JSON response from the app's cache (computed in the thread pool when none may be served),
+    under the database state stamp read from `sessions`; `key` says whose answer it is (the course,
+    real or public names)."""
+    stamp = await run_in_threadpool(read_stamp, sessions)
     entry, fresh = cache.lookup(key, stamp)
     if entry is None:
         entry = await run_in_threadpool(cache.compute, key, compute, stamp)

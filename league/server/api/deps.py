@@ -7,53 +7,75 @@ from typing import Annotated
 
 from fastapi import Depends, HTTPException, Path, Query, Request, Response, status
 from fastapi.security import HTTPAuthorizationCredentials, HTTPBearer
-from sqlalchemy.orm import Session
+from sqlalchemy.orm import Session, sessionmaker
 
 import league
 from league.spreadsheet import csv_text
+from league.server.api.cache import ResponseCache
 from league.server.clock import Clock
 from league.server.config import Settings
 from league.server.db import crud
 from league.server.db.models import INSTRUCTOR, INSTRUCTORS, PUBLIC, STUDENT, Course, User
 from league.server.privacy import AUDIENCE, Names
-from league.server.storage import BlobStore
 from league.server.jobs.queue import JobQueue
+from league.server.services import League
+from league.server.storage import BlobStore
 
 MAX_ID = 2**63 - 1  # ids are 64-bit integers in the database: a larger number names nothing
 bearer = HTTPBearer(auto_error=False, description="the API token printed by `league users add` or the roster")
 
 
-# The cheap dependencies are `async def`: FastAPI runs them in the event loop instead of handing
-# each one to the thread pool (a hop that costs more than the work under load).
+# Every route reaches the league's services through these (create_app keeps them as app.state.league
+# and the public answers' cache as app.state.cache). The cheap ones are `async def`: FastAPI runs them
+# in the event loop instead of handing each one to the thread pool (a hop that costs more than the
+# work under load).
 
 
-async def get_settings(request: Request) -> Settings:
-    return request.app.state.settings
+async def get_league(request: Request) -> League:
+    return request.app.state.league
 
 
-async def get_session(request: Request) -> AsyncIterator[Session]:
+LeagueDep = Annotated[League, Depends(get_league)]
+
+
+async def get_settings(league_: LeagueDep) -> Settings:
+    return league_.settings
+
+
+async def get_sessions(league_: LeagueDep) -> sessionmaker[Session]:
+    """The sessionmaker, for work that opens sessions of its own (in a thread, or one per step)."""
+    return league_.sessions
+
+
+async def get_session(league_: LeagueDep) -> AsyncIterator[Session]:
     """A session per request; opening one does no I/O (the first query, in the handler's thread, does)."""
-    with request.app.state.sessions() as session:
+    with league_.sessions() as session:
         yield session
 
 
-async def get_clock(request: Request) -> Clock:
-    return request.app.state.league.clock
+async def get_clock(league_: LeagueDep) -> Clock:
+    return league_.clock
 
 
-async def get_queue(request: Request) -> JobQueue:
-    return request.app.state.queue
+async def get_queue(league_: LeagueDep) -> JobQueue:
+    return league_.queue
 
 
-async def get_store(request: Request) -> BlobStore:
-    return request.app.state.store
+async def get_store(league_: LeagueDep) -> BlobStore:
+    return league_.store
+
+
+async def get_cache(request: Request) -> ResponseCache:
+    return request.app.state.cache
 
 
 SettingsDep = Annotated[Settings, Depends(get_settings)]
+SessionsDep = Annotated[sessionmaker[Session], Depends(get_sessions)]
 SessionDep = Annotated[Session, Depends(get_session)]
 ClockDep = Annotated[Clock, Depends(get_clock)]
 QueueDep = Annotated[JobQueue, Depends(get_queue)]
 StoreDep = Annotated[BlobStore, Depends(get_store)]
+CacheDep = Annotated[ResponseCache, Depends(get_cache)]
 
 
 UNKNOWN_TOKEN = "unknown token (replaced by a new one, or mistyped): ask your instructor for your current token"

@@ -49,7 +49,7 @@ class InProcessLeague:
 
     @property
     def sessions(self):
-        return self.app.state.sessions
+        return self.app.state.league.sessions
 
     def client(self, token: str | None = None) -> Client:
         headers = {"Authorization": f"Bearer {token}"} if token else {}

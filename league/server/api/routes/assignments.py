@@ -9,8 +9,8 @@ from pydantic import ValidationError
 
 from league.server.api.cache import PRIVATE as PRIVATE_CACHE, PUBLIC as PUBLIC_CACHE, cached_json
 from league.server.api.deps import (
-    ClockDep, CurrentUser, Id, InstructorUser, OptionalUser, PageNumber, PageSize, QueueDep, SessionDep, SettingsDep,
-    board_course, board_names, check_env_options, csv_response, user_course,
+    CacheDep, ClockDep, CurrentUser, Id, InstructorUser, OptionalUser, PageNumber, PageSize, QueueDep, SessionDep,
+    SessionsDep, SettingsDep, board_course, board_names, check_env_options, csv_response, user_course,
 )
 from league.server.assignments import (
     UploadRefused, final_choices, private_visible, publish, select_final, window,
@@ -196,7 +196,8 @@ def board_rows(session: SessionDep, assignment: Assignment, board: str) -> list[
 
 @router.get("/{assignment_id}/board", response_model=AssignmentBoard)
 async def read_board(assignment_id: Id, request: Request, viewer: OptionalUser, session: SessionDep,
-                     board: Board = "public", page: PageNumber = 1, size: PageSize = 50) -> Response:
+                     sessions: SessionsDep, cache: CacheDep, board: Board = "public", page: PageNumber = 1,
+                     size: PageSize = 50) -> Response:
     """The assignment's board, best first (as /api/leaderboard, and shown as its course's board
     visibility allows): public (its public tracks), or private (the students' finals on its private
     tracks) once published."""
@@ -210,12 +211,12 @@ async def read_board(assignment_id: Id, request: Request, viewer: OptionalUser, 
     names = await run_in_threadpool(check)
 
     def compute() -> bytes:
-        with request.app.state.sessions() as compute_session:
+        with sessions() as compute_session:
             rows = names.rows(board_rows(compute_session, compute_session.get(Assignment, assignment_id), board))
         return AssignmentBoard(board=board, items=rows[(page - 1) * size: page * size],
                                total=len(rows)).model_dump_json().encode()
 
-    return await cached_json(request, ("assignment-board", assignment_id, board, names.real, page, size), compute,
+    return await cached_json(request, cache, sessions, ("assignment-board", assignment_id, board, names.real, page, size), compute,
                              PRIVATE_CACHE if names.real else PUBLIC_CACHE)
 
 

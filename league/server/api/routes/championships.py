@@ -12,8 +12,8 @@ from sqlalchemy.orm import Session
 from league.server.api.cache import PRIVATE, PUBLIC, cached_json
 from league.server import audit
 from league.server.api.deps import (
-    Id, InstructorUser, OptionalUser, PageNumber, PageSize, QueueDep, SessionDep, SettingsDep, board_course,
-    board_names, check_env_options, csv_response, user_course,
+    CacheDep, Id, InstructorUser, OptionalUser, PageNumber, PageSize, QueueDep, SessionDep, SessionsDep, SettingsDep,
+    board_course, board_names, check_env_options, csv_response, user_course,
 )
 from league.server.db import crud
 from league.server.db.models import Assignment, Championship, ChampionshipRound, User
@@ -128,18 +128,18 @@ def existing_round(session: SessionDep, championship_id: int, number: int) -> Ch
 
 
 @router.get("/{championship_id}/standings", response_model=StandingsPage)
-async def read_standings(championship_id: Id, request: Request, session: SessionDep, viewer: OptionalUser,
-                         page: PageNumber = 1, size: PageSize = 50) -> Response:
+async def read_standings(championship_id: Id, request: Request, session: SessionDep, sessions: SessionsDep,
+                         cache: CacheDep, viewer: OptionalUser, page: PageNumber = 1, size: PageSize = 50) -> Response:
     """Points (ties: wins, then best finishes) and OpenSkill ratings after the finished rounds (by its
     course's board visibility)."""
     _, names = await run_in_threadpool(visible_championship, session, viewer, championship_id)
 
     def compute() -> bytes:
-        with request.app.state.sessions() as compute_session:
+        with sessions() as compute_session:
             rows = names.rows(standings_rows(compute_session, existing_championship(compute_session, championship_id)))
         return StandingsPage(items=rows[(page - 1) * size: page * size], total=len(rows)).model_dump_json().encode()
 
-    return await cached_json(request, ("standings", championship_id, names.real, page, size), compute,
+    return await cached_json(request, cache, sessions, ("standings", championship_id, names.real, page, size), compute,
                              PRIVATE if names.real else PUBLIC)
 
 

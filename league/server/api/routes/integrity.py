@@ -4,11 +4,15 @@ from __future__ import annotations
 
 from typing import Annotated
 
-from fastapi import APIRouter, Query, Request, Response
+from fastapi import APIRouter, Query, Response
+from sqlalchemy.orm import Session
 
 from league.server import audit
-from league.server.api.deps import MAX_ID, InstructorUser, SessionDep, csv_response, user_course
-from league.server.config import BUNDLED_BASELINES
+from league.server.api.deps import (
+    MAX_ID, InstructorUser, QueueDep, SessionDep, SettingsDep, csv_response, user_course,
+)
+from league.server.config import BUNDLED_BASELINES, Settings
+from league.server.db.models import User
 from league.server.integrity import (
     CSV_COLUMNS, Candidate, Report, bundled_digests, candidates, integrity_report, queue_probes, report_rows,
     unprobed_submissions,
@@ -24,20 +28,19 @@ Assignment = Annotated[int | None, Query(ge=1, le=MAX_ID,
                                                      "assignments); default: every submission of the course")]
 
 
-def course_report(request: Request, session: SessionDep, instructor: InstructorUser,
+def course_report(settings: Settings, session: Session, instructor: User,
                   assignment: int | None) -> tuple[Report, list[Candidate]]:
-    settings = request.app.state.settings
     submissions = candidates(session, course_id=user_course(session, instructor).id, assignment_id=assignment)
     bundled = bundled_digests([settings.resolved_baselines_dir, BUNDLED_BASELINES])
     return integrity_report(submissions, bundled=bundled, tolerance=settings.integrity_tolerance), submissions
 
 
 @router.get("", response_model=IntegrityReport)
-def read_integrity(request: Request, session: SessionDep, instructor: InstructorUser,
+def read_integrity(settings: SettingsDep, session: SessionDep, instructor: InstructorUser,
                    assignment: Assignment = None) -> IntegrityReport:
     """Groups of submissions of different students (or of a student and a baseline) with identical
     files or the same actions on the probe set; and the submissions compared by file only."""
-    report, submissions = course_report(request, session, instructor, assignment)
+    report, submissions = course_report(settings, session, instructor, assignment)
     return IntegrityReport(
         tolerance=report.tolerance, probes=PROBES, submissions=len(submissions), compared=report.compared,
         groups=[IntegrityGroup(kind=g.kind, students=g.students, baseline=g.baseline, distance=g.distance,
@@ -46,28 +49,28 @@ def read_integrity(request: Request, session: SessionDep, instructor: Instructor
 
 
 @router.get(".csv", response_class=Response, responses={200: {"content": {"text/csv": {}}}})
-def read_integrity_csv(request: Request, session: SessionDep, instructor: InstructorUser,
+def read_integrity_csv(settings: SettingsDep, session: SessionDep, instructor: InstructorUser,
                        assignment: Assignment = None) -> Response:
     """The report as CSV: one line per submission of each group (numbered), then the submissions
     compared by file only (kind not_compared, the reason in `note`)."""
-    report, _ = course_report(request, session, instructor, assignment)
+    report, _ = course_report(settings, session, instructor, assignment)
     return csv_response(CSV_COLUMNS, report_rows(report), "integrity.csv")
 
 
 @router.post("/probe", response_model=ProbesQueued)
-def probe_submissions(request: Request, session: SessionDep, instructor: InstructorUser,
+def probe_submissions(settings: SettingsDep, queue: QueueDep, session: SessionDep, instructor: InstructorUser,
                       assignment: Assignment = None) -> ProbesQueued:
     """Record the probe set's actions of the ready submissions that have none on the current probe
     set (validated before they were recorded, or on another simulator), as low-priority jobs."""
     course = user_course(session, instructor)
     ids = unprobed_submissions(session, candidates(session, course_id=course.id, assignment_id=assignment))
-    job_ids = queue_probes(session, submission_ids=ids, max_attempts=request.app.state.settings.max_job_attempts)
+    job_ids = queue_probes(session, submission_ids=ids, max_attempts=settings.max_job_attempts)
     if ids:
         audit.record(session, actor=instructor, action=audit.PROBE, target_kind="course", target_id=course.id,
                      queued=len(ids))
     session.commit()
     for job_id in job_ids:
-        request.app.state.queue.enqueue(job_id)
+        queue.enqueue(job_id)
     return ProbesQueued(queued=ids)
 
 

@@ -3,10 +3,10 @@ from __future__ import annotations
 
 from typing import Literal
 
-from fastapi import APIRouter, HTTPException, Query, Request, status
+from fastapi import APIRouter, HTTPException, Query, status
 
 from league.server import audit
-from league.server.api.deps import Id, InstructorUser, SessionDep
+from league.server.api.deps import Id, InstructorUser, SessionDep, SessionsDep
 from league.server.db import crud
 from league.server.db.models import Job
 from league.server.jobs import leases
@@ -25,12 +25,12 @@ def read_jobs(instructor: InstructorUser, session: SessionDep, status: JobStatus
 
 
 @router.post("/{job_id}/cancel", response_model=JobOut)
-def cancel_job(job_id: Id, instructor: InstructorUser, session: SessionDep, request: Request) -> Job:
+def cancel_job(job_id: Id, instructor: InstructorUser, session: SessionDep, sessions: SessionsDep) -> Job:
     """Stop a queued or running job of your course: it fails as cancelled, and so does what it was for
     (a running job's worker stops at its next heartbeat)."""
     if crud.course_job(session, course_id=instructor.course_id, job_id=job_id) is None:
         raise HTTPException(status.HTTP_404_NOT_FOUND, f"no job {job_id} in your course")
-    if not leases.cancel(request.app.state.sessions, HANDLERS, job_id=job_id,
+    if not leases.cancel(sessions, HANDLERS, job_id=job_id,
                          reason=f"cancelled by {instructor.name}"):
         raise HTTPException(status.HTTP_409_CONFLICT, f"job {job_id} is already over")
     session.expire_all()

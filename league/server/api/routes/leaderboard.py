@@ -7,8 +7,8 @@ from fastapi.concurrency import run_in_threadpool
 
 from league.server.api.cache import PRIVATE, PUBLIC, cached_json
 from league.server.api.deps import (
-    InstructorUser, OptionalUser, PageNumber, PageSize, SessionDep, board_course, board_names, csv_response,
-    user_course,
+    CacheDep, InstructorUser, OptionalUser, PageNumber, PageSize, SessionDep, SessionsDep, board_course, board_names,
+    csv_response, user_course,
 )
 from league.server.standings import LEADERBOARD_GRADES, grade_rows, leaderboard_rows
 from league.server.schemas import LeaderboardPage
@@ -17,8 +17,8 @@ router = APIRouter(tags=["leaderboard"])
 
 
 @router.get("/leaderboard", response_model=LeaderboardPage)
-async def read_leaderboard(request: Request, viewer: OptionalUser, session: SessionDep, page: PageNumber = 1,
-                           size: PageSize = 50) -> Response:
+async def read_leaderboard(request: Request, viewer: OptionalUser, session: SessionDep, sessions: SessionsDep,
+                           cache: CacheDep, page: PageNumber = 1, size: PageSize = 50) -> Response:
     """Best first: completion rate, then mean return; with each agent's course-wide rating. Your
     course's board (visitors: the first course's), if its visibility lets you see it."""
 
@@ -29,11 +29,11 @@ async def read_leaderboard(request: Request, viewer: OptionalUser, session: Sess
     course_id, names = await run_in_threadpool(check)
 
     def compute() -> bytes:
-        with request.app.state.sessions() as compute_session:
+        with sessions() as compute_session:
             rows = names.rows(leaderboard_rows(compute_session, course_id=course_id))
         return LeaderboardPage(items=rows[(page - 1) * size: page * size], total=len(rows)).model_dump_json().encode()
 
-    return await cached_json(request, ("leaderboard", course_id, names.real, page, size), compute,
+    return await cached_json(request, cache, sessions, ("leaderboard", course_id, names.real, page, size), compute,
                              PRIVATE if names.real else PUBLIC)
 
 

@@ -11,7 +11,7 @@ from starlette.datastructures import UploadFile  # what a parsed form holds
 
 from league.server.api.cache import PRIVATE, etag_response
 from league.server.api.deps import (
-    CurrentUser, Id, SessionDep, check_jobs_in_flight, check_upload_quota, lock_account, user_course,
+    CurrentUser, Id, LeagueDep, SessionDep, check_jobs_in_flight, check_upload_quota, lock_account, user_course,
 )
 from league.server.assignments import UploadRefused, check_upload, private_visible, upload_assignment
 from league.server.db import crud
@@ -19,6 +19,7 @@ from league.server.logs import log_refused_upload
 from league.server.db.models import INSTRUCTOR, PUBLIC, READY, STUDENT, Assignment, Evaluation, Submission, User
 from league.server.results import submissions_current_keys
 from league.server.rounds import active_submission_ids
+from league.server.services import League
 from league.server.schemas import (
     DbId, EpisodeOut, EpisodePage, EvaluationOut, EvaluationSummary, SubmissionCreated, SubmissionDetail,
     SubmissionLinks, SubmissionOut, SubmissionUpdate,
@@ -45,7 +46,7 @@ UPLOAD_FORM = {"requestBody": {"required": True, "content": {"multipart/form-dat
 
 
 @router.post("", response_model=SubmissionCreated, status_code=status.HTTP_201_CREATED, openapi_extra=UPLOAD_FORM)
-async def create_submission(request: Request, user: CurrentUser) -> SubmissionCreated:
+async def create_submission(request: Request, user: CurrentUser, league_: LeagueDep) -> SubmissionCreated:
     """Upload a model (multipart `file`, optional `name` and `assignment`) to an assignment: it is
     validated in a sandbox, then evaluated on the assignment's public tracks. The body is read only
     once the token is accepted."""
@@ -60,13 +61,13 @@ async def create_submission(request: Request, user: CurrentUser) -> SubmissionCr
             if wanted is not None and (not isinstance(wanted, str) or len(wanted) > 100):
                 raise HTTPException(status.HTTP_422_UNPROCESSABLE_CONTENT, "assignment: an id or a name")
             kind = model_kind(file.filename)
-            return await run_in_threadpool(submit, request.app.state.league, user, file, name, kind, wanted)
+            return await run_in_threadpool(submit, league_, user, file, name, kind, wanted)
         except HTTPException as refusal:
             log_refused_upload(user.id, str(refusal.detail), getattr(file, "size", None))
             raise
 
 
-def submit(league_, user: User, file: UploadFile, name: str | None, kind: str,
+def submit(league_: League, user: User, file: UploadFile, name: str | None, kind: str,
            wanted: str | None = None) -> SubmissionCreated:
     """Store the file, then, in one transaction holding the student's row, check the assignment's
     window, their quotas and jobs in flight and add the submission: parallel uploads never pass a

@@ -7,7 +7,7 @@ from sqlalchemy.exc import IntegrityError
 from starlette.datastructures import UploadFile  # what a parsed form holds
 
 from league.server import audit
-from league.server.api.deps import CurrentUser, Id, InstructorUser, SessionDep, SettingsDep, StoreDep
+from league.server.api.deps import CurrentUser, Id, InstructorUser, SessionDep, SessionsDep, SettingsDep, StoreDep
 from league.server.db import crud
 from league.server.db.models import STUDENT, User
 from league.server.erasure import DeletionRefused, delete_student
@@ -68,7 +68,7 @@ ROSTER_FORM = {"requestBody": {"required": True, "content": {"multipart/form-dat
 
 
 @router.post("/roster", response_model=RosterCreated, status_code=status.HTTP_201_CREATED, openapi_extra=ROSTER_FORM)
-async def create_roster(request: Request, instructor: InstructorUser) -> RosterCreated:
+async def create_roster(request: Request, instructor: InstructorUser, sessions: SessionsDep) -> RosterCreated:
     """Create the students of a roster as spreadsheets export it. Lines are independent: the good ones
     are created, every bad one is listed in `errors` with its line number, and students enrolled
     already are skipped (upload the whole roster again for late enrolments, or once its errors are
@@ -81,7 +81,7 @@ async def create_roster(request: Request, instructor: InstructorUser) -> RosterC
         data = await file.read(MAX_ROSTER_BYTES + 1)
     if len(data) > MAX_ROSTER_BYTES:
         raise HTTPException(status.HTTP_413_CONTENT_TOO_LARGE, "roster too large (1 MB at most)")
-    return await run_in_threadpool(create_students, request.app.state.sessions, instructor.id, data)
+    return await run_in_threadpool(create_students, sessions, instructor.id, data)
 
 
 def create_students(sessions, instructor_id: int, data: bytes) -> RosterCreated:

@@ -24,16 +24,11 @@ export function ordinal(n) {
   return `${n}${suffix}`;
 }
 
-export const OUTCOME_TEXT = {
-  running: "running",
-  finished: "finished",
-  off_road: "off road",
-  wrong_direction: "wrong direction",
-  too_slow: "too slow",
-  timeout: "out of time",
-  dnf: "agent failed",
-};
+// How a car's episode or race ended, in words: the toolkit's table (league.evaluation.OUTCOME_TEXT),
+// which the server writes into every page.
+const OUTCOME_TEXT = JSON.parse(document.body.dataset.outcomeText);
 
+/** "off road" for off_road; an outcome the table does not know (a car still "running") as it is. */
 export function outcomeText(outcome) {
   return OUTCOME_TEXT[outcome] || outcome;
 }

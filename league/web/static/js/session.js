@@ -1,6 +1,7 @@
 // Who is logged in, and the header that says so.
 
 import { api, forgetToken, sendToLogin, storedToken } from "./api.js";
+import { $, say } from "./dom.js";
 
 /** The logged-in user ({id, name, role, ...}) or null; a stale token is dropped, not followed. */
 export async function optionalUser() {
@@ -27,6 +28,23 @@ export async function requireUser({ role } = {}) {
     throw new Error(`This page is for ${role}s; you are logged in as ${user.name} (${user.role}).`);
   }
   return user;
+}
+
+/**
+ * The start of an instructors' page: the logged-in instructor, the header filled. Anyone else gets
+ * null, the reason in the page's #page-message and the page's panels hidden.
+ */
+export async function requireInstructor() {
+  let me;
+  try {
+    me = await requireUser({ role: "instructor" });
+  } catch (error) {
+    say($("page-message"), error.message, "error");
+    document.querySelectorAll("main section, main .grid-2").forEach((part) => (part.hidden = true));
+    return null;
+  }
+  showAccount(me);
+  return me;
 }
 
 /** Fill the header's account area: the user's name and a log-out button, or a log-in link. */

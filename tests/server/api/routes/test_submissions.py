@@ -257,7 +257,7 @@ def test_a_rejected_uploads_file_is_deleted(app_league, tmp_path):
         assert session.get(Submission, submission_id).status == "rejected"
     with app_league.sessions() as session:
         assert digest not in crud.kept_blobs(session)
-    store = app_league.app.state.store
+    store = app_league.app.state.league.store
     assert store.path(digest).exists()
     store.sweep(set(), older_than_s=0)
     assert not store.path(digest).exists()

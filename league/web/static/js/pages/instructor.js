@@ -11,7 +11,7 @@ import { setUpEvaluations } from "../instructor/evaluations.js";
 import { setUpGrades } from "../instructor/grades.js";
 import { setUpStudents } from "../instructor/students.js";
 import { Poller } from "../poller.js";
-import { requireUser, showAccount } from "../session.js";
+import { requireInstructor } from "../session.js";
 
 const JOBS_POLL_MS = 5000;
 
@@ -46,15 +46,8 @@ async function setUpPrivacy() {
 }
 
 async function start() {
-  let me;
-  try {
-    me = await requireUser({ role: "instructor" });
-  } catch (error) {
-    say($("page-message"), error.message, "error");
-    document.querySelectorAll("main section, main .grid-2").forEach((part) => (part.hidden = true));
-    return;
-  }
-  showAccount(me);
+  const me = await requireInstructor();
+  if (!me) return;
   const jobs = new Poller(refreshJobs, JOBS_POLL_MS);
   onClick($("refresh-jobs"), () => jobs.poll());
   const parts = [setUpStudents(me), setUpEvaluations(), setUpAssignments(), setUpPrivacy(), setUpChampionships(),

@@ -4,7 +4,7 @@
 import { api, download } from "../api.js";
 import { $, element, onClick, replaceKeepingFocus, say } from "../dom.js";
 import { count, dateTime } from "../format.js";
-import { requireUser, showAccount } from "../session.js";
+import { requireInstructor } from "../session.js";
 
 const KINDS = { identical_file: "Identical file", same_behaviour: "Same behaviour", baseline_copy: "Baseline copy" };
 
@@ -51,15 +51,7 @@ async function probe() {
 }
 
 async function start() {
-  let me;
-  try {
-    me = await requireUser({ role: "instructor" });
-  } catch (error) {
-    say($("page-message"), error.message, "error");
-    document.querySelectorAll("main section").forEach((part) => (part.hidden = true));
-    return;
-  }
-  showAccount(me);
+  if (!(await requireInstructor())) return;
   const failed = (error) => say($("integrity-message"), error.message, "error");
   onClick($("integrity-refresh"), () => refresh().catch(failed));
   onClick($("integrity-csv"), () => download("/api/integrity.csv", "integrity.csv").catch(failed));

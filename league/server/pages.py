@@ -1,27 +1,27 @@
 """The web pages (league/web/, package data): HTML for the leaderboard, login, submissions, race
-viewer, instructor console and integrity report, their assets under /static, and the track
-geometry the race viewer draws.
+viewer, instructor console and integrity report, and their assets under /static.
 
-`mount_web(app)` adds all of it to the FastAPI app. Each page is a Jinja2 template extending
-league/web/layout.html (the head and header they share), filled with a few facts from the settings; the
-pages are otherwise plain HTML and JavaScript modules talking to the JSON API. They load nothing
-from any other host, which the Content-Security-Policy sent with every page enforces in the browser.
+`mount_web(app, settings)` adds them to the FastAPI app. Each page is a Jinja2 template extending
+league/web/layout.html (the head and header they share), filled with a few facts from the settings and
+the toolkit (`page_facts`); the pages are otherwise plain HTML and JavaScript modules talking to the
+JSON API (league.server.api.routes). They load nothing from any other host, which the
+Content-Security-Policy sent with every page enforces in the browser.
 """
 from __future__ import annotations
 
+import json
 from importlib import resources
 from pathlib import Path
 from typing import Any
 
-from fastapi import APIRouter, Body, FastAPI, HTTPException, Request, status
+from fastapi import APIRouter, FastAPI, Request
 from fastapi.staticfiles import StaticFiles
 from starlette.templating import Jinja2Templates
 
+from league.evaluation import OUTCOME_TEXT
 from league.render import CAR_COLORS
-from league.server.config import MB
-from league.web_geometry import track_geometry
+from league.server.config import MB, Settings
 
-MAX_TRACK_BYTES = 32 * 1024  # a track dict is at most ~6 KB (64 control points, 20 obstacles)
 # Pages may talk to and load from their own server only; no inline scripts or styles.
 PAGE_HEADERS = {
     "Content-Security-Policy": "default-src 'self'; img-src 'self' data: blob:; object-src 'none'; "
@@ -31,35 +31,26 @@ PAGE_HEADERS = {
     "Referrer-Policy": "no-referrer",
 }
 
-router = APIRouter(tags=["web"])
-
 
 def web_dir() -> Path:
     """The pages' folder, package data: found wherever the server runs from."""
     return Path(str(resources.files("league") / "web"))  # a directory: the package is installed unzipped
 
 
-@router.post("/api/tracks/geometry")
-def read_track_geometry(track: dict[str, Any] = Body(description="a track as in a replay (Track.to_dict)")) -> dict:
-    """Drawable borders, obstacles and start of a replay's track (public; the race viewer's background)."""
-    try:
-        return track_geometry(track)
-    except (KeyError, TypeError, ValueError) as error:
-        raise HTTPException(status.HTTP_422_UNPROCESSABLE_CONTENT, f"not a track: {error}") from error
-
-
-def page_facts(request: Request) -> dict[str, Any]:
-    """What the templates show of the server: its upload limit, and the toolkit's car colours (the
-    race viewer's cars look as in `league race --save race.gif`)."""
-    settings = request.app.state.settings
+def page_facts(settings: Settings) -> dict[str, Any]:
+    """What the templates show of the server and the toolkit: the upload limit; the car colours (the
+    race viewer's cars look as in `league race --save race.gif`); the outcome texts (a car's end is
+    worded as the toolkit words it), as JSON."""
     return {"upload_limit": f"{settings.max_upload_bytes / MB:g} MB", "max_upload_bytes": settings.max_upload_bytes,
-            "car_colors": " ".join("#{:02x}{:02x}{:02x}".format(*color) for color in CAR_COLORS)}
+            "car_colors": " ".join("#{:02x}{:02x}{:02x}".format(*color) for color in CAR_COLORS),
+            "outcome_text": json.dumps(OUTCOME_TEXT, separators=(",", ":"))}
 
 
-def mount_web(app: FastAPI, directory: Path | None = None) -> None:
-    """Serve the pages of `directory` (default `web_dir()`) and the geometry endpoint on `app`."""
+def mount_web(app: FastAPI, settings: Settings, directory: Path | None = None) -> None:
+    """Serve the pages of `directory` (default `web_dir()`) on `app`."""
     directory = directory or web_dir()
-    templates = Jinja2Templates(directory=directory, context_processors=[page_facts])
+    facts = page_facts(settings)
+    templates = Jinja2Templates(directory=directory, context_processors=[lambda request: facts])
 
     def page(name: str):
         async def serve_page(request: Request):
@@ -73,10 +64,9 @@ def mount_web(app: FastAPI, directory: Path | None = None) -> None:
     pages.add_api_route("/login", page("login.html"), methods=["GET", "HEAD"])
     pages.add_api_route("/submissions", page("submissions.html"), methods=["GET", "HEAD"])
     pages.add_api_route("/races/{race_id}", page("race.html"), methods=["GET", "HEAD"])
-    # the viewer for a replay file saved by `league race`
+    # the viewer for a replay file saved by `league race --save`
     pages.add_api_route("/replay", page("race.html"), methods=["GET", "HEAD"])
     pages.add_api_route("/instructor", page("instructor.html"), methods=["GET", "HEAD"])
     pages.add_api_route("/integrity", page("integrity.html"), methods=["GET", "HEAD"])
     app.include_router(pages)
-    app.include_router(router, max_body_size=MAX_TRACK_BYTES)
     app.mount("/static", StaticFiles(directory=directory / "static"), name="static")
