@@ -216,8 +216,8 @@ async def read_board(assignment_id: Id, request: Request, viewer: OptionalUser, 
         return AssignmentBoard(board=board, items=rows[(page - 1) * size: page * size],
                                total=len(rows)).model_dump_json().encode()
 
-    return await cached_json(request, cache, sessions, ("assignment-board", assignment_id, board, names.real, page, size), compute,
-                             PRIVATE_CACHE if names.real else PUBLIC_CACHE)
+    key = ("assignment-board", assignment_id, board, names.real, page, size)
+    return await cached_json(request, cache, sessions, key, compute, PRIVATE_CACHE if names.real else PUBLIC_CACHE)
 
 
 @router.get("/{assignment_id}/board.csv", response_class=Response, responses={200: {"content": {"text/csv": {}}}})
