@@ -1,20 +1,26 @@
-"""Shared pytest fixtures, the `slow` marker of tests that start league servers, and the order
-that starts the files of `long` tests first.
+"""Shared pytest fixtures, the two tiers and the order that starts the files of `long` tests first.
 
-    python -m pytest -n 2 -m "not slow"   the quick loop: everything in this process or in sandboxes
+    python -m pytest -n 2 -m "not slow"   the quick loop: unit tests, in this process or in sandboxes
     python -m pytest -n 2 --dist loadfile --no-loadscope-reorder   the whole suite (what CI runs)
+    python -m pytest -n 2 --dist loadfile --no-loadscope-reorder tests/system   the system tests alone
+
+The slow tier: tests/system/ (leagues of processes, hosts, browsers, installs), the API route tests
+that run jobs on a `league serve` subprocess (SERVER_FIXTURES), and tests marked `slow` (trainings).
 """
 from __future__ import annotations
 
+from pathlib import Path
+
 import pytest
 
-# Fixtures that start `league serve` / `league worker` processes: their tests are the slow tier.
-SERVER_FIXTURES = {"league_server", "web_server", "season", "server", "installed"}
+SYSTEM = Path(__file__).parent / "system"
+# Fixtures of tests/server/ that start `league serve` processes: the API route tests that run jobs.
+SERVER_FIXTURES = {"league_server", "season"}
 
 
 def pytest_collection_modifyitems(items):
     for item in items:
-        if SERVER_FIXTURES & set(getattr(item, "fixturenames", ())):
+        if SYSTEM in item.path.parents or SERVER_FIXTURES & set(getattr(item, "fixturenames", ())):
             item.add_marker(pytest.mark.slow)
     # The files of `long` tests first: under `pytest -n 2 --dist loadfile --no-loadscope-reorder`
     # (the README's command; without the last option xdist sends the files with most tests first) a

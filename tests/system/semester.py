@@ -21,7 +21,7 @@ from sqlalchemy import text
 
 from league.server.db.session import make_engine
 
-from .conftest import LeagueServer, upload, wait_for, wait_race, wait_settled
+from ..server.conftest import LeagueServer, upload, wait_for, wait_race, wait_settled
 
 PAGE = 100  # the API's largest page
 STUDENTS = 3

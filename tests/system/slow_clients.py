@@ -1,7 +1,7 @@
 """Half-open connections, as issue 22's attacker made them: each sends part of a request head, then
 nothing. A program, run on another host (a network namespace) so that the server sees another client:
 
-    python -m tests.server.slow_clients HOST PORT COUNT WATCH_S
+    python -m tests.system.slow_clients HOST PORT COUNT WATCH_S
 
 opens COUNT such connections one after the other, prints "holding" once they are all open, then
 watches each until the server ends it (at most WATCH_S seconds) and prints one JSON line: per

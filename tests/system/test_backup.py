@@ -16,7 +16,7 @@ from league.server.backup import BackupError, backup, backup_revision, holds_lea
 from league.server.db.session import head_revision, make_engine, revision_of, upgrade
 
 from .semester import collect, differences, drained, semester
-from .conftest import LeagueServer, fresh_backend, make_server, upload
+from ..server.conftest import LeagueServer, fresh_backend, make_server, upload
 
 LOAD_UPLOADS = 9  # arriving while the backup is taken
 

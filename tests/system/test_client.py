@@ -21,7 +21,7 @@ from league.client import EXIT_AUTH, EXIT_OK, EXIT_REFUSED, EXIT_REJECTED, EXIT_
 from league.server.api.deps import UNKNOWN_TOKEN
 from league.evaluation import metrics_run
 
-from .conftest import (
+from ..server.conftest import (
     REPO, TEST_SETTINGS, baseline_submission, create_student, free_port, fresh_backend, make_server, upload,
     wait_for, wait_settled,
 )

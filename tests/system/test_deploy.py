@@ -27,7 +27,7 @@ from league.cli import build_parser
 from league.server.config import Settings
 from league.server.jobs.alive import alive_file, stale_reason
 
-from .conftest import fresh_backend, free_port, make_server, wait_for
+from ..server.conftest import fresh_backend, free_port, make_server, wait_for
 
 REPO = Path(__file__).resolve().parents[2]
 PINNED_IMAGE = re.compile(r"^[\w./-]+(:\d+(\.\d+)+[\w.-]*|@sha256:[0-9a-f]{64})$")  # a version with a dot, or a digest
@@ -338,7 +338,7 @@ def test_nginx_in_front_of_league_serve_answers_over_tls_and_bounds_bodies(leagu
 
 def test_nginx_cuts_a_client_whose_request_head_never_ends(proxy):
     http_port, https_port = proxy
-    watched = subprocess.run([sys.executable, "-m", "tests.server.slow_clients", "127.0.0.1", str(http_port),
+    watched = subprocess.run([sys.executable, "-m", "tests.system.slow_clients", "127.0.0.1", str(http_port),
                               "3", "30"],
                              cwd=REPO, capture_output=True, text=True, timeout=120)
     ends = json.loads(watched.stdout.splitlines()[-1])

@@ -1,6 +1,6 @@
 """Issue 22's attacks on a league server run as most instructors run it: by an ordinary user, from a
-venv of their own, starting with 1,024 file handles (tests/server/ordinary.py); the attacker is
-another host (a network namespace, tests/server/network.py), the other clients this one.
+venv of their own, starting with 1,024 file handles (tests/system/ordinary.py); the attacker is
+another host (a network namespace, tests/system/network.py), the other clients this one.
 
 - Hostile requests to every route anyone may call without a token (oversized, deeply nested and
   422-bound bodies, huge counts, many distinct cache keys, huge numbers, long heads): each gets its
@@ -27,7 +27,6 @@ from league.server.config import Settings
 from .network import other_host
 from .ordinary import REPO, OrdinaryLeague, shared_directory
 
-pytestmark = pytest.mark.slow  # a venv, a user, a network namespace and a server of their own
 
 HEAD_TIMEOUT_S = 5
 ATTACK = 1200  # half-open connections, from one client
@@ -143,7 +142,7 @@ def test_half_open_connections_from_one_client_leave_the_api_answering_the_other
     assert league.open_files_now() == (4096, 4096), "the soft limit of open files was not raised to the hard limit"
     assert "soft limit was raised from 1024 to the hard limit, 4096" in league.log
 
-    command = [*attacker.run_in(), sys.executable, "-m", "tests.server.slow_clients", league.host, str(league.port),
+    command = [*attacker.run_in(), sys.executable, "-m", "tests.system.slow_clients", league.host, str(league.port),
                str(ATTACK), str(3 * HEAD_TIMEOUT_S + 10)]
     with subprocess.Popen(command, cwd=REPO, stdout=subprocess.PIPE, text=True) as attack:
         assert attack.stdout.readline().strip() == "holding"

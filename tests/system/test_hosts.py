@@ -31,7 +31,7 @@ import pytest
 from league.agents import load_agent
 from league.evaluation import metrics_run, race
 
-from .conftest import TEST_SETTINGS, LeagueServer, make_server, wait_for
+from ..server.conftest import TEST_SETTINGS, LeagueServer, make_server, wait_for
 from .network import ip, require_namespaces, unused_prefix
 from .test_rounds import (  # noqa: F401 - drivers is a fixture
     LONG_HEATS, ONE_AT_A_TIME, ROUND_SETTINGS, check_round_counted_once, drivers, enter_students, race_jobs, read_round,
@@ -43,7 +43,7 @@ PG_PORT = 5432
 HOSTS = 2
 RACING = "cars: sandboxes started"  # a worker's log line as a race begins
 
-pytestmark = [pytest.mark.slow, pytest.mark.hosts]
+pytestmark = pytest.mark.hosts
 
 
 # --------------------------------------------------------------------------- the network

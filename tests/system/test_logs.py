@@ -5,7 +5,6 @@ The same run's /metrics hold what its worker left in the database."""
 from __future__ import annotations
 
 import json
-import logging
 
 import pytest
 from prometheus_client.parser import text_string_to_metric_families
@@ -13,10 +12,9 @@ from sqlalchemy import func, select
 
 from league.server.db.models import Job
 from league.server.db.session import make_engine
-from league.server.logs import TextFormatter, log_config
 
-from . import model_factory as mf
-from .conftest import create_student, fresh_backend, make_server, upload, wait_settled
+from ..server import model_factory as mf
+from ..server.conftest import create_student, fresh_backend, make_server, upload, wait_settled
 
 
 def test_json_lines_from_the_api_uvicorn_and_the_worker(tmp_path):
@@ -65,10 +63,3 @@ def test_json_lines_from_the_api_uvicorn_and_the_worker(tmp_path):
     assert samples[("league_job_duration_seconds_sum", (("kind", "evaluate"),))] == \
         pytest.approx(jobs["evaluate"]["duration_s"], rel=0.5, abs=1.0)  # the job line's own measure
     assert samples[("league_validations_total", (("outcome", "ok"),))] == 1
-
-
-def test_text_lines_carry_a_utc_timestamp():
-    record = logging.makeLogRecord({"name": "league.server", "levelname": "INFO", "msg": "hello", "created": 0.5})
-    assert TextFormatter().format(record) == "1970-01-01T00:00:00.500+00:00 INFO league.server: hello"
-    config = log_config("text", "warning")
-    assert config["loggers"]["uvicorn.access"]["level"] == config["root"]["level"] == "WARNING"

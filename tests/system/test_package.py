@@ -15,7 +15,7 @@ from pathlib import Path
 import httpx
 import pytest
 
-from .conftest import TEST_SETTINGS, LeagueServer, wait_for
+from ..server.conftest import TEST_SETTINGS, LeagueServer, wait_for
 
 REPO = Path(__file__).resolve().parents[2]
 BUNDLED = sorted(p.stem for p in (REPO / "league" / "baselines" / "agents").glob("*.onnx"))

@@ -15,7 +15,7 @@ from league.agents import load_agent
 from league.evaluation import race
 from league.server.jobs.placement import CpuSlots
 
-from .conftest import (
+from ..server.conftest import (
     TEST_SETTINGS, LeagueServer, create_student, fresh_backend, make_server, upload, wait_for, wait_settled,
 )
 
@@ -26,8 +26,6 @@ ROUND_SETTINGS = {"LEAGUE_PUBLIC_CACHE_S": "0", "LEAGUE_EVAL_EPISODES": "1"}
 ONE_AT_A_TIME = {"LEAGUE_WORKER_THREADS": "1"}
 # heats of 2 cars in finer steps: a heat lasts long enough (> 0.5 s) for a worker to be killed in it
 LONG_HEATS = {"tstep": 0.01, "max_episode_steps": 16000}
-
-pytestmark = pytest.mark.slow  # league servers in subprocesses, killed and restarted
 
 
 @pytest.fixture(scope="module")

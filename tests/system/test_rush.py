@@ -8,7 +8,7 @@ import sys
 
 import pytest
 
-from .conftest import REPO
+from ..server.conftest import REPO
 
 sys.path.insert(0, str(REPO / "benchmarks"))
 import bench_rush

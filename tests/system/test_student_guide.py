@@ -10,7 +10,7 @@ import sys
 
 import pytest
 
-from .conftest import REPO, baseline_submission, fresh_backend, make_server
+from ..server.conftest import REPO, baseline_submission, fresh_backend, make_server
 
 GUIDE = REPO / "docs" / "STUDENT_GUIDE.md"
 BLOCK = re.compile(r"^```(python|bash)\n(.*?)^```", re.S | re.M)
@@ -25,7 +25,6 @@ def test_the_guide_has_blocks_of_both_kinds():
     assert kinds.count("python") >= 5 and kinds.count("bash") >= 3
 
 
-@pytest.mark.slow
 @pytest.mark.long
 def test_every_block_of_the_student_guide_runs(tmp_path):
     pytest.importorskip("stable_baselines3", reason="the guide trains with Stable-Baselines3 (the rl extra)")

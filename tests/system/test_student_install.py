@@ -26,7 +26,7 @@ import pytest
 
 from league.client import EXIT_OK, EXIT_USAGE
 
-from .conftest import TEST_SETTINGS
+from ..server.conftest import TEST_SETTINGS
 from .ordinary import SYSTEM_PYTHON, ordinary_user, require_root_tools, shared_directory
 from .test_client import league, server, student_env, student_token, unique  # noqa: F401 (server: a fixture)
 
@@ -201,7 +201,7 @@ def _figure(line: str) -> str:
 
 
 def _closed_port() -> int:
-    from .conftest import free_port
+    from ..server.conftest import free_port
 
     return free_port()
 
@@ -245,7 +245,6 @@ def tensorflow_python() -> Path:
     return TENSORFLOW_VENV / "bin" / "python"
 
 
-@pytest.mark.slow
 @pytest.mark.long
 def test_the_thesis_keras_actor_goes_to_onnx_both_ways_and_is_evaluated_as_league_evaluate_does(
         server, tensorflow_python, tmp_path):  # noqa: F811 - an imported fixture

@@ -15,11 +15,10 @@ from pathlib import Path
 
 import pytest
 
-from ..ordinary import USER, environment_for_others, ordinary_user, require_root_tools, shared_directory
+from .ordinary import USER, environment_for_others, ordinary_user, require_root_tools, shared_directory
 
-pytestmark = pytest.mark.slow  # a second pytest run, in another environment
 
-REPO = Path(__file__).resolve().parents[3]
+REPO = Path(__file__).resolve().parents[2]
 
 
 @pytest.fixture

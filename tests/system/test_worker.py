@@ -3,7 +3,7 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from ..conftest import fresh_backend, make_server, wait_for
+from ..server.conftest import fresh_backend, make_server, wait_for
 
 
 def fork_servers(worker: int) -> list[int]:

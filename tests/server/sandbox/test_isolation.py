@@ -7,7 +7,7 @@ loading a model, once confined: what a hostile model would do if it took over it
 to read the league's database, another student's model, /etc/shadow; to connect to PostgreSQL and
 Redis; to run a program; to write outside its directory; to fork; to signal its parent; and to act
 on other processes (their limits, priorities, CPUs, memory) and on IPC objects. Run as root by the
-suite, and as an unprivileged user by test_unprivileged.py.
+suite, and as an unprivileged user by tests/system/test_unprivileged_sandbox.py.
 """
 from __future__ import annotations
 

@@ -144,7 +144,7 @@ def test_every_sandbox_of_a_heat_yields_the_cpu_to_the_api(files):
     """Ten sandboxes started at once by a thread at nice 10 all run in a scheduling group (autogroup)
     at nice 10. (Without CAP_SYS_ADMIN the kernel changes one group's nice per 0.1 s on the whole
     machine: ten sandboxes setting a group each of their own left most of them at nice 0, as an
-    equal of the API. test_unprivileged.py runs this as an ordinary user.)"""
+    equal of the API. tests/system/test_unprivileged_sandbox.py runs this as an ordinary user.)"""
     env = {**os.environ, "PYTHONPATH": str(Path(__file__).resolve().parents[3])}
     run = subprocess.run([sys.executable, "-c", _HEAT_OF_SANDBOXES, str(files["good"])], capture_output=True,
                          text=True, env=env, timeout=300)

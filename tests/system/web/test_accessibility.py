@@ -20,7 +20,7 @@ from playwright.sync_api import expect
 
 from league.server.api.deps import UNKNOWN_TOKEN
 
-from ..server.conftest import upload, wait_for, wait_settled
+from ...server.conftest import upload, wait_for, wait_settled
 from .colours import contrast, hex_rgb
 from .conftest import instructor_of_a_new_course, require_browser, student_token, unique, viewer_step
 

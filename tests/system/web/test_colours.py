@@ -1,4 +1,4 @@
-"""The colour measures the palette and accessibility tests rely on (tests/web/colours.py): CIEDE2000
+"""The colour measures the palette and accessibility tests rely on (tests/system/web/colours.py): CIEDE2000
 against the test data of Sharma, Wu and Dalal (2005, Table 1), WCAG 2's contrast ratio against
 known pairs."""
 import pytest
