@@ -8,7 +8,7 @@ import pytest
 from alembic import command
 from alembic.autogenerate import compare_metadata
 from alembic.migration import MigrationContext
-from sqlalchemy import MetaData, inspect, text
+from sqlalchemy import Connection, Engine, MetaData, inspect, text
 from sqlalchemy.exc import IntegrityError
 
 from league.server.db.models import Base
@@ -16,6 +16,38 @@ from league.server.db.session import alembic_config, make_engine, migrate
 from league.server.results import settings_key
 
 from .conftest import BACKENDS
+
+
+def alembic(engine: Engine, action: str, revision: str) -> None:
+    """`alembic upgrade|downgrade REVISION` on the engine's database (migrations/env.py commits)."""
+    config = alembic_config(engine.url.render_as_string(hide_password=False))
+    with engine.connect() as connection:
+        config.attributes["connection"] = connection
+        getattr(command, action)(config, revision)
+
+
+def engine_at(database_url: str, revision: str) -> Engine:
+    """An engine on the database, its schema brought up to `revision` (an older release's)."""
+    engine = make_engine(database_url)
+    alembic(engine, "upgrade", revision)
+    return engine
+
+
+def two_courses(connection: Connection, now: datetime) -> None:
+    """Courses 1 ("default") and 2 ("other"), as the schemas before 0010 hold them (settings per course)."""
+    connection.execute(text("INSERT INTO courses (id, name, eval_seed, eval_episodes, eval_env_options, created_at, "
+                            "updated_at) VALUES (:id, :name, 0, 3, '{}', :now, :now)"),
+                       [{"id": 1, "name": "default", "now": now}, {"id": 2, "name": "other", "now": now}])
+
+
+def course_with_an_assignment(connection: Connection, now: datetime) -> None:
+    """Course 1 and its assignment 1, "hw1" (private seed 77), as the schemas since 0010 hold them."""
+    connection.execute(text("INSERT INTO courses (id, name, created_at, updated_at) VALUES (1, 'c', :now, :now)"),
+                       {"now": now})
+    connection.execute(text(
+        "INSERT INTO assignments (id, course_id, name, description, seed, episodes, env_options, private_seed, "
+        "auto_publish, created_at, updated_at) VALUES (1, 1, 'hw1', '', 3, 5, '{}', 77, false, :now, :now)"),
+        {"now": now})
 
 
 def test_migrations_match_the_models_and_run_twice(backend):
@@ -36,10 +68,8 @@ def test_downgrade_to_nothing_and_back(backend):
     _, database_url = backend
     engine = make_engine(database_url)
     migrate(engine)
-    config = alembic_config(database_url)
+    alembic(engine, "downgrade", "base")
     with engine.connect() as connection:
-        config.attributes["connection"] = connection
-        command.downgrade(config, "base")
         assert set(inspect(connection).get_table_names()) <= {"alembic_version"}
     migrate(engine)
     with engine.connect() as connection:
@@ -57,12 +87,8 @@ def fill_0006(database_url: str) -> None:
     """A league as the 0006 schema held it, written by alembic and plain SQL: a course whose
     instructor once evaluated with other settings, a baseline, three students, a queued upload and
     a finished race."""
-    engine = make_engine(database_url)
-    config = alembic_config(database_url)
+    engine = engine_at(database_url, "0006")
     now = datetime(2026, 11, 20, 12, 0)
-    with engine.connect() as connection:
-        config.attributes["connection"] = connection
-        command.upgrade(config, "0006")
     with engine.begin() as connection:
         tables = MetaData()
         tables.reflect(bind=connection)
@@ -124,10 +150,8 @@ def test_0007_keys_existing_results_so_that_the_board_keeps_what_0006_ranked(kin
             bob_agent = instructor.get("/api/submissions/4").json()["evaluation"]
             queued = [job for job in instructor.get("/api/jobs").json() if job["status"] == "queued"]
         engine = make_engine(league.settings.database_url)  # and back to 0006, every row kept
+        alembic(engine, "downgrade", "0006")
         with engine.connect() as connection:
-            config = alembic_config(league.settings.database_url)
-            config.attributes["connection"] = connection
-            command.downgrade(config, "0006")
             assert connection.execute(text("SELECT count(*) FROM evaluations")).scalar() == 8
         engine.dispose()
     # 0006 ranked: bob 7/7 (earlier settings), cy 6/7 (earlier settings), ann 3/3, the baseline 1/3
@@ -148,17 +172,10 @@ def test_users_gain_email_and_student_id_with_their_data_kept(backend):
     """0008 on a database of the previous schema (0007) that holds users: every row kept, both fields
     empty; a student id is then unique within its course, and many students may have none."""
     _, database_url = backend
-    engine = make_engine(database_url)
-    config = alembic_config(database_url)
-    with engine.connect() as connection:
-        config.attributes["connection"] = connection
-        command.upgrade(config, "0007")
-        connection.commit()
+    engine = engine_at(database_url, "0007")
     created = datetime(2026, 11, 1)
     with engine.begin() as connection:
-        connection.execute(text("INSERT INTO courses (id, name, eval_seed, eval_episodes, eval_env_options, "
-                                "created_at, updated_at) VALUES (:id, :name, 0, 3, '{}', :now, :now)"),
-                           [{"id": 1, "name": "default", "now": created}, {"id": 2, "name": "other", "now": created}])
+        two_courses(connection, created)
         connection.execute(text("INSERT INTO users (id, name, role, course_id, token_hash, created_at) "
                                 "VALUES (:id, :name, :role, :course, :hash, :now)"),
                            [{"id": 1, "name": "prof", "role": "instructor", "course": 1, "hash": "a" * 64,
@@ -200,10 +217,8 @@ def test_0010_makes_each_course_one_default_assignment_and_every_answer_stays(ki
                                               params={"size": 100}).json()["items"]
             submissions = instructor.get("/api/submissions", params={"all": True}).json()
         engine = make_engine(league.settings.database_url)
+        alembic(engine, "downgrade", "0008")
         with engine.connect() as connection:
-            config = alembic_config(league.settings.database_url)
-            config.attributes["connection"] = connection
-            command.downgrade(config, "0008")
             course = connection.execute(text("SELECT eval_seed, eval_episodes FROM courses")).one()
             assert connection.execute(text("SELECT count(*) FROM submissions")).scalar() == 6
         engine.dispose()
@@ -222,12 +237,7 @@ def test_submissions_gain_probe_actions_with_their_data_kept_and_lose_them_on_do
     """0013 on a database of 0008 that holds submissions: every row kept, not probed; a downgrade
     back to 0008 keeps the rows too."""
     _, database_url = backend
-    engine = make_engine(database_url)
-    config = alembic_config(database_url)
-    with engine.connect() as connection:
-        config.attributes["connection"] = connection
-        command.upgrade(config, "0008")
-        connection.commit()
+    engine = engine_at(database_url, "0008")
     created = datetime(2026, 11, 1)
     with engine.begin() as connection:
         connection.execute(text("INSERT INTO users (id, name, role, created_at) VALUES (1, 'Ada', 'student', :now)"),
@@ -242,10 +252,7 @@ def test_submissions_gain_probe_actions_with_their_data_kept_and_lose_them_on_do
                                        "ORDER BY id")).all()
         connection.execute(text("UPDATE submissions SET probe_key = :key, probe_actions = :data WHERE id = 1"),
                            {"key": "f" * 16, "data": b"\0" * 512})
-    with engine.connect() as connection:
-        config.attributes["connection"] = connection
-        command.downgrade(config, "0008")
-        connection.commit()
+    alembic(engine, "downgrade", "0008")
     with engine.connect() as connection:
         kept = connection.execute(text("SELECT id, name FROM submissions ORDER BY id")).all()
         columns = {c["name"] for c in inspect(connection).get_columns("submissions")}
@@ -264,17 +271,10 @@ def test_existing_courses_stay_public_and_get_pseudonym_keys_users_no_display_na
     courses keep showing their boards to anyone (an upgrade changes nothing silently), each with its
     own pseudonym key; every user row kept, without a display name, which is then unique in a course."""
     _, database_url = backend
-    engine = make_engine(database_url)
-    config = alembic_config(database_url)
-    with engine.connect() as connection:
-        config.attributes["connection"] = connection
-        command.upgrade(config, "0013")
-        connection.commit()
+    engine = engine_at(database_url, "0013")
     created = datetime(2026, 11, 1)
     with engine.begin() as connection:
-        connection.execute(text("INSERT INTO courses (id, name, eval_seed, eval_episodes, eval_env_options, "
-                                "created_at, updated_at) VALUES (:id, :name, 0, 3, '{}', :now, :now)"),
-                           [{"id": 1, "name": "default", "now": created}, {"id": 2, "name": "other", "now": created}])
+        two_courses(connection, created)
         connection.execute(text("INSERT INTO users (id, name, role, course_id, email, created_at) "
                                 "VALUES (:id, :name, :role, :course, :email, :now)"),
                            [{"id": 1, "name": "prof", "role": "instructor", "course": 1, "email": None, "now": created},
@@ -303,20 +303,10 @@ def test_assignments_gain_a_rubric_with_their_rows_kept_and_lose_it_on_downgrade
     """0016 on a 0010 database that holds an assignment: the row kept, no rubric; a rubric (JSON)
     reads back; the downgrade drops the column and keeps the row."""
     _, database_url = backend
-    engine = make_engine(database_url)
-    config = alembic_config(database_url)
-    with engine.connect() as connection:
-        config.attributes["connection"] = connection
-        command.upgrade(config, "0010")
-        connection.commit()
+    engine = engine_at(database_url, "0010")
     now = datetime(2026, 11, 1)
     with engine.begin() as connection:
-        connection.execute(text("INSERT INTO courses (id, name, created_at, updated_at) VALUES (1, 'c', :now, :now)"),
-                           {"now": now})
-        connection.execute(text(
-            "INSERT INTO assignments (id, course_id, name, description, seed, episodes, env_options, private_seed, "
-            "auto_publish, created_at, updated_at) VALUES (1, 1, 'hw1', '', 3, 5, '{}', 77, false, :now, :now)"),
-            {"now": now})
+        course_with_an_assignment(connection, now)
     migrate(engine)
     rubric = '{"kind": "formula", "max_points": 10, "formula": "10 * completed"}'
     with engine.begin() as connection:
@@ -325,9 +315,8 @@ def test_assignments_gain_a_rubric_with_their_rows_kept_and_lose_it_on_downgrade
     with engine.connect() as connection:
         stored = connection.execute(text("SELECT rubric FROM assignments")).scalar_one()
         assert (json.loads(stored) if isinstance(stored, str) else stored)["formula"] == "10 * completed"
-        config.attributes["connection"] = connection
-        command.downgrade(config, "0010")
-        connection.commit()
+    alembic(engine, "downgrade", "0010")
+    with engine.connect() as connection:
         assert "rubric" not in {c["name"] for c in inspect(connection).get_columns("assignments")}
         assert connection.execute(text("SELECT name, private_seed FROM assignments")).one() == ("hw1", 77)
     migrate(engine)
@@ -341,20 +330,10 @@ def test_championships_keep_their_rows_belong_to_no_assignment_and_lose_the_colu
     """0017 on a 0014 database that holds a championship: the row kept, of no assignment (it races the
     active submissions, as before); one can then belong to an assignment; the downgrade keeps the row."""
     _, database_url = backend
-    engine = make_engine(database_url)
-    config = alembic_config(database_url)
-    with engine.connect() as connection:
-        config.attributes["connection"] = connection
-        command.upgrade(config, "0014")
-        connection.commit()
+    engine = engine_at(database_url, "0014")
     now = datetime(2026, 11, 1)
     with engine.begin() as connection:
-        connection.execute(text("INSERT INTO courses (id, name, created_at, updated_at) VALUES (1, 'c', :now, :now)"),
-                           {"now": now})
-        connection.execute(text(
-            "INSERT INTO assignments (id, course_id, name, description, seed, episodes, env_options, private_seed, "
-            "auto_publish, created_at, updated_at) VALUES (1, 1, 'hw1', '', 3, 5, '{}', 77, false, :now, :now)"),
-            {"now": now})
+        course_with_an_assignment(connection, now)
         connection.execute(text(
             "INSERT INTO championships (id, course_id, name, env_options, heat_size, points, include_baselines, seed, "
             "created_at) VALUES (1, 1, 'cup', '{}', 4, '[3, 1]', true, 9, :now)"), {"now": now})
@@ -362,10 +341,8 @@ def test_championships_keep_their_rows_belong_to_no_assignment_and_lose_the_colu
     with engine.begin() as connection:
         assert connection.execute(text("SELECT name, seed, assignment_id FROM championships")).one() == ("cup", 9, None)
         connection.execute(text("UPDATE championships SET assignment_id = 1"))
+    alembic(engine, "downgrade", "0014")
     with engine.connect() as connection:
-        config.attributes["connection"] = connection
-        command.downgrade(config, "0014")
-        connection.commit()
         assert "assignment_id" not in {c["name"] for c in inspect(connection).get_columns("championships")}
         assert connection.execute(text("SELECT name, seed FROM championships")).one() == ("cup", 9)
     migrate(engine)
