@@ -34,7 +34,9 @@ class Agent(nn.Module):
         return torch.distributions.Normal(self.actor(obs), self.log_std.exp())
 
 
-def main(argv: list[str] | None = None) -> None:
+def main(argv: list[str] | None = None) -> dict:
+    """Train, export, evaluate; returns the steps trained (all cars), the updates, the last rollout's
+    mean reward, the evaluation and the actor's path."""
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--timesteps", type=int, default=500_000, help="environment steps of training (all cars)")
     parser.add_argument("--envs", type=int, default=16, help="cars of the vector env")
@@ -51,8 +53,10 @@ def main(argv: list[str] | None = None) -> None:
     optimizer = torch.optim.Adam(agent.parameters(), lr=3e-4, eps=1e-5)
     obs = torch.as_tensor(envs.reset(seed=args.seed)[0])
     starts = torch.zeros(args.envs, dtype=torch.bool)  # this step only resets the car (next-step autoreset)
-    for _ in range(max(1, args.timesteps // (args.envs * args.rollout))):
+    updates = max(1, args.timesteps // (args.envs * args.rollout))
+    for _ in range(updates):
         batch = collect(envs, agent, obs, starts, args.rollout)
+        rollout_reward = batch["rewards"][batch["valid"]].mean().item()
         obs, starts = batch.pop("next_obs"), batch.pop("next_starts")
         update(agent, optimizer, batch)
 
@@ -60,6 +64,8 @@ def main(argv: list[str] | None = None) -> None:
     result = metrics_run(load_agent(path, name="cleanrl-ppo"), episodes=args.episodes, seed=0)
     print(f"cleanrl-ppo: {args.episodes} episodes, {result.completed} laps, mean return {result.mean_return:.2f}; "
           f"actor saved to {path}")
+    return {"timesteps": updates * args.envs * args.rollout, "updates": updates, "rollout_reward": rollout_reward,
+            "evaluation": result, "actor": path}
 
 
 def collect(envs, agent: Agent, obs: torch.Tensor, starts: torch.Tensor, steps: int) -> dict:

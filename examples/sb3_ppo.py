@@ -19,7 +19,8 @@ from league.agents import callable_agent
 from league.evaluation import metrics_run
 
 
-def main(argv: list[str] | None = None) -> None:
+def main(argv: list[str] | None = None) -> dict:
+    """Train, save, evaluate; returns the steps trained and the evaluation (what it prints)."""
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--timesteps", type=int, default=200_000, help="environment steps of training")
     parser.add_argument("--envs", type=int, default=4, help="envs stepped together (SB3's DummyVecEnv)")
@@ -42,6 +43,7 @@ def main(argv: list[str] | None = None) -> None:
     agent = callable_agent(lambda obs: model.predict(obs, deterministic=True)[0], name="sb3-ppo")
     result = metrics_run(agent, episodes=args.episodes, seed=0)
     print(result.table())
+    return {"timesteps": model.num_timesteps, "evaluation": result}
 
 
 if __name__ == "__main__":

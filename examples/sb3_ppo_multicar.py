@@ -30,7 +30,9 @@ def make_env(n_cars: int, races: int, seed: int):
     return env
 
 
-def main(argv: list[str] | None = None) -> None:
+def main(argv: list[str] | None = None) -> dict:
+    """Train, then race the trained policy against the heuristic driver; returns the steps trained
+    (car-steps) and the race (what it prints)."""
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--timesteps", type=int, default=200_000, help="car-steps of training")
     parser.add_argument("--cars", type=int, default=4, help="cars per race")
@@ -47,7 +49,9 @@ def main(argv: list[str] | None = None) -> None:
     model.learn(total_timesteps=args.timesteps)
 
     agent = callable_agent(lambda obs: model.predict(obs, deterministic=True)[0], name="sb3-ppo-shared")
-    print(race([agent, "heuristic"], seed=0).table())
+    result = race([agent, "heuristic"], seed=0)
+    print(result.table())
+    return {"timesteps": model.num_timesteps, "race": result}
 
 
 if __name__ == "__main__":

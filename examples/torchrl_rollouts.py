@@ -24,7 +24,7 @@ def heuristic(observation: torch.Tensor) -> torch.Tensor:
     return torch.as_tensor(heuristic_actions(flat)).reshape(*observation.shape[:-1], 2)
 
 
-def single_cars(steps: int, seed: int, num_envs: int = 3) -> None:
+def single_cars(steps: int, seed: int, num_envs: int = 3) -> dict:
     # num_envs: that many envs in worker processes, each a fresh interpreter: the "league:" prefix
     # makes Gymnasium import league there. numeric_infos: torchrl makes a tensor of every info
     # value, so the outcome's name stays out (its code, "outcome_code", is in).
@@ -33,12 +33,13 @@ def single_cars(steps: int, seed: int, num_envs: int = 3) -> None:
     policy = TensorDictModule(heuristic, in_keys=["observation"], out_keys=["action"])
     rollout = env.rollout(steps, policy)  # stops when an episode ends
     env.close()
-    returns = ", ".join(f"{r:.2f}" for r in rollout["next", "reward"].sum(dim=(1, 2)).tolist())
-    print(f"GymEnv: {num_envs} cars, {rollout.shape[1]} steps, returns {returns}, "
-          f"progress {rollout['next', 'progress'][:, -1].tolist()}")
+    returns, progress = rollout["next", "reward"].sum(dim=(1, 2)).tolist(), rollout["next", "progress"][:, -1].tolist()
+    print(f"GymEnv: {num_envs} cars, {rollout.shape[1]} steps, returns {', '.join(f'{r:.2f}' for r in returns)}, "
+          f"progress {progress}")
+    return {"cars": num_envs, "steps": rollout.shape[1], "returns": returns, "progress": progress}
 
 
-def race(steps: int, seed: int, n_cars: int = 3) -> None:
+def race(steps: int, seed: int, n_cars: int = 3) -> dict:
     # numeric_infos: torchrl makes a tensor of every info value, so the outcome's name stays out
     # (its code, info["outcome_code"], is in). use_mask: cars that are done are masked out;
     # done_on_any=False: the race goes on until every car is done.
@@ -49,16 +50,17 @@ def race(steps: int, seed: int, n_cars: int = 3) -> None:
     final = rollout["next", "car", "info"][-1]
     codes = [league.physics.OUTCOMES[int(c)] for c in final["outcome_code"].flatten()]
     print(f"PettingZooWrapper: {rollout.shape[0]} steps, state {tuple(rollout['state'].shape)}, outcomes {codes}")
+    return {"steps": rollout.shape[0], "state_shape": tuple(rollout["state"].shape), "outcomes": codes}
 
 
-def main(argv: list[str] | None = None) -> None:
+def main(argv: list[str] | None = None) -> dict:
+    """Both rollouts; returns what each one prints, under "gym_env" and "race"."""
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--steps", type=int, default=1000, help="longest rollout")
     parser.add_argument("--seed", type=int, default=0)
     parser.add_argument("--envs", type=int, default=3, help="single-car envs, each in a worker process")
     args = parser.parse_args(argv)
-    single_cars(args.steps, args.seed, args.envs)
-    race(args.steps, args.seed)
+    return {"gym_env": single_cars(args.steps, args.seed, args.envs), "race": race(args.steps, args.seed)}
 
 
 if __name__ == "__main__":

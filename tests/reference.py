@@ -8,11 +8,6 @@ def cell(v: float) -> int:
     return int(v * 500) + 650
 
 
-def is_valid(valid, x: float, y: float) -> bool:
-    i, j = cell(x), cell(y)
-    return 0 <= i < GRID and 0 <= j < GRID and bool(valid[i, j])
-
-
 def is_free(valid, x: float, y: float) -> bool:
     """SPEC: a point is free when its cell and the 4 cells next to it are all valid."""
     i, j = cell(x), cell(y)

@@ -2,8 +2,8 @@
 
 Each test here once failed against a third-party client; the trainings are smoke-sized.
 """
-import runpy
-import sys
+import importlib.util
+import math
 from pathlib import Path
 
 import gymnasium as gym
@@ -13,15 +13,29 @@ import torch
 from gymnasium.wrappers import AddRenderObservation, RecordVideo
 
 import league
-from league.agents import heuristic_actions
+from league.agents import heuristic_actions, load_agent
+from league.constants import OUTCOMES
+from league.evaluation import OUTCOME_TEXT, MetricsResult, episode_seeds
 
 EXAMPLES = Path(__file__).resolve().parents[1] / "examples"
 
 
-def run_example(name: str, *args: str, monkeypatch) -> None:
-    """Run examples/<name> as `python examples/<name> args...` does, in this process (imports are shared)."""
-    monkeypatch.setattr(sys, "argv", [str(EXAMPLES / name), *args])
-    runpy.run_path(str(EXAMPLES / name), run_name="__main__")
+def run_example(name: str, *args: str) -> dict:
+    """examples/<name>'s main(args), what `python examples/<name> args...` runs, in this process (imports
+    are shared); its result: the figures it prints."""
+    spec = importlib.util.spec_from_file_location(f"examples.{Path(name).stem}", EXAMPLES / name)
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    return module.main(list(args))
+
+
+def assert_evaluated(evaluation: MetricsResult, episodes: int) -> None:
+    """A metrics_run of `episodes` episodes on the seeds of seed 0: each one driven for some steps to an
+    outcome, with a finite return and speed."""
+    assert [e.seed for e in evaluation.episodes] == episode_seeds(0, episodes)
+    for episode in evaluation.episodes:
+        assert episode.steps > 0 and episode.outcome in OUTCOME_TEXT
+        assert math.isfinite(episode.episode_return) and math.isfinite(episode.mean_speed)
 
 
 def test_record_video_writes_one_file_per_episode_across_tracks(tmp_path):
@@ -60,28 +74,45 @@ def test_gymnasium_vector_envs_and_stable_baselines3_env_checker():
     assert obs.shape == (2, 5) and vector.spec.max_episode_steps == league.physics.MAX_EPISODE_STEPS
 
 
-def test_example_sb3_ppo_single_car(monkeypatch, tmp_path, capsys):
-    run_example("sb3_ppo.py", "--timesteps", "256", "--envs", "2", "--episodes", "2", "--save",
-                str(tmp_path / "ppo.zip"), monkeypatch=monkeypatch)
-    assert "sb3-ppo: 2 episodes" in capsys.readouterr().out and (tmp_path / "ppo.zip").exists()
+def test_example_sb3_ppo_single_car(tmp_path):
+    result = run_example("sb3_ppo.py", "--timesteps", "256", "--envs", "2", "--episodes", "2", "--save",
+                         str(tmp_path / "ppo.zip"))
+    assert result["timesteps"] >= 256  # whole rollouts: SB3 trains to the end of the one that crosses it
+    assert_evaluated(result["evaluation"], episodes=2)
+    assert (tmp_path / "ppo.zip").stat().st_size > 0
 
 
-def test_example_sb3_ppo_multi_car_through_supersuit(monkeypatch, capsys):
-    run_example("sb3_ppo_multicar.py", "--timesteps", "256", "--cars", "4", "--races", "1", monkeypatch=monkeypatch)
-    assert "sb3-ppo-shared" in capsys.readouterr().out
+def test_example_sb3_ppo_multi_car_through_supersuit():
+    result = run_example("sb3_ppo_multicar.py", "--timesteps", "256", "--cars", "4", "--races", "1")
+    assert result["timesteps"] >= 256
+    classification = result["race"].classification
+    assert sorted(row["name"] for row in classification) == ["heuristic", "sb3-ppo-shared"]
+    assert sorted(row["position"] for row in classification) == [1, 2]
+    for row in classification:  # each car drove until its outcome
+        assert row["outcome"] in OUTCOME_TEXT and row["time"] > 0 and math.isfinite(row["distance"])
 
 
-def test_example_cleanrl_ppo_on_the_vector_env(monkeypatch, tmp_path, capsys):
-    run_example("cleanrl_ppo.py", "--timesteps", "1024", "--envs", "4", "--rollout", "64", "--episodes", "2",
-                "--save", str(tmp_path / "actor.onnx"), monkeypatch=monkeypatch)
-    assert "cleanrl-ppo: 2 episodes" in capsys.readouterr().out and (tmp_path / "actor.onnx").exists()
+def test_example_cleanrl_ppo_on_the_vector_env(tmp_path):
+    result = run_example("cleanrl_ppo.py", "--timesteps", "1024", "--envs", "4", "--rollout", "64", "--episodes", "2",
+                         "--save", str(tmp_path / "actor.onnx"))
+    assert (result["updates"], result["timesteps"]) == (4, 1024)  # 1024 steps: 4 rollouts of 64 steps of 4 cars
+    assert math.isfinite(result["rollout_reward"])
+    assert_evaluated(result["evaluation"], episodes=2)
+    assert result["actor"] == tmp_path / "actor.onnx"
+    actions = load_agent(result["actor"])(np.zeros((3, 5), dtype=np.float32))  # the exported actor drives
+    assert actions.shape == (3, 2) and np.all(np.abs(actions) <= 1)
 
 
-def test_example_torchrl_rollouts(monkeypatch, capsys):
+def test_example_torchrl_rollouts():
     # one worker process: each imports the example's own imports (torch, torchrl) again, as spawn does
-    run_example("torchrl_rollouts.py", "--steps", "200", "--envs", "1", monkeypatch=monkeypatch)
-    out = capsys.readouterr().out
-    assert "GymEnv: " in out and "PettingZooWrapper: " in out and "state (" in out
+    result = run_example("torchrl_rollouts.py", "--steps", "200", "--envs", "1")
+    single = result["gym_env"]
+    assert single["cars"] == 1 and 0 < single["steps"] <= 200
+    assert len(single["returns"]) == 1 and math.isfinite(single["returns"][0])
+    assert len(single["progress"]) == 1 and 0 < single["progress"][0] <= 1  # the heuristic driver moves on
+    race = result["race"]
+    assert 0 < race["steps"] <= 200 and race["state_shape"][0] == race["steps"]
+    assert len(race["outcomes"]) == 3 and set(race["outcomes"]) <= set(OUTCOMES)
 
 
 def heuristic_module(key="observation"):
