@@ -46,7 +46,7 @@ P99_TARGET_MS = 50.0
 def bench_evaluation(model: Path, episodes: int) -> float:
     """(a): returns the plain loop's seconds, the reference of (b)."""
     from league.evaluation import episode_seeds, metrics_run
-    from league.physics import set_track_cache_size
+    from league.track import set_track_cache_size
     from league.server.sandbox.agent import SandboxedAgent
     from league.validation.limits import SandboxLimits
 

@@ -142,7 +142,7 @@ def bench_frame(n_cars: int, n: int) -> float:
 
 def bench_parallel(n_cars: int, seconds: float, batched: bool) -> float:
     """Car-steps per second of running cars, timing only the step calls."""
-    penv = league.parallel_env(n_cars=n_cars)
+    penv = league.make_parallel_env(n_cars=n_cars)
     seed, elapsed, car_steps = 0, 0.0, 0
     while elapsed < seconds:
         observations, _ = penv.reset(seed=seed)
@@ -223,11 +223,11 @@ def main():
     label = 'make_vec(..., "sync"), 8 envs, new track every episode'
     print(f"{label:<58} {sync:>12,.1f}  steps/s")
     for num_envs in (8, 64, 256):
-        fresh = bench_vector(lambda: league.vector_env(num_envs=num_envs), seconds)  # noqa: B023 - called in this iteration
+        fresh = bench_vector(lambda: league.make_vector_env(num_envs=num_envs), seconds)  # noqa: B023 - called in this iteration
         print(f"{f'league.vector_env, {num_envs} envs, new track every episode':<58} {fresh:>12,.1f}  steps/s"
               f"     {fresh / sync:.1f}x sync, target >= 5x")
     for num_envs, pool_size in ((256, 8), (256, 100)):
-        pool = bench_vector(lambda: league.vector_env(num_envs=num_envs, track_pool=pool_size), seconds)  # noqa: B023 - called in this iteration
+        pool = bench_vector(lambda: league.make_vector_env(num_envs=num_envs, track_pool=pool_size), seconds)  # noqa: B023 - called in this iteration
         print(f"{f'league.vector_env, {num_envs} envs, pool of {pool_size} tracks':<58} {pool:>12,.1f}  steps/s"
               f"     target >= 1000000")
 

@@ -79,7 +79,7 @@ def main() -> None:
     import league
     from league.agents import load_agent
     from league.evaluation import episode_seeds, metrics_run, race, run_episode, save_replay
-    from league.physics import set_track_cache_size, track_cache_info
+    from league.track import set_track_cache_size, track_cache_info
     from league.render import animate_replay
 
     print(f"toolkit benchmark, {pin_to_one_core()}")

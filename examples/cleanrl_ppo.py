@@ -48,7 +48,7 @@ def main(argv: list[str] | None = None) -> dict:
     torch.manual_seed(args.seed)
     torch.set_num_threads(1)  # small MLPs: one thread is fastest
 
-    envs = league.vector_env(num_envs=args.envs, max_episode_steps=1000)
+    envs = league.make_vector_env(num_envs=args.envs, max_episode_steps=1000)
     agent = Agent(envs.single_observation_space.shape[0])
     optimizer = torch.optim.Adam(agent.parameters(), lr=3e-4, eps=1e-5)
     obs = torch.as_tensor(envs.reset(seed=args.seed)[0])

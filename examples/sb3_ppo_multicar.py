@@ -23,7 +23,7 @@ from league.evaluation import race
 
 
 def make_env(n_cars: int, races: int, seed: int):
-    env = ss.black_death_v3(league.parallel_env(n_cars=n_cars))
+    env = ss.black_death_v3(league.make_parallel_env(n_cars=n_cars))
     env = ss.pettingzoo_env_to_vec_env_v1(env)
     env = ss.concat_vec_envs_v1(env, races, num_cpus=0, base_class="stable_baselines3")
     env.venv.reset(seed=seed)  # later resets continue from this seed

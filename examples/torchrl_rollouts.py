@@ -43,12 +43,12 @@ def race(steps: int, seed: int, n_cars: int = 3) -> dict:
     # numeric_infos: torchrl makes a tensor of every info value, so the outcome's name stays out
     # (its code, info["outcome_code"], is in). use_mask: cars that are done are masked out;
     # done_on_any=False: the race goes on until every car is done.
-    env = PettingZooWrapper(league.parallel_env(n_cars=n_cars, numeric_infos=True), use_mask=True,
+    env = PettingZooWrapper(league.make_parallel_env(n_cars=n_cars, numeric_infos=True), use_mask=True,
                             done_on_any=False, return_state=True, seed=seed)
     policy = TensorDictModule(heuristic, in_keys=[("car", "observation")], out_keys=[("car", "action")])
     rollout = env.rollout(steps, policy)
     final = rollout["next", "car", "info"][-1]
-    codes = [league.physics.OUTCOMES[int(c)] for c in final["outcome_code"].flatten()]
+    codes = [league.constants.OUTCOMES[int(c)] for c in final["outcome_code"].flatten()]
     print(f"PettingZooWrapper: {rollout.shape[0]} steps, state {tuple(rollout['state'].shape)}, outcomes {codes}")
     return {"steps": rollout.shape[0], "state_shape": tuple(rollout["state"].shape), "outcomes": codes}
 

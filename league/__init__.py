@@ -1,41 +1,120 @@
 """MicroRacer League: a didactic deep-RL racing environment, student toolkit and league server.
 
 `import league` registers the Gymnasium id "league/MicroRacer-v0" (with its native vector env:
-``gymnasium.make_vec("league/MicroRacer-v0", num_envs=8, vectorization_mode="vector_entry_point")``).
+``gymnasium.make_vec("league/MicroRacer-v0", num_envs=8, vectorization_mode="vector_entry_point")``)
+and names the toolkit's entry points below. It imports none of them: each is loaded on first use
+(a module-level ``__getattr__``), so ``import league.constants`` or ``import league.validation``
+costs what that module costs, without gymnasium, pettingzoo or the simulator.
+
+    MicroRacerEnv, MicroRacerParallelEnv, MicroRacerVectorEnv   the envs (league.env, .parallel_env, .vector_env)
+    make_parallel_env, make_aec_env, make_vector_env            their factories
+    RaceOptions, Track, generate_track                          options and tracks (league.options, .track)
+    load_agent, heuristic_agent, AgentError                     agents (league.agents)
+    Racer, newrun, metrics_run                                  the thesis' interface (league.compat)
 """
-import gymnasium
-from gymnasium.envs.registration import register
-
-from league.env import MicroRacerEnv
-from league.parallel_env import MicroRacerParallelEnv, env, parallel_env
-from league.physics import MAX_EPISODE_STEPS, RaceOptions
-from league.track import Track, generate_track
-
-# The native vector env follows Gymnasium 1.x's vector API (autoreset modes); the single and the
-# PettingZoo envs also run on Gymnasium 0.29 (the lower bound, which CleanRL's scripts pin).
-VECTOR_API = hasattr(gymnasium.vector, "AutoresetMode")
-if VECTOR_API:
-    from league.vector_env import MicroRacerVectorEnv, vector_env
-else:
-    MicroRacerVectorEnv = None
-
-    def vector_env(num_envs: int = 8, render_mode: str | None = None, **options):
-        raise RuntimeError(f"league.vector_env needs Gymnasium >= 1.0 (its vector API); this is Gymnasium "
-                           f"{gymnasium.__version__}: pip install -U gymnasium")
+import importlib
+import importlib.abc
+import importlib.util
+import sys
 
 __version__ = "0.1.0"
 
-# The time limit is Gymnasium's TimeLimit wrapper, so gym.make(..., max_episode_steps=N) sets it;
-# the entry point turns the env's own limit (for direct construction) off. make_vec passes the
-# limit to the vector env as its max_episode_steps option.
-register(id="league/MicroRacer-v0", entry_point="league.env:registered_env", max_episode_steps=MAX_EPISODE_STEPS,
-         **({"vector_entry_point": "league.vector_env:MicroRacerVectorEnv"} if VECTOR_API else {}))
+ENV_ID = "league/MicroRacer-v0"
 
-__all__ = ["MicroRacerEnv", "MicroRacerParallelEnv", "MicroRacerVectorEnv", "RaceOptions", "Track", "env",
-           "generate_track", "parallel_env", "vector_env"]
+# name -> (module, attribute): what `league.<name>` loads on first use.
+_LAZY = {
+    "MicroRacerEnv": ("league.env", "MicroRacerEnv"),
+    "MicroRacerParallelEnv": ("league.parallel_env", "MicroRacerParallelEnv"),
+    "MicroRacerVectorEnv": ("league.vector_env", "MicroRacerVectorEnv"),
+    "make_parallel_env": ("league.parallel_env", "parallel_env"),
+    "make_aec_env": ("league.parallel_env", "env"),
+    "make_vector_env": ("league.vector_env", "make_vector_env"),
+    "RaceOptions": ("league.options", "RaceOptions"),
+    "MAX_EPISODE_STEPS": ("league.constants", "MAX_EPISODE_STEPS"),
+    "Track": ("league.track", "Track"),
+    "generate_track": ("league.track", "generate_track"),
+    "AgentError": ("league.agents", "AgentError"),
+    "heuristic_agent": ("league.agents", "heuristic_agent"),
+    "load_agent": ("league.agents", "load_agent"),
+    "Racer": ("league.compat", "Racer"),
+    "metrics_run": ("league.compat", "metrics_run"),
+    "newrun": ("league.compat", "newrun"),
+}
 
-# The thesis' interface (section 3.4-3.6) and the toolkit's entry points.
-from league.agents import AgentError, heuristic_agent, load_agent  # noqa: E402
-from league.compat import Racer, metrics_run, newrun  # noqa: E402
+__all__ = sorted(set(_LAZY) - {"MAX_EPISODE_STEPS"})
 
-__all__ += ["AgentError", "Racer", "heuristic_agent", "load_agent", "metrics_run", "newrun"]
+
+def __getattr__(name: str):
+    """`league.<name>`: an entry point of `_LAZY`, or a submodule (`league.env` is the module)."""
+    if name in _LAZY:
+        module, attribute = _LAZY[name]
+        value = getattr(importlib.import_module(module), attribute)
+        globals()[name] = value
+        return value
+    if not name.startswith("_") and importlib.util.find_spec(f"{__name__}.{name}") is not None:
+        return importlib.import_module(f"{__name__}.{name}")
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
+
+
+def __dir__() -> list[str]:
+    return sorted(name for name in set(globals()) | set(_LAZY) if name not in {"importlib", "sys"})
+
+
+# -------------------------------------------------------------------------- the Gymnasium id
+
+
+def register_envs() -> None:
+    """Register "league/MicroRacer-v0" with Gymnasium (once; the import of league does it).
+
+    The time limit is Gymnasium's TimeLimit wrapper, so gym.make(..., max_episode_steps=N) sets it;
+    the entry point turns the env's own limit (for direct construction) off. make_vec passes the
+    limit to the vector env as its max_episode_steps option. The native vector env follows
+    Gymnasium 1.x's vector API (autoreset modes); the single and the PettingZoo envs also run on
+    Gymnasium 0.29 (the lower bound, which CleanRL's scripts pin).
+    """
+    import gymnasium
+    from gymnasium.envs.registration import register, registry
+
+    from league.constants import MAX_EPISODE_STEPS
+
+    if ENV_ID in registry:
+        return
+    vector_api = hasattr(gymnasium.vector, "AutoresetMode")  # Gymnasium >= 1.0, which league.vector_env needs
+    vector = {"vector_entry_point": "league.vector_env:MicroRacerVectorEnv"} if vector_api else {}
+    register(id=ENV_ID, entry_point="league.env:registered_env", max_episode_steps=MAX_EPISODE_STEPS, **vector)
+
+
+class _RegisterWithGymnasium(importlib.abc.MetaPathFinder):
+    """Registers the env id right after Gymnasium's own import, so that `import league` costs no
+    Gymnasium import (0.1-0.2 s) and `gymnasium.make("league/MicroRacer-v0")` works in either
+    import order. It finds nothing itself: it wraps the loader that the other finders find."""
+
+    def __init__(self):
+        self.finding = False
+
+    def find_spec(self, name, path=None, target=None):
+        if name != "gymnasium" or self.finding:
+            return None
+        self.finding = True
+        try:
+            spec = importlib.util.find_spec(name)
+        finally:
+            self.finding = False
+        if spec is None or spec.loader is None or not hasattr(spec.loader, "exec_module"):
+            return None
+        load = spec.loader.exec_module
+
+        def exec_module(module):
+            if self in sys.meta_path:
+                sys.meta_path.remove(self)
+            load(module)
+            register_envs()
+
+        spec.loader.exec_module = exec_module
+        return spec
+
+
+if "gymnasium" in sys.modules:
+    register_envs()
+else:
+    sys.meta_path.insert(0, _RegisterWithGymnasium())

@@ -24,9 +24,11 @@ from typing import Any
 
 import numpy as np
 
-from league.constants import COMPACT_DIM, LIDAR_DIM, MAX_TURN, MODEL_SUFFIXES, N_RAYS, PICKLE_MARK, ZIP_MAGIC
+from league.constants import (
+    COMPACT_DIM, LIDAR_DIM, MAX_TURN, MODEL_SUFFIXES, N_RAYS, OBSERVATION_DIMS, is_pickle, is_torchscript_layout, is_zip,
+)
 
-OBS_DIMS = (COMPACT_DIM, LIDAR_DIM)
+OBS_DIMS = tuple(OBSERVATION_DIMS.values())
 HEURISTIC_TARGET_SPEED = 0.25  # world units per second
 HEURISTIC_ACC, HEURISTIC_BRAKE = 0.5, -0.2
 
@@ -309,10 +311,10 @@ def _load_torchscript(path: Path, obs_dim: int | None, name: str) -> Agent:
 def _refuse_pickles(path: Path) -> None:
     """TorchScript is a zip with code/ and constants.pkl; a bare pickle or a torch.save checkpoint is refused unread."""
     head = _read_head(path)
-    if head[:1] == PICKLE_MARK:
+    if is_pickle(head):
         raise AgentError(f"{path.name} is a Python pickle, not TorchScript; pickles can run arbitrary code and are "
                          "never loaded. Export with torch.jit.script(model).save(path) or torch.onnx.export")
-    if head[:4] != ZIP_MAGIC:
+    if not is_zip(head):
         raise AgentError(f"{path.name} is not a TorchScript file (not a zip archive)")
     try:
         with zipfile.ZipFile(path) as archive:
@@ -320,7 +322,7 @@ def _refuse_pickles(path: Path) -> None:
     except zipfile.BadZipFile as error:
         raise AgentError(f"{path.name} is a damaged zip archive (truncated?), "
                          "not a loadable TorchScript file") from error
-    if not any("/code/" in entry for entry in names) or not any(entry.endswith("constants.pkl") for entry in names):
+    if not is_torchscript_layout(names):
         raise AgentError(f"{path.name} is a torch.save checkpoint (a pickle), not TorchScript; it is never loaded. "
                          "Export with torch.jit.script(model).save(path) or torch.onnx.export")
 
@@ -566,7 +568,7 @@ def load_agent(path_or_name: str | os.PathLike, name: str | None = None, obs_dim
 
 def _looks_like_torchscript(path: Path) -> bool:
     head = _read_head(path)
-    if head[:4] == ZIP_MAGIC or head[:1] == PICKLE_MARK:
+    if is_zip(head) or is_pickle(head):
         return True
     return MODEL_SUFFIXES.get(path.suffix.lower()) == "torchscript"
 

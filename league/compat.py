@@ -23,8 +23,9 @@ from gymnasium.utils import seeding
 
 from league import evaluation, lidar
 from league.agents import as_agent
+from league.cars import turn_bound
+from league.constants import FINISHED, MAX_ACC, MAX_TURN, RUNNING
 from league.env import MicroRacerEnv
-from league.physics import FINISHED, MAX_ACC, MAX_TURN, RUNNING, turn_bound
 from league.track import PeriodicSpline, Track, grid_of_map
 
 

@@ -5,12 +5,11 @@ import gymnasium as gym
 import numpy as np
 from gymnasium import spaces
 
-from league.physics import MAX_TURN, RUNNING, RaceOptions, as_actions, start_cars
-from league.render import FRAME_SHAPE
+from league.cars import as_actions, start_cars
+from league.constants import MAX_LIDAR_RANGE, MAX_SPEED, MAX_TURN, N_RAYS, RUNNING
+from league.options import RaceOptions
+from league.render import FRAME_SHAPE, EnvRendering
 from league.track import Track
-
-MAX_LIDAR_RANGE = 3.7  # no reading exceeds the map's diagonal (world units)
-MAX_SPEED = 50.0  # no car reaches this in a 4000-step episode (0.1 * 0.04 * 4000 + 0.5 = 16.5)
 
 
 def observation_space(observation: str) -> spaces.Box:
@@ -18,8 +17,8 @@ def observation_space(observation: str) -> spaces.Box:
         low = np.array([-MAX_TURN, 0, 0, 0, 0], dtype=np.float32)
         high = np.array([MAX_TURN, MAX_LIDAR_RANGE, MAX_LIDAR_RANGE, MAX_LIDAR_RANGE, MAX_SPEED], dtype=np.float32)
     else:
-        low = np.zeros(20, dtype=np.float32)
-        high = np.array([MAX_LIDAR_RANGE] * 19 + [MAX_SPEED], dtype=np.float32)
+        low = np.zeros(N_RAYS + 1, dtype=np.float32)
+        high = np.array([MAX_LIDAR_RANGE] * N_RAYS + [MAX_SPEED], dtype=np.float32)
     return spaces.Box(low, high, dtype=np.float32)
 
 
@@ -37,7 +36,7 @@ def action_space() -> spaces.Box:
     return spaces.Box(-1.0, 1.0, (2,), dtype=np.float32)
 
 
-class MicroRacerEnv(gym.Env):
+class MicroRacerEnv(EnvRendering, gym.Env):
     """
     ## Description
     MicroRacer (Galletti, thesis, ch. 3): a car races one clockwise lap of a random closed
@@ -71,7 +70,7 @@ class MicroRacerEnv(gym.Env):
     ## Info
     The same keys and types at every step: "outcome" says why the episode ended ("running",
     "finished", "off_road", "wrong_direction", "too_slow") and "outcome_code" is its index in
-    `league.physics.OUTCOMES` (0 to 4, the thesis' `completation` codes, a `numpy.int64`);
+    `league.constants.OUTCOMES` (0 to 4, the thesis' `completation` codes, a `numpy.int64`);
     "progress" (lap fraction), "time" (s), "distance" and "speed" (`numpy.float64`).
     `numeric_infos=True` leaves out the "outcome" string, for libraries that make a tensor of
     every info value (torchrl's `GymEnv`, whose `num_envs=N` runs N of these envs).
@@ -92,7 +91,7 @@ class MicroRacerEnv(gym.Env):
     `reset(options={"track": track})` races on a given `league.track.Track` instead of a new
     one; `options={"initial_speed": v}` sets the start speed. Many episodes at once, in one
     compiled step: `gymnasium.make_vec("league/MicroRacer-v0", num_envs=N,
-    vectorization_mode="vector_entry_point")` or `league.vector_env(num_envs=N, track_pool=None,
+    vectorization_mode="vector_entry_point")` or `league.make_vector_env(num_envs=N, track_pool=None,
     **options)` (`league.vector_env.MicroRacerVectorEnv`).
 
     ## Version History
@@ -103,23 +102,17 @@ class MicroRacerEnv(gym.Env):
 
     def __init__(self, render_mode: str | None = None, numeric_infos: bool = False, **options):
         self.options = RaceOptions.from_kwargs("MicroRacerEnv.__init__", **options)
-        if render_mode is not None and render_mode not in self.metadata["render_modes"]:
-            raise ValueError(f"render_mode must be one of {self.metadata['render_modes']} or None, got {render_mode!r}")
-        self.render_mode = render_mode
+        self.render_mode = self.check_render_mode(render_mode)
         self.numeric_infos = numeric_infos
         self.action_space = action_space()
         self.observation_space = observation_space(self.options.observation)
         self.cars = None  # league.lidar.CarBatch of one car, made at reset
         self.track: Track | None = None
         self._trail: list[tuple[float, float]] = []
-        self._window = None
 
     def reset(self, *, seed: int | None = None, options: dict | None = None):
         super().reset(seed=seed)
-        options = options or {}
-        self.track = options.get("track") or self.options.new_track(self.np_random)
-        speed = options.get("initial_speed")
-        speed = self.options.initial_speed(self.np_random) if speed is None else float(speed)
+        self.track, speed = self.options.episode_start(self.np_random, options)
         self.cars = start_cars(self.cars, 1, self.track, self.options, speed)
         self._trail = [self.track.start_position]
         return self.cars.observation(0), env_info(self.cars, 0, self.numeric_infos)
@@ -144,28 +137,11 @@ class MicroRacerEnv(gym.Env):
         return (cars.observation(0), cars.reward[0].item(), outcome != RUNNING, truncated,
                 env_info(cars, 0, self.numeric_infos))
 
-    def render(self):
-        from league import render
-
-        if self.render_mode is None:
-            gym.logger.warn('render() needs a render_mode: gymnasium.make(..., render_mode="rgb_array")')
-            return None
+    def frame_cars(self):
         cars = self.cars
         if cars is None:
-            frame = render.blank_frame()  # wrappers render before the first reset to learn the shape
-        else:
-            frame = render.render_frame(self.track, cars.x, cars.y, cars.heading, [np.array(self._trail)])
-        if self.render_mode == "rgb_array":
-            return frame
-        self._window = render.show_frame(frame, self._window)
-        return None
-
-    def close(self):
-        if self._window is not None:
-            from league import render
-
-            render.close_window(self._window)
-            self._window = None
+            return None
+        return self.track, cars.x, cars.y, cars.heading, [np.array(self._trail)]
 
 
 def registered_env(**options) -> MicroRacerEnv:

@@ -19,11 +19,15 @@ from typing import Any
 import numpy as np
 from tqdm.auto import tqdm
 
-from league.agents import COMPACT_DIM, LIDAR_DIM, Agent, AgentError, as_agent, compact_from_lidar
-from league.constants import FINISHED, OUTCOMES, PHYSICS_VERSION, RUNNING
+from league import __version__
+from league.agents import Agent, AgentError, as_agent, compact_from_lidar
+from league.cars import new_cars, place_car
+from league.constants import (
+    COMPACT_DIM, FINISHED, LIDAR_DIM, OUTCOMES, PHYSICS_VERSION, RUNNING, TRACK_FORMAT_VERSION, observation_name,
+)
+from league.options import RaceOptions
 from league.parallel_env import parallel_env
-from league.physics import RaceOptions, episode_start, new_cars, place_car
-from league.track import FORMAT_VERSION, Track
+from league.track import Track, episode_start
 
 LOCKSTEP_EPISODES = 128  # episodes metrics_run advances together; their maps (1.69 MB each) bound its memory
 REPLAY_FORMAT = "microracer-replay"
@@ -51,17 +55,9 @@ def episode_seeds(seed: int, episodes: int) -> list[int]:
     return [int(s) for s in np.random.SeedSequence(seed).generate_state(episodes, dtype=np.uint32)]
 
 
-def observation_mode(obs_dim: int) -> str:
-    if obs_dim == COMPACT_DIM:
-        return "compact"
-    if obs_dim == LIDAR_DIM:
-        return "lidar"
-    raise ValueError(f"agents observe 5 (compact) or 20 (lidar) values, got obs_dim={obs_dim}")
-
-
 def _checked_options(env_options: dict) -> dict:
     if "observation" in env_options:
-        raise ValueError("the observation follows the agent's obs_dim (5: compact, 20: lidar); "
+        raise ValueError(f"the observation follows the agent's obs_dim ({COMPACT_DIM}: compact, {LIDAR_DIM}: lidar); "
                          "do not pass observation=")
     return dict(env_options)
 
@@ -78,9 +74,7 @@ def _full_options(env_options: dict) -> dict:
 
 def league_versions() -> dict:
     """What produces results: the simulator (its physics and its track format) and the package."""
-    import league  # at call time: league/__init__.py imports this module
-
-    return {"physics": PHYSICS_VERSION, "track_format": FORMAT_VERSION, "package": league.__version__}
+    return {"physics": PHYSICS_VERSION, "track_format": TRACK_FORMAT_VERSION, "package": __version__}
 
 
 def result_key(seed: int, episodes: int, env_options: dict, versions: dict | None = None) -> str:
@@ -257,7 +251,7 @@ def metrics_run(agent: Agent | str | os.PathLike, episodes: int = 100, seed: int
         seed: the run's seed; episode i uses ``episode_seeds(seed, episodes)[i]``
             (``SeedSequence(seed).generate_state``), so the same seed means the same tracks and
             initial speeds for every agent, and the same agent and seed the same metrics. The
-            tracks come from this process's track cache (`league.physics.episode_start`).
+            tracks come from this process's track cache (`league.track.episode_start`).
         progress: show a tqdm progress bar (on stderr), one tick per finished episode.
         on_episode: called as ``on_episode(i, episode_result)`` as each episode ends, in the
             order they end (e.g. a server worker's heartbeat or partial results).
@@ -278,7 +272,7 @@ def metrics_run(agent: Agent | str | os.PathLike, episodes: int = 100, seed: int
     """
     agent = as_agent(agent)
     env_options = _checked_options(env_options)
-    options = RaceOptions.from_kwargs(observation=observation_mode(agent.obs_dim), **env_options)
+    options = RaceOptions.from_kwargs(observation=observation_name(agent.obs_dim), **env_options)
     seeds = episode_seeds(seed, episodes)
     results: list[EpisodeResult | None] = [None] * episodes
     with tqdm(total=episodes, disable=not progress, desc=agent.name, unit="ep", dynamic_ncols=True) as bar:

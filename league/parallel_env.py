@@ -7,15 +7,15 @@ from gymnasium import spaces
 from pettingzoo import ParallelEnv
 from pettingzoo.utils import parallel_to_aec, wrappers
 
-from league.env import MAX_SPEED, action_space, env_info, observation_space
-from league.physics import FINISHED, RUNNING, RaceOptions, as_actions, start_cars
-from league.render import FRAME_SHAPE
-from league.track import CELLS_PER_UNIT, GRID, Track
+from league.cars import as_actions, start_cars
+from league.constants import FINISHED, MAP_EXTENT, MAX_SPEED, RUNNING
+from league.env import action_space, env_info, observation_space
+from league.options import RaceOptions
+from league.render import FRAME_SHAPE, EnvRendering
+from league.track import Track
 
-WORLD_EDGE = GRID / 2 / CELLS_PER_UNIT  # the map covers [-1.3, 1.3]^2 world units
 
-
-class MicroRacerParallelEnv(ParallelEnv):
+class MicroRacerParallelEnv(EnvRendering, ParallelEnv):
     """
     ## Description
     N non-interacting cars (`car_0` ... `car_{N-1}`) race one lap of the same random track,
@@ -35,7 +35,7 @@ class MicroRacerParallelEnv(ParallelEnv):
 
     ## Infos
     Per car, the same keys and types at every step from `reset`: "outcome" (its name, as in
-    `league/MicroRacer-v0`) and "outcome_code" (its index in `league.physics.OUTCOMES`),
+    `league/MicroRacer-v0`) and "outcome_code" (its index in `league.constants.OUTCOMES`),
     "progress", "time", "distance", "speed", "position" (1-based finishing order) and
     "finish_time" (s), both 0 until the car finishes; the finish time is interpolated inside the
     step in which the car crossed the line, so cars finishing in the same step are ordered.
@@ -48,8 +48,11 @@ class MicroRacerParallelEnv(ParallelEnv):
 
     ## Arguments
     ```python
-    league.parallel_env(n_cars=4, render_mode=None, numeric_infos=False, **options)  # options as league/MicroRacer-v0
+    league.make_parallel_env(n_cars=4, render_mode=None, numeric_infos=False, **options)  # options as league/MicroRacer-v0
+    league.make_aec_env(n_cars=4, render_mode=None, **options)  # the AEC form
     ```
+    As PettingZoo's environment modules, `league.parallel_env` also names these two
+    `parallel_env()` and `env()`.
     `max_cycles=N` (PettingZoo's name, as its `max_cycles_test` passes it) is `max_episode_steps=N`:
     a car still running after N steps is truncated.
     Rendering and frames as `league/MicroRacer-v0` (`metadata["render_frame_shape"]`).
@@ -57,20 +60,19 @@ class MicroRacerParallelEnv(ParallelEnv):
 
     metadata = {"name": "microracer_v0", "render_modes": ["human", "rgb_array"], "render_fps": 25,
                 "is_parallelizable": True, "render_frame_shape": FRAME_SHAPE}
+    maker = "league.make_parallel_env"
 
     def __init__(self, n_cars: int = 4, render_mode: str | None = None, numeric_infos: bool = False,
                  max_cycles: int | None = None, **options):
         if not isinstance(n_cars, (int, np.integer)) or n_cars < 1:
             raise ValueError(f"n_cars must be an integer >= 1, got {n_cars!r}")
-        if render_mode is not None and render_mode not in self.metadata["render_modes"]:
-            raise ValueError(f"render_mode must be one of {self.metadata['render_modes']} or None, got {render_mode!r}")
         if max_cycles is not None:
             if "max_episode_steps" in options:
                 raise TypeError("give max_cycles (PettingZoo's name) or max_episode_steps, not both: they are "
                                 "the same episode limit")
             options["max_episode_steps"] = max_cycles
         self.options = RaceOptions.from_kwargs("parallel_env", **options)
-        self.render_mode = render_mode
+        self.render_mode = self.check_render_mode(render_mode)
         self.numeric_infos = numeric_infos
         self.possible_agents = [f"car_{i}" for i in range(n_cars)]
         self.agents: list[str] = []
@@ -83,7 +85,6 @@ class MicroRacerParallelEnv(ParallelEnv):
         self.np_random, _ = gym.utils.seeding.np_random(None)
         self._trails: list[list[tuple[float, float]]] = []
         self._finishers = 0
-        self._window = None
 
     def observation_space(self, agent):
         return self.observation_spaces[agent]
@@ -101,10 +102,7 @@ class MicroRacerParallelEnv(ParallelEnv):
     def reset(self, seed: int | None = None, options: dict | None = None):
         if seed is not None:
             self.np_random, _ = gym.utils.seeding.np_random(seed)
-        options = options or {}
-        self.track = options.get("track") or self.options.new_track(self.np_random)
-        speed = options.get("initial_speed")
-        speed = self.options.initial_speed(self.np_random) if speed is None else float(speed)
+        self.track, speed = self.options.episode_start(self.np_random, options)
         self.cars = start_cars(self.cars, self.n_cars, self.track, self.options, speed)
         obs = self.cars.obs
         self.agents = self.possible_agents[:]
@@ -187,44 +185,27 @@ class MicroRacerParallelEnv(ParallelEnv):
         c = self.cars
         return {"x": c.x.copy(), "y": c.y.copy(), "heading": c.heading.copy(), "speed": c.speed.copy()}
 
-    def render(self):
-        from league import render
-
-        if self.render_mode is None:
-            gym.logger.warn('render() needs a render_mode: league.parallel_env(..., render_mode="rgb_array")')
-            return None
+    def frame_cars(self):
         cars = self.cars
         if cars is None:
-            frame = render.blank_frame()
-        else:
-            frame = render.render_frame(self.track, cars.x, cars.y, cars.heading, [np.array(t) for t in self._trails])
-        if self.render_mode == "rgb_array":
-            return frame
-        self._window = render.show_frame(frame, self._window)
-        return None
-
-    def close(self):
-        if self._window is not None:
-            from league import render
-
-            render.close_window(self._window)
-            self._window = None
+            return None
+        return self.track, cars.x, cars.y, cars.heading, [np.array(t) for t in self._trails]
 
 
 def state_space(n_cars: int) -> spaces.Box:
     """Bounds of `state()`: per car x and y in the map, heading in [-pi, pi], speed."""
-    high = np.tile(np.array([WORLD_EDGE, WORLD_EDGE, np.pi, MAX_SPEED], dtype=np.float32), n_cars)
-    low = np.tile(np.array([-WORLD_EDGE, -WORLD_EDGE, -np.pi, 0], dtype=np.float32), n_cars)
+    high = np.tile(np.array([MAP_EXTENT, MAP_EXTENT, np.pi, MAX_SPEED], dtype=np.float32), n_cars)
+    low = np.tile(np.array([-MAP_EXTENT, -MAP_EXTENT, -np.pi, 0], dtype=np.float32), n_cars)
     return spaces.Box(low, high, dtype=np.float32)
 
 
 def parallel_env(n_cars: int = 4, render_mode: str | None = None, numeric_infos: bool = False,
                  **options) -> MicroRacerParallelEnv:
-    """N cars on one shared track (PettingZoo Parallel API)."""
+    """N cars on one shared track (PettingZoo Parallel API); `league.make_parallel_env`."""
     return MicroRacerParallelEnv(n_cars=n_cars, render_mode=render_mode, numeric_infos=numeric_infos, **options)
 
 
 def env(n_cars: int = 4, render_mode: str | None = None, **options):
-    """The AEC form of `parallel_env`, through PettingZoo's conversion."""
+    """The AEC form of `parallel_env`, through PettingZoo's conversion; `league.make_aec_env`."""
     aec = parallel_to_aec(parallel_env(n_cars=n_cars, render_mode=render_mode, **options))
     return wrappers.OrderEnforcingWrapper(aec) if not isinstance(aec, wrappers.OrderEnforcingWrapper) else aec

@@ -152,6 +152,48 @@ def render_frame(track: Any, xs: Sequence[float], ys: Sequence[float], headings:
     return frame
 
 
+class EnvRendering:
+    """The envs' rendering (MicroRacerEnv, MicroRacerParallelEnv, MicroRacerVectorEnv): the
+    render-mode check, `render()` and `close()`, drawing what the env's `frame_cars()` gives.
+
+    `render()` returns a frame of FRAME_SHAPE ("rgb_array"), or shows it in a matplotlib window
+    ("human"); before the first reset it is a blank frame (wrappers render then to learn the shape).
+    """
+
+    metadata: dict
+    render_mode: str | None = None
+    _window: Any = None
+    maker = "gymnasium.make"  # what the warning of `render()` without a render mode tells to call
+
+    def check_render_mode(self, render_mode: str | None) -> str | None:
+        if render_mode is not None and render_mode not in self.metadata["render_modes"]:
+            raise ValueError(f"render_mode must be one of {self.metadata['render_modes']} or None, got {render_mode!r}")
+        return render_mode
+
+    def frame_cars(self) -> tuple[Any, Any, Any, Any, list] | None:
+        """(track, xs, ys, headings, trails) to draw, or None before the first reset."""
+        raise NotImplementedError
+
+    def render(self):
+        if self.render_mode is None:
+            from gymnasium import logger
+
+            logger.warn(f'render() needs a render_mode: {self.maker}(..., render_mode="rgb_array")')
+            return None
+        cars = self.frame_cars()
+        frame = blank_frame() if cars is None else render_frame(*cars)
+        if self.render_mode == "rgb_array":
+            return frame
+        self._window = show_frame(frame, self._window)
+        return None
+
+    def close(self, **kwargs):
+        if self._window is not None:
+            close_window(self._window)
+            self._window = None
+        super().close(**kwargs)
+
+
 def _draw_polyline(frame: np.ndarray, rows: np.ndarray, cols: np.ndarray, color: tuple) -> None:
     """Densify the polyline to half-pixel spacing and paint a band TRAIL_HALF_WIDTH px wide."""
     lengths = np.hypot(np.diff(rows), np.diff(cols))

@@ -7,31 +7,20 @@ track rebuilds bit for bit (`Track.from_dict`).
 """
 from __future__ import annotations
 
+import functools
 from dataclasses import dataclass, field
 from functools import cached_property, lru_cache
 
 import numpy as np
 
 from league import lidar
-from league.constants import CELLS_PER_UNIT, GRID, ORIGIN
+from league.constants import (
+    BORDER_SAMPLES_PER_CURVE, CELLS_PER_UNIT, CHICANE_ADDED_POINTS, CHICANE_INNER, CHICANE_OUTER, CHICANE_PUSH, CURVES,
+    CURVES_RANGE, GRID, MAP_EXTENT, MAX_DRAWS, MAX_TRACK_WIDTH, N_OBSTACLES, N_OBSTACLES_RANGE, OBSTACLE_LENGTH, ORIGIN,
+    RASTER_ANGLES, TRACK_CACHE_SIZE, TRACK_FORMAT_VERSION, TRACK_WIDTH,
+)
 
-CURVES = 20  # control points of the mid-line
-CURVES_RANGE = (5, 60)  # beyond these a track takes long to draw
-TRACK_WIDTH = 0.04  # world units (1 unit = 1000 m)
-MAX_TRACK_WIDTH = 0.08  # wider borders fold on tight bends
-N_OBSTACLES = 6
-N_OBSTACLES_RANGE = (0, 20)
-BORDER_SAMPLES_PER_CURVE = 6  # mid-line samples per control point, for the borders
-RASTER_ANGLES = 2000  # inner -> outer segments drawn on the map
-OBSTACLE_LENGTH = np.pi / 150  # angular length of an obstacle (rad)
-CHICANE_OUTER, CHICANE_INNER = 1 / 3, 1 / 25  # chicane points at theta[c] +- delta * these
-CHICANE_PUSH = 0.02  # the chicane's inner pair is pushed apart by +-2 %
-MAX_DRAWS = 100  # tracks drawn before giving up (a discarded track is very rare)
-
-FORMAT_VERSION = 1
-CHICANE_ADDED_POINTS = 4  # a chicane replaces one control point by five
 MAX_CONTROL_POINTS = CURVES_RANGE[1] + CHICANE_ADDED_POINTS
-MAP_EXTENT = ORIGIN / CELLS_PER_UNIT  # world units from the centre to the map's edge (1.3)
 
 
 class TrackGenerationError(RuntimeError):
@@ -160,7 +149,7 @@ class Track:
     def to_dict(self) -> dict:
         """Compact, JSON-safe form (floats round-trip exactly through json)."""
         return {
-            "version": FORMAT_VERSION,
+            "version": TRACK_FORMAT_VERSION,
             "width": float(self.width),
             "control_theta": self.control_theta.tolist(),
             "control_points": self.control_points.tolist(),
@@ -177,8 +166,8 @@ class Track:
         """
         if not isinstance(data, dict):
             raise ValueError(f"a track is a JSON object, got {type(data).__name__}")
-        if data.get("version") != FORMAT_VERSION:
-            raise ValueError(f"unsupported track format version {data.get('version')!r}; expected {FORMAT_VERSION}")
+        if data.get("version") != TRACK_FORMAT_VERSION:
+            raise ValueError(f"unsupported track format version {data.get('version')!r}; expected {TRACK_FORMAT_VERSION}")
         n = _count(data, "control_theta", CURVES_RANGE[0], MAX_CONTROL_POINTS)
         theta = _numbers(data, "control_theta", (n,), 2 * np.pi)
         points = _numbers(data, "control_points", (n, 2), MAP_EXTENT)
@@ -430,3 +419,39 @@ def _slot_starts(slots: int) -> np.ndarray:
 def _read_only(array: np.ndarray) -> np.ndarray:
     array.flags.writeable = False
     return array
+
+
+# --------------------------------------------------------------------------- episode starts, cached
+
+
+def episode_start(seed: int, options) -> tuple[Track, float]:
+    """The track and initial speed that `MicroRacerEnv(**options).reset(seed=seed)` draws
+    (`options` a league.options.RaceOptions).
+
+    Kept in this process's bounded cache (`TRACK_CACHE_SIZE` starts, least recently used out
+    first), so evaluations with the same seeds (every submission of a course) share their tracks.
+    """
+    return _cached_start(int(seed), options.start_options())
+
+
+def _draw_start(seed: int, options) -> tuple[Track, float]:
+    from gymnasium.utils import seeding
+
+    rng, _ = seeding.np_random(seed)  # as Gymnasium's Env.reset(seed=seed)
+    return options.new_track(rng), options.initial_speed(rng)
+
+
+_cached_start = functools.lru_cache(maxsize=TRACK_CACHE_SIZE)(_draw_start)
+
+
+def set_track_cache_size(size: int) -> None:
+    """Bound `episode_start`'s cache to `size` starts (0 keeps none); empties it."""
+    global _cached_start
+    if not isinstance(size, (int, np.integer)) or isinstance(size, bool) or not 0 <= size <= 4096:
+        raise ValueError(f"size must be an integer in [0, 4096], got {size!r}")  # each start may hold a 1.69 MB map
+    _cached_start = functools.lru_cache(maxsize=size)(_draw_start)
+
+
+def track_cache_info() -> tuple:
+    """Hits, misses, size and bound of `episode_start`'s cache."""
+    return _cached_start.cache_info()

@@ -3,22 +3,27 @@ from __future__ import annotations
 
 from typing import Any
 
-import gymnasium as gym
 import numpy as np
 from gymnasium.utils import seeding
-from gymnasium.vector import AutoresetMode, VectorEnv
+
+try:
+    from gymnasium.vector import AutoresetMode, VectorEnv
+except ImportError as error:  # Gymnasium 0.29: the single and the PettingZoo envs run on it, this one does not
+    raise ImportError("league.vector_env needs Gymnasium >= 1.0 (its vector API): pip install -U gymnasium") from error
 from gymnasium.vector.utils import batch_space
 
+from league.cars import as_actions, new_cars, place_car
 from league.constants import OUTCOMES, RUNNING
 from league.env import action_space, observation_space
-from league.physics import RaceOptions, as_actions, episode_start, new_cars, place_car
-from league.track import Track
+from league.options import RaceOptions
+from league.render import EnvRendering
+from league.track import Track, episode_start
 
 OUTCOME_NAMES = np.array(OUTCOMES, dtype=object)
 INFO_KEYS = ("outcome", "outcome_code", "progress", "time", "distance", "speed")
 
 
-class MicroRacerVectorEnv(VectorEnv):
+class MicroRacerVectorEnv(EnvRendering, VectorEnv):
     """
     ## Description
     `num_envs` independent MicroRacer episodes (`league/MicroRacer-v0`), each with its own car
@@ -54,7 +59,7 @@ class MicroRacerVectorEnv(VectorEnv):
     costs nothing then): track k of the pool is the track of `MicroRacerEnv().reset(seed=p + k)`,
     where p is the seed of the first seeded reset (or drawn from the env's seed); each episode
     picks one with its sub-env's generator and draws its initial speed as usual. Pool tracks
-    come from the process's track cache (`league.physics.episode_start`).
+    come from the process's track cache (`league.track.episode_start`).
 
     ## Reset options
     `reset(options=...)` takes the single env's options ("track", "initial_speed") for every
@@ -72,26 +77,25 @@ class MicroRacerVectorEnv(VectorEnv):
     ```python
     gymnasium.make_vec("league/MicroRacer-v0", num_envs=8, vectorization_mode="vector_entry_point",
                        **options)  # every option of league/MicroRacer-v0
-    league.vector_env(num_envs=8, autoreset_mode=AutoresetMode.NEXT_STEP, track_pool=None,
-                      render_mode=None, numeric_infos=False, **options)
+    league.make_vector_env(num_envs=8, autoreset_mode=AutoresetMode.NEXT_STEP, track_pool=None,
+                           render_mode=None, numeric_infos=False, **options)
     ```
     """
 
     metadata = {"render_modes": ["rgb_array"], "render_fps": 25, "autoreset_mode": AutoresetMode.NEXT_STEP}
+    maker = "league.make_vector_env"
 
     def __init__(self, num_envs: int = 8, render_mode: str | None = None,
                  autoreset_mode: AutoresetMode | str = AutoresetMode.NEXT_STEP, track_pool: int | None = None,
                  numeric_infos: bool = False, **options):
         if not isinstance(num_envs, (int, np.integer)) or num_envs < 1:
             raise ValueError(f"num_envs must be an integer >= 1, got {num_envs!r}")
-        if render_mode is not None and render_mode not in self.metadata["render_modes"]:
-            raise ValueError(f"render_mode must be one of {self.metadata['render_modes']} or None, got {render_mode!r}")
         if track_pool is not None and (not isinstance(track_pool, (int, np.integer)) or track_pool < 1):
             raise ValueError(f"track_pool must be a number of tracks >= 1, or None for a new track every episode; "
                              f"got {track_pool!r}")
         self.options = RaceOptions.from_kwargs(**options)
         self.num_envs = int(num_envs)
-        self.render_mode = render_mode
+        self.render_mode = self.check_render_mode(render_mode)
         self.metadata = {**self.metadata, "autoreset_mode": AutoresetMode(autoreset_mode)}
         self.single_observation_space = observation_space(self.options.observation)
         self.single_action_space = action_space()
@@ -164,15 +168,10 @@ class MicroRacerVectorEnv(VectorEnv):
 
     def _start_episode(self, i: int, options: dict | None = None) -> None:
         """Sub-env i's next episode: as `MicroRacerEnv.reset`, from the sub-env's own generator."""
-        options, rng = options or {}, self._rngs[i]
-        if options.get("track") is not None:
-            track = options["track"]
-        elif self.track_pool:
-            track = self._pool[int(rng.integers(len(self._pool)))]
-        else:
-            track = self.options.new_track(rng)
-        speed = options.get("initial_speed")
-        speed = self.options.initial_speed(rng) if speed is None else float(speed)
+        options, rng = dict(options or {}), self._rngs[i]
+        if options.get("track") is None and self.track_pool:
+            options["track"] = self._pool[int(rng.integers(len(self._pool)))]
+        track, speed = self.options.episode_start(rng, options)
         self.tracks[i] = track
         place_car(self.cars, i, track, speed)
         if i == 0:
@@ -193,14 +192,12 @@ class MicroRacerVectorEnv(VectorEnv):
         infos.update({f"_{key}": self._mask for key in self.info_keys})
         return infos
 
-    def render(self):
-        from league import render
-
-        if self.render_mode is None:
-            gym.logger.warn('render() needs a render_mode: league.vector_env(..., render_mode="rgb_array")')
+    def frame_cars(self):
+        """Sub-env 0: its track, car and trail."""
+        if self.tracks[0] is None:
             return None
         cars = self.cars
-        return render.render_frame(self.tracks[0], cars.x[:1], cars.y[:1], cars.heading[:1], [np.array(self._trail)])
+        return self.tracks[0], cars.x[:1], cars.y[:1], cars.heading[:1], [np.array(self._trail)]
 
 
 def _add_final(infos: dict, final_infos: dict, final_obs: np.ndarray, done: np.ndarray, keys: tuple) -> None:
@@ -232,6 +229,7 @@ def _reset_mask(mask: Any, num_envs: int) -> np.ndarray:
     return mask
 
 
-def vector_env(num_envs: int = 8, render_mode: str | None = None, **options) -> MicroRacerVectorEnv:
-    """`num_envs` independent MicroRacer episodes as a Gymnasium VectorEnv (see MicroRacerVectorEnv)."""
+def make_vector_env(num_envs: int = 8, render_mode: str | None = None, **options) -> MicroRacerVectorEnv:
+    """`num_envs` independent MicroRacer episodes as a Gymnasium VectorEnv (see MicroRacerVectorEnv);
+    `league.make_vector_env`."""
     return MicroRacerVectorEnv(num_envs=num_envs, render_mode=render_mode, **options)

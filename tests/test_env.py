@@ -126,7 +126,7 @@ def test_unknown_option_is_pythons_own_error_and_names_the_valid_ones():
 
 def test_time_limit_belongs_to_gymnasiums_registry():
     env = gym.make("league/MicroRacer-v0", low_speed_termination=False)
-    assert env.spec.max_episode_steps == league.physics.MAX_EPISODE_STEPS
+    assert env.spec.max_episode_steps == league.constants.MAX_EPISODE_STEPS
     assert env.unwrapped.options.max_episode_steps is None  # the TimeLimit wrapper keeps time
     short = gym.make("league/MicroRacer-v0", max_episode_steps=30, low_speed_termination=False)
     assert short.spec.max_episode_steps == 30
@@ -202,7 +202,7 @@ def test_info_has_the_same_keys_and_types_at_every_step_and_the_code_names_the_o
     while not (terminated or truncated):
         obs, _, terminated, truncated, info = env.step(np.array(reference.heuristic(obs)) * [1.6, 1])
         assert {key: type(value) for key, value in info.items()} == types
-    assert info["outcome"] != "running" and league.physics.OUTCOMES[info["outcome_code"]] == info["outcome"]
+    assert info["outcome"] != "running" and league.constants.OUTCOMES[info["outcome_code"]] == info["outcome"]
 
 
 def test_rgb_array_frames_have_the_declared_shape_on_every_track_and_before_reset():
@@ -229,7 +229,7 @@ def test_rgb_array_render_draws_track_obstacles_car_and_trail_without_a_display(
 
 
 def test_parallel_render_draws_every_car():
-    penv = league.parallel_env(n_cars=3, render_mode="rgb_array")
+    penv = league.make_parallel_env(n_cars=3, render_mode="rgb_array")
     observations, _ = penv.reset(seed=2)
     for _step in range(60):
         actions = {a: np.array(reference.heuristic(observations[a])) * (1 + 0.3 * int(a[4:])) for a in penv.agents}

@@ -20,7 +20,9 @@ from league.evaluation import (
     run_episode,
     save_replay,
 )
-from league.physics import TRACK_CACHE_SIZE, RaceOptions, episode_start, set_track_cache_size, track_cache_info
+from league.constants import TRACK_CACHE_SIZE
+from league.options import RaceOptions
+from league.track import episode_start, set_track_cache_size, track_cache_info
 
 ALL_OFF = {"obstacles": False, "chicanes": False, "turn_limit": False, "low_speed_termination": False}
 
@@ -202,7 +204,7 @@ def test_result_converts_to_json_and_table_and_back():
 
 def test_a_result_records_what_produced_it_and_its_key_tells_what_compares():
     result = metrics_run("heuristic", episodes=2, seed=9, obstacles=False, max_episode_steps=50)
-    versions = {"physics": league.constants.PHYSICS_VERSION, "track_format": league.track.FORMAT_VERSION,
+    versions = {"physics": league.constants.PHYSICS_VERSION, "track_format": league.constants.TRACK_FORMAT_VERSION,
                 "package": league.__version__}
     assert result.settings["versions"] == league_versions() == versions
     key = result.settings["result_key"]

@@ -4,7 +4,12 @@ of the package counts, those inside functions too (they run as soon as the funct
 from __future__ import annotations
 
 import ast
+import os
+import subprocess
+import sys
 from pathlib import Path
+
+import pytest
 
 PACKAGE = Path(__file__).resolve().parents[1] / "league"
 # The command line is where the toolkit and the server meet: it adds the server's commands when
@@ -84,3 +89,100 @@ def test_the_walk_sees_what_would_be_an_upward_edge():
                              ("league.client", "league.server.sandbox.validation"),
                              ("league.validation.files", "league.server"),
                              ("league.validation.files", "league.server.storage")]
+
+
+# --------------------------------------------------------------------------- the package's entry
+
+
+def run_python(code: str) -> subprocess.CompletedProcess:
+    """`code` in a new interpreter that imports this tree's package."""
+    environment = {**os.environ, "PYTHONPATH": str(PACKAGE.parent)}
+    return subprocess.run([sys.executable, "-c", code], env=environment, capture_output=True, text=True, timeout=120)
+
+
+HEAVY = ("gymnasium", "pettingzoo", "tqdm", "scipy", "matplotlib", "league.evaluation", "league.env")
+
+
+@pytest.mark.parametrize("module", ["league", "league.constants", "league.validation", "league.validation.checks",
+                                    "league.validation.limits"])
+def test_the_package_and_its_light_modules_import_without_the_simulator(module):
+    """`import league.constants` runs league/__init__.py first: that must load none of the envs,
+    Gymnasium or PettingZoo (the sandbox and `league check` import the toolkit this way)."""
+    done = run_python(f"import sys, {module}\nprint([name for name in {HEAVY!r} if name in sys.modules])")
+    assert done.returncode == 0, done.stderr
+    assert done.stdout.strip() == "[]"
+
+
+@pytest.mark.parametrize("first, second", [("league", "gymnasium"), ("gymnasium", "league"),
+                                           ("league.constants", "gymnasium")])
+def test_importing_league_registers_the_gymnasium_id_in_either_order(first, second):
+    done = run_python(f"import {first}, {second}\nimport gymnasium\n"
+                      "env = gymnasium.make('league/MicroRacer-v0')\n"
+                      "print(env.spec.entry_point, env.spec.max_episode_steps, env.reset(seed=0)[0].shape)")
+    assert done.returncode == 0, done.stderr
+    assert done.stdout.split() == ["league.env:registered_env", "4000", "(5,)"]
+
+
+def test_without_league_the_id_is_unknown():
+    """The registration above is league's doing, not Gymnasium's."""
+    done = run_python("import gymnasium\nprint('league/MicroRacer-v0' in gymnasium.envs.registry)")
+    assert done.returncode == 0, done.stderr
+    assert done.stdout.strip() == "False"
+
+
+def test_the_env_modules_are_not_hidden_by_factories():
+    """league.env, league.parallel_env and league.vector_env are the modules, loaded on first use; the
+    factories have names of their own."""
+    done = run_python("import types, league\n"
+                      "print(all(isinstance(m, types.ModuleType) for m in (league.env, league.parallel_env, "
+                      "league.vector_env)), league.env.MicroRacerEnv is league.MicroRacerEnv)")
+    assert done.returncode == 0, done.stderr
+    assert done.stdout.split() == ["True", "True"]
+    import league.parallel_env
+    import league.vector_env
+
+    assert league.make_parallel_env is league.parallel_env.parallel_env  # PettingZoo's module convention
+    assert league.make_aec_env is league.parallel_env.env
+    assert league.make_vector_env is league.vector_env.make_vector_env
+    assert set(league.__all__) <= set(dir(league))
+    with pytest.raises(AttributeError, match="has no attribute 'no_such_name'"):
+        league.no_such_name  # noqa: B018
+
+
+def module_level_imports(path: Path) -> set[str]:
+    """The league modules that a module imports as it loads (statements outside functions)."""
+    tree, found = ast.parse(path.read_text()), set()
+    body = [node for node in tree.body if not isinstance(node, (ast.FunctionDef, ast.AsyncFunctionDef, ast.ClassDef))]
+    for statement in body:
+        source = ast.unparse(statement)
+        found |= imports_of(source, module_name(path), path.name == "__init__.py")
+    return found
+
+
+def cycles(graph: dict[str, set[str]]) -> list[list[str]]:
+    """The import cycles of `graph` (each once, from its smallest module)."""
+    found = set()
+
+    def walk(module, trail):
+        for target in sorted(graph.get(module, ())):
+            if target in trail:
+                cycle = trail[trail.index(target):]
+                start = cycle.index(min(cycle))
+                found.add(tuple(cycle[start:] + cycle[:start]))
+            elif target in graph:
+                walk(target, trail + [target])
+
+    for module in graph:
+        walk(module, [module])
+    return [list(cycle) for cycle in sorted(found)]
+
+
+def test_the_toolkit_has_no_import_cycle():
+    """A module may import league (for __version__): league/__init__.py imports none of the toolkit as
+    it loads, so no cycle runs through it (compat -> evaluation -> league -> compat was one)."""
+    graph = {module_name(path): module_level_imports(path) for path in sorted(PACKAGE.rglob("*.py"))
+             if not _in(module_name(path), "league.server")}
+    assert graph["league.evaluation"] >= {"league", "league.parallel_env"}  # the walk sees module-level imports
+    assert cycles(graph) == []
+    assert cycles({"league": {"league.compat"}, "league.compat": {"league.evaluation"},
+                   "league.evaluation": {"league"}}) == [["league", "league.compat", "league.evaluation"]]

@@ -14,16 +14,16 @@ ALL_OFF = dict(obstacles=False, chicanes=False, turn_limit=False, low_speed_term
 
 @pytest.mark.parametrize("options", [{}, ALL_OFF, {"observation": "lidar"}])
 def test_pettingzoo_parallel_api(options):
-    parallel_api_test(league.parallel_env(n_cars=3, **options), num_cycles=300)
+    parallel_api_test(league.make_parallel_env(n_cars=3, **options), num_cycles=300)
 
 
 @pytest.mark.parametrize("options", [{}, ALL_OFF])
 def test_pettingzoo_parallel_seed(options):
-    parallel_seed_test(lambda: league.parallel_env(n_cars=3, **options), num_cycles=100)
+    parallel_seed_test(lambda: league.make_parallel_env(n_cars=3, **options), num_cycles=100)
 
 
 def test_aec_form():
-    api_test(league.env(n_cars=2), num_cycles=100)
+    api_test(league.make_aec_env(n_cars=2), num_cycles=100)
 
 
 def seeded(make, seed: int):
@@ -40,31 +40,31 @@ def seeded(make, seed: int):
 def test_pettingzoo_max_cycles_is_the_episode_limit():
     # PettingZoo's test drives random actions and wants most cars alive after max_cycles=4
     # steps; a random car can leave the road that soon, so its envs are seeded.
-    max_cycles_test(SimpleNamespace(parallel_env=seeded(league.parallel_env, 3), env=seeded(league.env, 3)))
-    assert league.parallel_env(max_cycles=7).options.max_episode_steps == 7
+    max_cycles_test(SimpleNamespace(parallel_env=seeded(league.make_parallel_env, 3), env=seeded(league.make_aec_env, 3)))
+    assert league.make_parallel_env(max_cycles=7).options.max_episode_steps == 7
     with pytest.raises(TypeError, match="max_cycles .* or max_episode_steps, not both"):
-        league.parallel_env(max_cycles=7, max_episode_steps=7)
+        league.make_parallel_env(max_cycles=7, max_episode_steps=7)
 
 
 def test_pettingzoo_state():
-    state_test(league.env(n_cars=3), league.parallel_env(n_cars=3), num_cycles=100)
+    state_test(league.make_aec_env(n_cars=3), league.make_parallel_env(n_cars=3), num_cycles=100)
 
 
 def test_pettingzoo_render():
-    render_test(lambda render_mode=None: league.env(n_cars=2, render_mode=render_mode))
-    penv = league.parallel_env(n_cars=2, render_mode="rgb_array")
+    render_test(lambda render_mode=None: league.make_aec_env(n_cars=2, render_mode=render_mode))
+    penv = league.make_parallel_env(n_cars=2, render_mode="rgb_array")
     assert penv.render().shape == penv.metadata["render_frame_shape"]  # before reset too
 
 
 def test_spaces_are_dict_attributes_too():
-    penv = league.parallel_env(n_cars=3)
+    penv = league.make_parallel_env(n_cars=3)
     for agent in penv.possible_agents:
         assert penv.observation_spaces[agent] is penv.observation_space(agent)
         assert penv.action_spaces[agent] is penv.action_space(agent)
 
 
 def test_state_is_every_cars_position_heading_and_speed():
-    penv = league.parallel_env(n_cars=3)
+    penv = league.make_parallel_env(n_cars=3)
     with pytest.raises(RuntimeError, match="reset"):
         penv.state()
     observations, _ = penv.reset(seed=4)
@@ -81,7 +81,7 @@ def test_state_is_every_cars_position_heading_and_speed():
 
 
 def test_infos_have_the_same_keys_and_types_from_reset_to_the_end():
-    penv = league.parallel_env(n_cars=4, **ALL_OFF)
+    penv = league.make_parallel_env(n_cars=4, **ALL_OFF)
     observations, infos = penv.reset(seed=4)
     types = {key: type(value) for key, value in infos["car_0"].items()}
     assert set(types) == {"outcome", "outcome_code", "progress", "time", "distance", "speed", "position", "finish_time"}
@@ -95,11 +95,11 @@ def test_infos_have_the_same_keys_and_types_from_reset_to_the_end():
         last.update(infos)
     finishers = [i for i in last.values() if i["outcome"] == "finished"]
     assert finishers and all(i["position"] >= 1 and i["finish_time"] > 0 for i in finishers)
-    assert all(league.physics.OUTCOMES[i["outcome_code"]] == i["outcome"] for i in last.values())
+    assert all(league.constants.OUTCOMES[i["outcome_code"]] == i["outcome"] for i in last.values())
 
 
 def test_numeric_infos_leave_the_outcome_name_out():
-    penv = league.parallel_env(n_cars=2, numeric_infos=True)
+    penv = league.make_parallel_env(n_cars=2, numeric_infos=True)
     _, infos = penv.reset(seed=0)
     assert "outcome" not in infos["car_0"] and all(isinstance(v, np.number) for v in infos["car_0"].values())
 
@@ -119,7 +119,7 @@ def drive(penv, seed, perturb=0.0):
 
 
 def test_cars_share_track_start_and_speed_and_identical_actions_give_identical_races():
-    penv = league.parallel_env(n_cars=4)
+    penv = league.make_parallel_env(n_cars=4)
     observations, infos = penv.reset(seed=3)
     assert len({tuple(o) for o in observations.values()}) == 1
     assert len({i["speed"] for i in infos.values()}) == 1
@@ -128,7 +128,7 @@ def test_cars_share_track_start_and_speed_and_identical_actions_give_identical_r
 
 
 def test_finishing_positions_follow_interpolated_finish_times():
-    penv = league.parallel_env(n_cars=8, **ALL_OFF)
+    penv = league.make_parallel_env(n_cars=8, **ALL_OFF)
     final = drive(penv, 4, perturb=0.004)
     finishers = [i for i in final.values() if i["outcome"] == "finished"]
     assert len(finishers) >= 4
@@ -144,7 +144,7 @@ def test_finishing_positions_follow_interpolated_finish_times():
 
 
 def test_done_cars_leave_the_agents_and_their_actions_are_ignored():
-    penv = league.parallel_env(n_cars=2)
+    penv = league.make_parallel_env(n_cars=2)
     observations, _ = penv.reset(seed=0)
     for _ in range(30):  # car_0 steers full right into the border, car_1 drives well
         actions = {"car_0": [0.0, 1.0], "car_1": reference.heuristic(observations["car_1"])}
@@ -164,7 +164,7 @@ def test_done_cars_leave_the_agents_and_their_actions_are_ignored():
 
 
 def test_batched_interface_matches_the_dict_interface():
-    a, b = league.parallel_env(n_cars=5), league.parallel_env(n_cars=5)
+    a, b = league.make_parallel_env(n_cars=5), league.make_parallel_env(n_cars=5)
     obs_a, _ = a.reset(seed=12)
     b.reset(seed=12)
     obs = np.stack([obs_a[x] for x in a.possible_agents])
@@ -184,7 +184,7 @@ def test_batched_interface_matches_the_dict_interface():
 
 
 def test_car_states_and_pickling():
-    penv = league.parallel_env(n_cars=3)
+    penv = league.make_parallel_env(n_cars=3)
     observations, _ = penv.reset(seed=1)
     states = penv.car_states()
     assert set(states) == {"x", "y", "heading", "speed"} and states["x"].shape == (3,)
@@ -196,11 +196,11 @@ def test_car_states_and_pickling():
 
 def test_bad_n_cars():
     with pytest.raises(ValueError, match="n_cars"):
-        league.parallel_env(n_cars=0)
+        league.make_parallel_env(n_cars=0)
 
 
 def test_retire_takes_a_car_out_of_the_race():
-    penv = league.parallel_env(n_cars=2)
+    penv = league.make_parallel_env(n_cars=2)
     observations, _ = penv.reset(seed=0)
     penv.retire("car_0")
     assert penv.agents == ["car_1"]

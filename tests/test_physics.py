@@ -5,8 +5,7 @@ import numpy as np
 import pytest
 
 import league
-from league.constants import CELLS_PER_UNIT, ORIGIN
-from league.physics import MAX_ACC, MAX_TURN, TSTEP
+from league.constants import CELLS_PER_UNIT, MAX_ACC, MAX_TURN, ORIGIN, TSTEP
 from league.track import Track
 
 from . import reference

@@ -71,7 +71,7 @@ def test_gymnasium_vector_envs_and_stable_baselines3_env_checker():
     vector = gym.make_vec("league/MicroRacer-v0", num_envs=2, vectorization_mode="sync")
     obs, _ = vector.reset(seed=0)
     obs, *_ = vector.step(np.zeros((2, 2), dtype=np.float32))
-    assert obs.shape == (2, 5) and vector.spec.max_episode_steps == league.physics.MAX_EPISODE_STEPS
+    assert obs.shape == (2, 5) and vector.spec.max_episode_steps == league.constants.MAX_EPISODE_STEPS
 
 
 def test_example_sb3_ppo_single_car(tmp_path):
@@ -135,7 +135,7 @@ def test_torchrl_vectorized_gym_env_steps_as_the_native_vector_env():
     rollout = env.rollout(25, heuristic_module(), break_when_any_done=False)  # through the time limit
     env.close()
     assert rollout.batch_size == (3, 25)
-    native = league.vector_env(num_envs=3, max_episode_steps=10)
+    native = league.make_vector_env(num_envs=3, max_episode_steps=10)
     native.reset(seed=5)
     obs, _ = native.reset()
     np.testing.assert_array_equal(rollout["observation"][:, 0].numpy(), obs)

@@ -26,7 +26,7 @@ def assert_same_step(vector, singles, i):
 def run_against_single_envs(steps, num_envs=4, seed=11, **options):
     """Step the vector env and N MicroRacerEnv (seeds seed + i, autoreset at the next step by hand)
     with the same actions; every observation, reward, flag and info must be identical."""
-    venv = league.vector_env(num_envs=num_envs, **options)
+    venv = league.make_vector_env(num_envs=num_envs, **options)
     singles = [league.MicroRacerEnv(**options) for _ in range(num_envs)]
     obs, infos = venv.reset(seed=seed)
     for i, env in enumerate(singles):
@@ -65,7 +65,7 @@ def test_every_option_as_the_single_env(options):
 
 
 def test_stepping_some_sub_envs_leaves_the_others_exactly_as_they_were():
-    venv = league.vector_env(num_envs=4, max_episode_steps=30)
+    venv = league.make_vector_env(num_envs=4, max_episode_steps=30)
     singles = {0: league.MicroRacerEnv(max_episode_steps=30), 2: league.MicroRacerEnv(max_episode_steps=30)}
     obs, _ = venv.reset(seed=5)
     for i, env in singles.items():
@@ -88,7 +88,7 @@ def test_stepping_some_sub_envs_leaves_the_others_exactly_as_they_were():
 
 
 def test_truncation_counts_each_cars_own_steps():
-    venv = league.vector_env(num_envs=2, max_episode_steps=40, obstacles=False, chicanes=False)
+    venv = league.make_vector_env(num_envs=2, max_episode_steps=40, obstacles=False, chicanes=False)
     obs, _ = venv.reset(seed=2)
     venv.cars.retire(1)  # car 1 ends now (as a crash would), and starts again at the next step
     venv._needs_reset[1] = True
@@ -101,7 +101,7 @@ def test_truncation_counts_each_cars_own_steps():
 
 
 def test_same_step_autoreset_gives_final_observations_and_infos():
-    venv = league.vector_env(num_envs=3, autoreset_mode=AutoresetMode.SAME_STEP, max_episode_steps=50)
+    venv = league.make_vector_env(num_envs=3, autoreset_mode=AutoresetMode.SAME_STEP, max_episode_steps=50)
     single = league.MicroRacerEnv(max_episode_steps=50)
     obs, _ = venv.reset(seed=4)
     single_obs, _ = single.reset(seed=4)
@@ -119,7 +119,7 @@ def test_same_step_autoreset_gives_final_observations_and_infos():
 def test_same_step_autoreset_matches_gymnasiums_sync_vector_env():
     kwargs = {"num_envs": 3, "vector_kwargs": {"autoreset_mode": AutoresetMode.SAME_STEP}}
     sync = gym.make_vec("league/MicroRacer-v0", vectorization_mode="sync", max_episode_steps=120, **kwargs)
-    native = league.vector_env(num_envs=3, autoreset_mode=AutoresetMode.SAME_STEP, max_episode_steps=120)
+    native = league.make_vector_env(num_envs=3, autoreset_mode=AutoresetMode.SAME_STEP, max_episode_steps=120)
     sync_obs, _ = sync.reset(seed=8)
     obs, _ = native.reset(seed=8)
     for _ in range(300):
@@ -155,7 +155,7 @@ def test_numeric_infos_leave_the_outcome_name_out_as_sync_vector_env_does():
     kwargs = {"num_envs": 3, "max_episode_steps": 40, "numeric_infos": True}
     sync = gym.make_vec("league/MicroRacer-v0", vectorization_mode="sync",
                         vector_kwargs={"autoreset_mode": AutoresetMode.SAME_STEP}, **kwargs)
-    native = league.vector_env(autoreset_mode=AutoresetMode.SAME_STEP, **kwargs)
+    native = league.make_vector_env(autoreset_mode=AutoresetMode.SAME_STEP, **kwargs)
     obs, infos = native.reset(seed=2)
     assert set(infos) == set(sync.reset(seed=2)[1]) and "outcome" not in infos and "_outcome" not in infos
     finals = 0
@@ -172,7 +172,7 @@ def test_numeric_infos_leave_the_outcome_name_out_as_sync_vector_env_does():
 
 
 def test_spaces_and_batches_follow_gymnasium():
-    venv = league.vector_env(num_envs=5, observation="lidar")
+    venv = league.make_vector_env(num_envs=5, observation="lidar")
     assert venv.single_observation_space == league.MicroRacerEnv(observation="lidar").observation_space
     assert venv.observation_space.shape == (5, 20) and venv.action_space.shape == (5, 2)
     obs, _ = venv.reset(seed=0)
@@ -184,7 +184,7 @@ def test_spaces_and_batches_follow_gymnasium():
 
 
 def test_works_under_gymnasiums_vector_wrappers():
-    venv = gym.wrappers.vector.RecordEpisodeStatistics(league.vector_env(num_envs=4))
+    venv = gym.wrappers.vector.RecordEpisodeStatistics(league.make_vector_env(num_envs=4))
     obs, _ = venv.reset(seed=1)
     lengths = []
     for _ in range(800):
@@ -195,7 +195,7 @@ def test_works_under_gymnasiums_vector_wrappers():
 
 
 def test_seeding_reproduces_every_sub_env_and_seed_lists_work():
-    venv = league.vector_env(num_envs=3)
+    venv = league.make_vector_env(num_envs=3)
     first, _ = venv.reset(seed=21)
     tracks = list(venv.tracks)
     again, _ = venv.reset(seed=21)
@@ -208,7 +208,7 @@ def test_seeding_reproduces_every_sub_env_and_seed_lists_work():
 
 
 def test_disabled_autoreset_needs_an_explicit_reset_of_done_sub_envs():
-    venv = league.vector_env(num_envs=2, autoreset_mode="Disabled", max_episode_steps=10)
+    venv = league.make_vector_env(num_envs=2, autoreset_mode="Disabled", max_episode_steps=10)
     obs, _ = venv.reset(seed=3)
     for _ in range(10):
         obs, _, _, truncated, _ = venv.step(drive(obs))
@@ -222,7 +222,7 @@ def test_disabled_autoreset_needs_an_explicit_reset_of_done_sub_envs():
 
 
 def test_a_track_pool_reuses_k_tracks_drawn_from_the_seed():
-    venv = league.vector_env(num_envs=4, track_pool=3, max_episode_steps=20)
+    venv = league.make_vector_env(num_envs=4, track_pool=3, max_episode_steps=20)
     obs, _ = venv.reset(seed=7)
     pool = list(venv._pool)
     for k, track in enumerate(pool):
@@ -239,7 +239,7 @@ def test_a_track_pool_reuses_k_tracks_drawn_from_the_seed():
 
 
 def test_render_draws_sub_env_zero_and_close_is_idempotent():
-    venv = league.vector_env(num_envs=2, render_mode="rgb_array")
+    venv = league.make_vector_env(num_envs=2, render_mode="rgb_array")
     obs, _ = venv.reset(seed=0)
     for _ in range(5):
         obs, *_ = venv.step(drive(obs))
@@ -256,11 +256,11 @@ def test_render_draws_sub_env_zero_and_close_is_idempotent():
 ])
 def test_bad_arguments_are_clear_errors(kwargs, message):
     with pytest.raises(ValueError, match=message):
-        league.vector_env(**{"num_envs": 2, **kwargs})
+        league.make_vector_env(**{"num_envs": 2, **kwargs})
 
 
 def test_bad_actions_and_masks_are_clear_errors():
-    venv = league.vector_env(num_envs=2)
+    venv = league.make_vector_env(num_envs=2)
     venv.reset(seed=0)
     with pytest.raises(ValueError, match=r"shape \(2, 2\)"):
         venv.step(np.zeros((3, 2)))

@@ -14,7 +14,7 @@ from collections.abc import Iterator
 from pathlib import Path
 from typing import Any
 
-from league.constants import PICKLE_MARK
+from league.constants import is_pickle, is_torchscript_layout
 
 ONNX_DOMAINS = ("", "ai.onnx")
 # Operator sets a model may declare: the ONNX standard's own. tf2onnx and Keras declare ai.onnx.ml
@@ -145,7 +145,7 @@ def check_torchscript_archive(path: Path) -> None:
     defines no method run at load time (parsed, whatever its spelling)."""
     with open(path, "rb") as handle:
         head = handle.read(4)
-    if head[:1] == PICKLE_MARK:
+    if is_pickle(head):
         raise ModelRejected("the file is a Python pickle, not TorchScript; pickles can run any code and are never "
                             "loaded: export with torch.jit.script(model).save(path)")
     try:
@@ -164,7 +164,7 @@ def _check_archive_layout(path: Path, names: list[str]) -> None:
         raise ModelRejected("the archive holds paths outside itself")
     if len(set(names)) != len(names):
         raise ModelRejected("the archive holds two files of the same name")
-    if not any("/code/" in name for name in names) or not any(name.endswith("constants.pkl") for name in names):
+    if not is_torchscript_layout(names):
         raise ModelRejected(f"{path.suffix or 'the'} file is a torch.save checkpoint (a pickle), not TorchScript: "
                             "export with torch.jit.script(model).save(path)")
 

@@ -1,9 +1,6 @@
 """Loading an untrusted model file: the static checks, then the toolkit's loader (which dry-runs
 the model) under a memory cap. The server's sandbox (league/server/sandbox/child.py, confined
 first) and `league check` (league.validation.local) both load models with `load_checked`.
-
-Imports only the standard library at module level: the sandbox imports it without the package's
-__init__ (league/server/sandbox/child.py, import_league_module).
 """
 from __future__ import annotations
 
@@ -11,13 +8,13 @@ import sys
 from pathlib import Path
 from typing import Any
 
+from league import agents
+from league.validation import checks
+
 
 def load_checked(model_path: Path, memory_mb: int | None):
     """The agent of a model file (its kind from its suffix: .onnx, else TorchScript) after the
     static checks; the address space capped at `memory_mb` over the runtime's own (None: no cap)."""
-    from league import agents
-    from league.validation import checks
-
     if model_path.suffix == ".onnx":
         checks.check_onnx(model_path)
         agents.import_onnxruntime().disable_telemetry_events()  # before the cap: its footprint is not the model's

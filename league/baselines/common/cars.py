@@ -11,7 +11,7 @@ import numpy as np
 from gymnasium.vector import AutoresetMode
 
 from league.baselines.common.args import CommonArgs, TrainError, env_options_of
-from league.vector_env import vector_env
+from league.vector_env import make_vector_env
 
 NEUTRAL_ACTION = (0.0, 0.0)  # [acceleration, turn]: keep speed and heading (thesis, section 4.1)
 
@@ -53,7 +53,7 @@ class Cars:
     def __init__(self, n_cars: int, seed: int | list[int], neutral_prob: float = 0.0, **env_options):
         if n_cars < 1:
             raise TrainError(f"--envs must be at least 1, got {n_cars}")
-        self.env = vector_env(num_envs=n_cars, autoreset_mode=AutoresetMode.SAME_STEP, **env_options)
+        self.env = make_vector_env(num_envs=n_cars, autoreset_mode=AutoresetMode.SAME_STEP, **env_options)
         self.n = n_cars
         self.obs_dim = self.env.single_observation_space.shape[0]
         self.neutral_prob = neutral_prob

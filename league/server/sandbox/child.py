@@ -29,7 +29,6 @@ import struct
 import sys
 import sysconfig
 import time
-import types
 from pathlib import Path
 
 HEADER = struct.Struct("<cII")  # tag, n, d
@@ -286,20 +285,12 @@ def single_thread_environment() -> None:
 # --------------------------------------------------------------------------- loading
 
 
-def import_league_module(name: str) -> types.ModuleType:
-    """Import league.<name> without league/__init__.py, which loads the whole simulator (~0.5 s,
-    scipy and gymnasium) that a sandbox never uses."""
-    if "league" not in sys.modules:
-        package = types.ModuleType("league")
-        package.__path__ = [str(LEAGUE_DIR)]
-        sys.modules["league"] = package
-    return importlib.import_module(f"league.{name}")
-
-
 def load_model(model_path: Path, memory_mb: int | None):
     """The toolkit's checked load (league.validation.loading: static checks, then the loader, which
     dry-runs the model) under the memory cap (None: no cap, for the fork server's own tiny models)."""
-    return import_league_module("validation.loading").load_checked(model_path, memory_mb)
+    from league.validation.loading import load_checked
+
+    return load_checked(model_path, memory_mb)
 
 
 def tiny_onnx(path: Path) -> Path:
@@ -307,7 +298,9 @@ def tiny_onnx(path: Path) -> Path:
     does for many exports): loading it runs every step an ONNX model's load can take."""
     import onnx
 
-    import_league_module("agents").export_heuristic_onnx(path)
+    from league.agents import export_heuristic_onnx
+
+    export_heuristic_onnx(path)
     model = onnx.load(str(path))
     for value in (*model.graph.input, *model.graph.output):
         value.type.tensor_type.shape.dim[0].dim_value = 1
@@ -317,9 +310,12 @@ def tiny_onnx(path: Path) -> Path:
 
 def tiny_torchscript(path: Path) -> Path:
     """A small MLP, scripted as students export theirs."""
-    nn = import_league_module("validation.loading").import_torch().nn
+    from league.agents import export_torchscript
+    from league.validation.loading import import_torch
+
+    nn = import_torch().nn
     mlp = nn.Sequential(nn.Linear(5, 8), nn.Tanh(), nn.Linear(8, 2))
-    return import_league_module("agents").export_torchscript(mlp, path)
+    return export_torchscript(mlp, path)
 
 
 TINY_MODELS = {".onnx": tiny_onnx, ".pt": tiny_torchscript}
@@ -342,8 +338,10 @@ def prepare_runtime(suffix: str) -> None:
 
 
 def run_tiny_model(path: Path) -> None:
+    from league.agents import dry_run_observations
+
     agent = load_model(path, memory_mb=None)
-    agent(import_league_module("agents").dry_run_observations(agent.obs_dim, 3))
+    agent(dry_run_observations(agent.obs_dim, 3))
 
 
 # --------------------------------------------------------------------------- fork server
@@ -402,9 +400,9 @@ def preload_runtimes() -> None:
 
     import pyseccomp  # noqa: F401  (what every sandbox confines itself with)
 
-    import_league_module("agents")  # numpy
-    import_league_module("validation.loading")
-    import_league_module("validation.checks")
+    import league.agents  # noqa: F401  (numpy)
+    import league.validation.checks  # noqa: F401
+    import league.validation.loading  # noqa: F401
     prepare_runtime(".onnx")
 
 
@@ -496,6 +494,8 @@ def send_text(fd: int, tag: bytes, text: str) -> None:
 def serve(agent, proto_in: int, proto_out: int, memory_mb: int) -> None:
     import numpy as np
 
+    from league.validation.loading import failure_reason
+
     requests = Reader(proto_in)
     while True:
         header = requests.read_exact(HEADER.size)
@@ -509,7 +509,7 @@ def serve(agent, proto_in: int, proto_out: int, memory_mb: int) -> None:
         try:
             actions = np.ascontiguousarray(agent(obs), dtype="<f4")
         except Exception as error:  # the model's failure is an answer, not the sandbox's end
-            send_text(proto_out, b"E", import_league_module("validation.loading").failure_reason(error, memory_mb))
+            send_text(proto_out, b"E", failure_reason(error, memory_mb))
             continue
         send(proto_out, HEADER.pack(b"A", actions.shape[0], actions.shape[1]) + actions.tobytes())
 
@@ -524,6 +524,8 @@ def run_sandbox(args: list[str], server: int) -> int:
     """Serve one model: MODEL MEMORY_MB CPU_S UID_BASE, the protocol on stdin/stdout; `server` is the
     process it must not outlive. With MODEL "--probe", confine, run the tiny model of each runtime
     and report how the sandbox is isolated."""
+    from league.validation.loading import failure_reason
+
     model, memory_mb, cpu_seconds, uid_base = args[0], int(args[1]), int(args[2]), int(args[3])
     proto_in, proto_out = take_protocol_fds()
     try:
@@ -532,7 +534,7 @@ def run_sandbox(args: list[str], server: int) -> int:
             isolation.update(probe_runtimes())
         agent = None if model == "--probe" else load_model(Path(model), memory_mb)
     except BaseException as error:  # whatever the file did, it is the reason it is refused
-        send_text(proto_out, b"E", import_league_module("validation.loading").failure_reason(error, memory_mb))
+        send_text(proto_out, b"E", failure_reason(error, memory_mb))
         return 1
     send_text(proto_out, b"R", json.dumps({"isolation": isolation, "obs_dim": getattr(agent, "obs_dim", None)}))
     if agent is not None:
@@ -568,10 +570,13 @@ def probe_runtimes() -> dict:
         run_tiny_model(path)
     modules = [sys.modules[name] for name in ("os", "numpy", "onnxruntime", "torch") if name in sys.modules]
     readable = all(os.access(module.__file__, os.R_OK) for module in modules)
-    kinds = import_league_module("constants").MODEL_SUFFIXES
+    from league.constants import MODEL_SUFFIXES as kinds
     return {"runtimes": sorted(kinds[suffix] for suffix in PREPARED),
             "runtime": "readable" if readable else "preloaded"}
 
 
 if __name__ == "__main__":
+    # This tree's package, whether or not it is installed (python -P keeps the script's own folder,
+    # the sandbox's, off the path; a worker may run from a checkout).
+    sys.path.insert(0, str(LEAGUE_DIR.parent))
     sys.exit(main(sys.argv))

@@ -8,7 +8,7 @@ import re
 import httpx
 import pytest
 
-from league.web_geometry import track_geometry
+from league.server.geometry import track_geometry
 
 
 @pytest.mark.parametrize("path,marker,current", [

@@ -5,7 +5,7 @@ from typing import Any
 
 from fastapi import APIRouter, Body, HTTPException, status
 
-from league.web_geometry import track_geometry
+from league.server.geometry import track_geometry
 
 MAX_TRACK_BYTES = 32 * 1024  # a track dict is at most ~6 KB (64 control points, 20 obstacles)
 

@@ -1,4 +1,4 @@
-"""league.web_geometry: the track polylines the web race viewer draws."""
+"""league.server.geometry: the track polylines the web race viewer draws."""
 from __future__ import annotations
 
 import json
@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 
 from league.track import Track, generate_track
-from league.web_geometry import track_geometry
+from league.server.geometry import track_geometry
 
 
 @pytest.fixture(scope="module")
