@@ -13,7 +13,6 @@ costs what that module costs, without gymnasium, pettingzoo or the simulator.
     Racer, newrun, metrics_run                                  the thesis' interface (league.compat)
 """
 import importlib
-import importlib.abc
 import importlib.util
 import sys
 
@@ -84,10 +83,11 @@ def register_envs() -> None:
     register(id=ENV_ID, entry_point="league.env:registered_env", max_episode_steps=MAX_EPISODE_STEPS, **vector)
 
 
-class _RegisterWithGymnasium(importlib.abc.MetaPathFinder):
+class _RegisterWithGymnasium:
     """Registers the env id right after Gymnasium's own import, so that `import league` costs no
     Gymnasium import (0.1-0.2 s) and `gymnasium.make("league/MicroRacer-v0")` works in either
-    import order. It finds nothing itself: it wraps the loader that the other finders find."""
+    import order. A finder of sys.meta_path that finds nothing itself: it wraps the loader that the
+    other finders find for "gymnasium"."""
 
     def __init__(self):
         self.finding = False

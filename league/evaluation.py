@@ -436,7 +436,7 @@ def race(agents: Sequence[Agent | str | os.PathLike], seed: int = 0, names: Sequ
             same race, position for position.
         names: display names (default: the agents' names, made unique).
         track, initial_speed: race on a given Track / from a given speed instead of drawing them.
-        **env_options: options of ``league.parallel_env`` (as ``league.MicroRacerEnv``).
+        **env_options: options of ``league.make_parallel_env`` (as ``league.MicroRacerEnv``).
 
     A car whose agent fails (AgentError) is out of the race at once as a DNF with the reason;
     the others go on. The race ends when every car is done.

@@ -1,5 +1,5 @@
 # cython: language_level=3, boundscheck=False, wraparound=False, cdivision=True, initializedcheck=False
-"""Compiled core of MicroRacer: track splines and rasterisation, the lidar and the batched car step.
+"""The simulator's compiled core: track splines and rasterisation, the lidar and the batched car step.
 
 Everything that runs per cell, per ray, per spline point or per car lives here, so the
 environments advance all their cars with one call per step and a new track costs well under

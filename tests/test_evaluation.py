@@ -7,6 +7,7 @@ import pytest
 import league
 from league import evaluation
 from league.agents import Agent, AgentError, callable_agent, heuristic_agent, heuristic_actions, load_agent
+from league.constants import TRACK_CACHE_SIZE, observation_name
 from league.evaluation import (
     MetricsResult,
     episode_seeds,
@@ -20,7 +21,6 @@ from league.evaluation import (
     run_episode,
     save_replay,
 )
-from league.constants import TRACK_CACHE_SIZE
 from league.options import RaceOptions
 from league.track import episode_start, set_track_cache_size, track_cache_info
 
@@ -113,7 +113,7 @@ def test_compact_and_lidar_heuristics_drive_identically():
 
 def sequential(agent, seed, episodes, **options):
     """The thesis' loop: each episode alone, one agent call per step (`run_episode`)."""
-    env = league.MicroRacerEnv(observation="compact" if agent.obs_dim == 5 else "lidar", **options)
+    env = league.MicroRacerEnv(observation=observation_name(agent.obs_dim), **options)
     return [run_episode(env, agent, episode_seed) for episode_seed in episode_seeds(seed, episodes)]
 
 

@@ -10,6 +10,7 @@ from torch import nn
 
 from league.agents import AgentError, export_onnx, export_torchscript, load_agent
 from league.baselines.common.args import TrainError
+from league.constants import observation_name
 from league.env import MicroRacerEnv
 
 EXPORT_TOLERANCE = 1e-5  # exported actions must match the torch actor's within this
@@ -43,7 +44,7 @@ def export_policy(policy: nn.Module, path: str | os.PathLike, fmt: str, obs_dim:
 
 def probe_observations(obs_dim: int, batch: int = 256, seed: int = 0) -> np.ndarray:
     """Plausible observations: from a short random drive, plus uniform noise around them."""
-    env = MicroRacerEnv(observation="compact" if obs_dim == 5 else "lidar")
+    env = MicroRacerEnv(observation=observation_name(obs_dim))
     rng = np.random.default_rng(seed)
     rows = []
     obs, _ = env.reset(seed=seed)

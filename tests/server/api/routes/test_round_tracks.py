@@ -15,9 +15,9 @@ from sqlalchemy import select
 
 from league.evaluation import episode_seeds, race
 from league.options import RaceOptions
-from league.track import episode_start
 from league.server.db.models import INSTRUCTOR, QUEUED, ChampionshipRound, Job, Race
 from league.server.jobs.race import RaceOutcome, car_name, entrant_of, public
+from league.track import episode_start
 
 from ..conftest import unique
 
