@@ -25,7 +25,8 @@ from typing import Any
 import numpy as np
 
 from league.constants import (
-    COMPACT_DIM, LIDAR_DIM, MAX_TURN, MODEL_SUFFIXES, N_RAYS, OBSERVATION_DIMS, is_pickle, is_torchscript_layout, is_zip,
+    COMPACT_DIM, LIDAR_DIM, MAX_TURN, MODEL_SUFFIXES, N_RAYS, OBSERVATION_DIMS, is_pickle, is_torchscript_layout,
+    is_zip,
 )
 
 OBS_DIMS = tuple(OBSERVATION_DIMS.values())

@@ -40,7 +40,10 @@ MAX_TURN = math.pi / 6  # rad per step at full lock; also the widest lidar angle
 TURN_LIMIT_COEFF = 1.741  # with the turn limiter: turn bound = min(MAX_TURN, 1.741 * tstep / speed)
 MIN_SPEED = 0.05  # world units / s: slower ends the episode with low-speed termination on
 CRASH_REWARD = -3.0  # off road, wrong direction or too slow
-MAX_SPEED = 50.0  # bound of the observation spaces: no car reaches it in 4000 steps (0.1 * 0.04 * 4000 + 0.5 = 16.5)
+
+# Outcome codes of a car, the index of its name in OUTCOMES.
+RUNNING, FINISHED, OFF_ROAD, WRONG_DIRECTION, TOO_SLOW, RETIRED = range(6)
+OUTCOMES = ("running", "finished", "off_road", "wrong_direction", "too_slow", "retired")
 
 # -- episodes -------------------------------------------------------------------------------
 START_SPEED_MAX = 0.5  # initial speed ~ U(0, 0.5)
@@ -54,10 +57,6 @@ TSTEP_RANGE = (0.01, 0.2)  # seconds
 # map (1.69 MB) once a car has driven on it, so the cache holds at most ~220 MB.
 TRACK_CACHE_SIZE = 128
 
-# Outcome codes of a car, the index of its name in OUTCOMES.
-RUNNING, FINISHED, OFF_ROAD, WRONG_DIRECTION, TOO_SLOW, RETIRED = range(6)
-OUTCOMES = ("running", "finished", "off_road", "wrong_direction", "too_slow", "retired")
-
 # -- lidar and observations -----------------------------------------------------------------
 N_RAYS = 19  # equally spaced over [-MAX_TURN, +MAX_TURN] around the heading
 LIDAR_FINE_STEPS = 10  # march steps of LIDAR_FINE_STEP before switching to LIDAR_COARSE_STEP
@@ -65,6 +64,7 @@ LIDAR_FINE_STEP = 1 / 250  # world units
 LIDAR_COARSE_STEP = 1 / 100
 LIDAR_REFINE_STEP = 1 / 500  # the reading's accuracy
 MAX_LIDAR_RANGE = 3.7  # no reading exceeds the map's diagonal (world units)
+MAX_SPEED = 50.0  # the speed's bound in the observation spaces: no car reaches it (0.1 * 0.04 * 4000 + 0.5 = 16.5)
 COMPACT_DIM = 5  # [direction, left, max, right, speed]
 LIDAR_DIM = N_RAYS + 1  # the readings and the speed
 OBSERVATION_DIMS = {"compact": COMPACT_DIM, "lidar": LIDAR_DIM}  # observation name -> numbers per observation

@@ -48,11 +48,11 @@ class MicroRacerParallelEnv(EnvRendering, ParallelEnv):
 
     ## Arguments
     ```python
-    league.make_parallel_env(n_cars=4, render_mode=None, numeric_infos=False, **options)  # options as league/MicroRacer-v0
+    league.make_parallel_env(n_cars=4, render_mode=None, numeric_infos=False, **options)
     league.make_aec_env(n_cars=4, render_mode=None, **options)  # the AEC form
     ```
-    As PettingZoo's environment modules, `league.parallel_env` also names these two
-    `parallel_env()` and `env()`.
+    `**options` are those of league/MicroRacer-v0. As PettingZoo's environment modules do, the
+    module `league.parallel_env` names these two `parallel_env()` and `env()`.
     `max_cycles=N` (PettingZoo's name, as its `max_cycles_test` passes it) is `max_episode_steps=N`:
     a car still running after N steps is truncated.
     Rendering and frames as `league/MicroRacer-v0` (`metadata["render_frame_shape"]`).

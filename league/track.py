@@ -167,7 +167,8 @@ class Track:
         if not isinstance(data, dict):
             raise ValueError(f"a track is a JSON object, got {type(data).__name__}")
         if data.get("version") != TRACK_FORMAT_VERSION:
-            raise ValueError(f"unsupported track format version {data.get('version')!r}; expected {TRACK_FORMAT_VERSION}")
+            raise ValueError(f"unsupported track format version {data.get('version')!r}; "
+                             f"expected {TRACK_FORMAT_VERSION}")
         n = _count(data, "control_theta", CURVES_RANGE[0], MAX_CONTROL_POINTS)
         theta = _numbers(data, "control_theta", (n,), 2 * np.pi)
         points = _numbers(data, "control_points", (n, 2), MAP_EXTENT)
