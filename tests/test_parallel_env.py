@@ -40,7 +40,8 @@ def seeded(make, seed: int):
 def test_pettingzoo_max_cycles_is_the_episode_limit():
     # PettingZoo's test drives random actions and wants most cars alive after max_cycles=4
     # steps; a random car can leave the road that soon, so its envs are seeded.
-    max_cycles_test(SimpleNamespace(parallel_env=seeded(league.make_parallel_env, 3), env=seeded(league.make_aec_env, 3)))
+    module = SimpleNamespace(parallel_env=seeded(league.make_parallel_env, 3), env=seeded(league.make_aec_env, 3))
+    max_cycles_test(module)
     assert league.make_parallel_env(max_cycles=7).options.max_episode_steps == 7
     with pytest.raises(TypeError, match="max_cycles .* or max_episode_steps, not both"):
         league.make_parallel_env(max_cycles=7, max_episode_steps=7)

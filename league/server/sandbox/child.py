@@ -400,9 +400,8 @@ def preload_runtimes() -> None:
 
     import pyseccomp  # noqa: F401  (what every sandbox confines itself with)
 
-    import league.agents  # noqa: F401  (numpy)
-    import league.validation.checks  # noqa: F401
-    import league.validation.loading  # noqa: F401
+    for module in ("league.agents", "league.validation.loading", "league.validation.checks"):  # agents: numpy
+        importlib.import_module(module)
     prepare_runtime(".onnx")
 
 
