@@ -44,6 +44,16 @@ CRASH_REWARD = -3.0  # off road, wrong direction or too slow
 # Outcome codes of a car, the index of its name in OUTCOMES.
 RUNNING, FINISHED, OFF_ROAD, WRONG_DIRECTION, TOO_SLOW, RETIRED = range(6)
 OUTCOMES = ("running", "finished", "off_road", "wrong_direction", "too_slow", "retired")
+# What results, tables and pictures say of an outcome: a car's, or an evaluation's and a race's
+# "timeout" (still running at the episode limit) and "dnf" (its agent failed).
+OUTCOME_TEXT = {
+    "finished": "finished",
+    "off_road": "off road",
+    "wrong_direction": "wrong direction",
+    "too_slow": "too slow",
+    "timeout": "out of time",
+    "dnf": "agent failed",
+}
 
 # -- episodes -------------------------------------------------------------------------------
 START_SPEED_MAX = 0.5  # initial speed ~ U(0, 0.5)

@@ -23,7 +23,8 @@ from league import __version__
 from league.agents import Agent, AgentError, as_agent, compact_from_lidar
 from league.cars import new_cars, place_car
 from league.constants import (
-    COMPACT_DIM, FINISHED, LIDAR_DIM, OUTCOMES, PHYSICS_VERSION, RUNNING, TRACK_FORMAT_VERSION, observation_name,
+    COMPACT_DIM, FINISHED, LIDAR_DIM, OUTCOME_TEXT, OUTCOMES, PHYSICS_VERSION, RUNNING, TRACK_FORMAT_VERSION,
+    observation_name,
 )
 from league.options import RaceOptions
 from league.parallel_env import parallel_env
@@ -34,15 +35,6 @@ REPLAY_FORMAT = "microracer-replay"
 REPLAY_VERSION = 1
 # Replay precision: 1e-5 world units is 1 cm; actions are shown with 2 decimals.
 DECIMALS = {"x": 5, "y": 5, "heading": 4, "speed": 4, "acc": 3, "turn": 3}
-
-OUTCOME_TEXT = {
-    "finished": "finished",
-    "off_road": "off road",
-    "wrong_direction": "wrong direction",
-    "too_slow": "too slow",
-    "timeout": "out of time",
-    "dnf": "agent failed",
-}
 
 
 def episode_seeds(seed: int, episodes: int) -> list[int]:

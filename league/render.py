@@ -17,7 +17,7 @@ from typing import Any
 
 import numpy as np
 
-from league.constants import CELLS_PER_UNIT, GRID
+from league.constants import CELLS_PER_UNIT, GRID, OUTCOME_TEXT
 
 DOWNSAMPLE = 2  # map cells per frame pixel: a full map is 650 px wide
 MARGIN = 12  # px around the track's bounding box
@@ -338,11 +338,9 @@ def final_text(row: dict) -> str:
     """A car's line once it stopped: its place and time, or why it stopped."""
     if row["outcome"] == "finished":
         return f"{ordinal(row['position'])}  {row['time']:.1f} s"
-    reasons = {"off_road": "off road", "wrong_direction": "wrong direction", "too_slow": "too slow",
-               "timeout": "out of time"}
     if row["outcome"] == "dnf":
-        return _shorten(f"DNF: {row.get('reason') or 'agent failed'}", 60)
-    return reasons.get(row["outcome"], row["outcome"])
+        return _shorten(f"DNF: {row.get('reason') or OUTCOME_TEXT['dnf']}", 60)
+    return OUTCOME_TEXT.get(row["outcome"], row["outcome"])
 
 
 def _shorten(text: str, limit: int) -> str:

@@ -9,6 +9,7 @@ import pytest
 from gymnasium.utils.env_checker import check_env
 
 import league
+from league.constants import OBSERVATION_DIMS, observation_name
 
 from . import reference
 
@@ -37,6 +38,15 @@ def rollout(seed, steps=300, **options):
             trace.append([obs.tolist(), info])
     return trace
 
+
+
+def test_one_table_names_the_observations_and_their_sizes():
+    assert OBSERVATION_DIMS == {"compact": 5, "lidar": 20}
+    for name, dim in OBSERVATION_DIMS.items():
+        assert observation_name(dim) == name and league.RaceOptions(observation=name).obs_dim == dim
+        assert league.MicroRacerEnv(observation=name).observation_space.shape == (dim,)
+    with pytest.raises(ValueError, match=r"an observation has 5 numbers \(compact\) or 20 \(lidar\), not 6"):
+        observation_name(6)
 
 def test_same_seed_same_rollout_in_two_processes():
     code = "import json, tests.test_env as t; print(json.dumps(t.rollout(42, 1500), default=t.number))"

@@ -104,6 +104,29 @@ def test_env_rgb_array_uses_the_frame(track):
     assert frame.dtype == np.uint8 and frame.shape == render.track_image(env.track).rgb.shape
 
 
+ENVS = {"single": lambda **kw: league.MicroRacerEnv(**kw),
+        "parallel": lambda **kw: league.make_parallel_env(n_cars=2, **kw),
+        "vector": lambda **kw: league.make_vector_env(num_envs=2, **kw)}
+
+
+@pytest.mark.parametrize("kind", ENVS)
+def test_the_three_envs_render_alike(kind):
+    """render.EnvRendering: the same render-mode check, blank frame before a reset, frame of the
+    first car's track after it, and a warning that says how to ask for frames."""
+    with pytest.raises(ValueError, match="render_mode must be one of .* or None, got 'bogus'"):
+        ENVS[kind](render_mode="bogus")
+    env = ENVS[kind](render_mode="rgb_array")
+    assert (env.render() == render.blank_frame()).all()
+    env.reset(seed=5)
+    track = env.track if kind != "vector" else env.tracks[0]
+    frame = env.render()
+    assert frame.shape == render.FRAME_SHAPE and (frame != render.track_image(track).rgb).any()  # the car
+    env.close()
+    maker = {"single": "gymnasium.make", "parallel": "league.make_parallel_env", "vector": "league.make_vector_env"}
+    with pytest.warns(UserWarning, match=f"render\\(\\) needs a render_mode: {maker[kind]}\\(..., render_mode="):
+        assert ENVS[kind]().render() is None
+
+
 # --------------------------------------------------------------------------- pictures and animations
 
 
