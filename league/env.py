@@ -137,7 +137,7 @@ class MicroRacerEnv(EnvRendering, gym.Env):
         return (cars.observation(0), cars.reward[0].item(), outcome != RUNNING, truncated,
                 env_info(cars, 0, self.numeric_infos))
 
-    def frame_cars(self):
+    def scene(self):
         cars = self.cars
         if cars is None:
             return None

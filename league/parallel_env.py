@@ -185,7 +185,7 @@ class MicroRacerParallelEnv(EnvRendering, ParallelEnv):
         c = self.cars
         return {"x": c.x.copy(), "y": c.y.copy(), "heading": c.heading.copy(), "speed": c.speed.copy()}
 
-    def frame_cars(self):
+    def scene(self):
         cars = self.cars
         if cars is None:
             return None

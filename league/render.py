@@ -154,7 +154,7 @@ def render_frame(track: Any, xs: Sequence[float], ys: Sequence[float], headings:
 
 class EnvRendering:
     """The envs' rendering (MicroRacerEnv, MicroRacerParallelEnv, MicroRacerVectorEnv): the
-    render-mode check, `render()` and `close()`, drawing what the env's `frame_cars()` gives.
+    render-mode check, `render()` and `close()`, drawing what the env's `scene()` gives.
 
     `render()` returns a frame of FRAME_SHAPE ("rgb_array"), or shows it in a matplotlib window
     ("human"); before the first reset it is a blank frame (wrappers render then to learn the shape).
@@ -170,7 +170,7 @@ class EnvRendering:
             raise ValueError(f"render_mode must be one of {self.metadata['render_modes']} or None, got {render_mode!r}")
         return render_mode
 
-    def frame_cars(self) -> tuple[Any, Any, Any, Any, list] | None:
+    def scene(self) -> tuple[Any, Any, Any, Any, list] | None:
         """(track, xs, ys, headings, trails) to draw, or None before the first reset."""
         raise NotImplementedError
 
@@ -180,8 +180,8 @@ class EnvRendering:
 
             logger.warn(f'render() needs a render_mode: {self.maker}(..., render_mode="rgb_array")')
             return None
-        cars = self.frame_cars()
-        frame = blank_frame() if cars is None else render_frame(*cars)
+        scene = self.scene()
+        frame = blank_frame() if scene is None else render_frame(*scene)
         if self.render_mode == "rgb_array":
             return frame
         self._window = show_frame(frame, self._window)

@@ -7,7 +7,6 @@ track rebuilds bit for bit (`Track.from_dict`).
 """
 from __future__ import annotations
 
-import functools
 from dataclasses import dataclass, field
 from functools import cached_property, lru_cache
 
@@ -442,7 +441,7 @@ def _draw_start(seed: int, options) -> tuple[Track, float]:
     return options.new_track(rng), options.initial_speed(rng)
 
 
-_cached_start = functools.lru_cache(maxsize=TRACK_CACHE_SIZE)(_draw_start)
+_cached_start = lru_cache(maxsize=TRACK_CACHE_SIZE)(_draw_start)
 
 
 def set_track_cache_size(size: int) -> None:
@@ -450,7 +449,7 @@ def set_track_cache_size(size: int) -> None:
     global _cached_start
     if not isinstance(size, (int, np.integer)) or isinstance(size, bool) or not 0 <= size <= 4096:
         raise ValueError(f"size must be an integer in [0, 4096], got {size!r}")  # each start may hold a 1.69 MB map
-    _cached_start = functools.lru_cache(maxsize=size)(_draw_start)
+    _cached_start = lru_cache(maxsize=size)(_draw_start)
 
 
 def track_cache_info() -> tuple:

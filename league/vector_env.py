@@ -192,7 +192,7 @@ class MicroRacerVectorEnv(EnvRendering, VectorEnv):
         infos.update({f"_{key}": self._mask for key in self.info_keys})
         return infos
 
-    def frame_cars(self):
+    def scene(self):
         """Sub-env 0: its track, car and trail."""
         if self.tracks[0] is None:
             return None
