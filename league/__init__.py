@@ -29,7 +29,6 @@ _LAZY = {
     "make_aec_env": ("league.parallel_env", "env"),
     "make_vector_env": ("league.vector_env", "make_vector_env"),
     "RaceOptions": ("league.options", "RaceOptions"),
-    "MAX_EPISODE_STEPS": ("league.constants", "MAX_EPISODE_STEPS"),
     "Track": ("league.track", "Track"),
     "generate_track": ("league.track", "generate_track"),
     "AgentError": ("league.agents", "AgentError"),
@@ -40,7 +39,7 @@ _LAZY = {
     "newrun": ("league.compat", "newrun"),
 }
 
-__all__ = sorted(set(_LAZY) - {"MAX_EPISODE_STEPS"})
+__all__ = sorted(_LAZY)
 
 
 def __getattr__(name: str):
