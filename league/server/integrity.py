@@ -27,6 +27,7 @@ import numpy as np
 from sqlalchemy import select
 from sqlalchemy.orm import Session
 
+from league.constants import OBSERVATION_DIMS
 from league.server.db import crud
 from league.server.db.models import BASELINE, LOW, PROBE, QUEUED, READY, RUNNING, Job, Submission, User
 from league.validation.files import model_kind_of
@@ -166,7 +167,7 @@ def queue_probes(session: Session, *, submission_ids: list[int], max_attempts: i
 
 
 def _current_key(submission: Candidate) -> str | None:
-    return probe_key(submission.obs_dim) if submission.obs_dim in (5, 20) else None
+    return probe_key(submission.obs_dim) if submission.obs_dim in OBSERVATION_DIMS.values() else None
 
 
 def _is_probed(submission: Candidate) -> bool:
