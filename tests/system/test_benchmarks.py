@@ -5,8 +5,12 @@ finite and positive, with the counts asked for. Timings are never checked agains
 Not run here: bench_reference.py (it needs a checkout of the original MicroRacer) and
 baselines_report.py (finished training runs); of bench_server.py only (a), of bench_league.py only
 (a): their other parts start several leagues and race rounds for minutes at any size. The rush
-at a small size is tests/server/test_rush.py (with its checks). bench_claims.py runs on SQLite
+at a small size is tests/system/test_rush.py (with its checks). bench_claims.py runs on SQLite
 here (PostgreSQL in the benchmark).
+
+bench_queue.py, bench_course.py and bench_backup.py start a league of servers (`serve` and
+workers): 10-30 s each at their smallest size on a quiet 2-CPU machine, a minute or more on a busy
+one (marked `long`: this file starts first in the whole suite). The file takes about 70 s.
 """
 from __future__ import annotations
 
@@ -117,21 +121,21 @@ def test_league_heat(tmp_path):
     assert positive(*f.totals, *f.starts, f.in_process_s) and f.starts[0] <= f.totals[0]
 
 
-@pytest.mark.slow
+@pytest.mark.long
 def test_queue_on_sqlite():
     case = bench_queue.measure_case("sqlite", 0.5, False, jobs=2, rng=random.Random(0))
     assert (case.backend, case.wake, len(case.latencies)) == ("sqlite", False, 2)
     assert positive(*case.latencies)
 
 
-@pytest.mark.slow
+@pytest.mark.long
 def test_course():
     f = bench_course.measure(bench_course.parse(["--students", "2", "--episodes", "1", "--distinct", "2"]))
     assert f.failures == [] and (f.students, f.episodes, f.finals) == (2, 1, 2)
     assert positive(f.public_s, f.publish_s, f.private_span_s)
 
 
-@pytest.mark.slow
+@pytest.mark.long
 def test_backup():
     f = bench_backup.measure(bench_backup.parse(["--students", "2", "--uploads", "3", "--rounds", "1",
                                                  "--episodes", "1", "--distinct", "2", "--repeats", "1",
