@@ -1,20 +1,23 @@
-"""Helpers shared by the benchmarks (bench_server.py, bench_league.py, bench_rush.py, bench_toolkit.py).
+"""Set-up shared by the benchmarks: a league of servers, a course's students and agent files, timing helpers.
 
 Everything runs on this machine: servers started as `python -m league.server serve|worker`
-subprocesses on 127.0.0.1, in a temporary data directory, with bounded request loops.
+subprocesses on 127.0.0.1, in a temporary data directory, with bounded request loops. The model
+files come from `league.testing` (the tests' builders, shipped with the package).
 """
 from __future__ import annotations
 
 import contextlib
+import math
 import os
 import signal
 import socket
 import subprocess
 import sys
+import tempfile
 import threading
 import time
 import uuid
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator
 from pathlib import Path
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -24,12 +27,87 @@ if str(ROOT) not in sys.path:
 PG_ADMIN_URL = os.environ.get("LEAGUE_BENCH_PG", "postgresql://postgres@127.0.0.1:5432/test")
 
 
+def machine() -> str:
+    """This machine's load and CPUs: the first line of a benchmark whose figures depend on them."""
+    return f"load average {' '.join(f'{x:.2f}' for x in os.getloadavg())}, {os.cpu_count()} CPUs"
+
+
+def pin_to_one_core() -> str:
+    """Pin this process to one CPU for the rest of its life; says which."""
+    if hasattr(os, "sched_setaffinity"):
+        core = min(os.sched_getaffinity(0))
+        os.sched_setaffinity(0, {core})
+        return f"pinned to core {core}"
+    return "not pinned (no sched_setaffinity here)"
+
+
+def run_script(main: Callable[[], int | None]) -> None:
+    """Run a benchmark's main() as a script: its exit status, and the cleanup of its servers and
+    temporary files on SIGTERM and Ctrl-C too."""
+    signal.signal(signal.SIGTERM, lambda *_: sys.exit(143))
+    with contextlib.suppress(KeyboardInterrupt):
+        sys.exit(main())
+
+
+def checks_line(failures: list[str], what: str) -> str:
+    """The last lines of a benchmark that checks: each failure, then the verdict."""
+    lines = [f"  FAILED: {failure}" for failure in failures[:50]]
+    verdict = "all passed" if not failures else f"{len(failures)} FAILED"
+    return "\n".join([*lines, f"checks: {verdict} ({what})"])
+
+
+def percentiles_ms(seconds: list[float], points: tuple[float, ...] = (50, 99)) -> dict[str, float]:
+    """{"p50": ..., "p99": ...} in milliseconds (NaN without samples)."""
+    import numpy as np
+
+    if not seconds:
+        return {f"p{point:g}": math.nan for point in points}
+    values = np.percentile(np.array(seconds) * 1000, points)
+    return {f"p{point:g}": float(value) for point, value in zip(points, values)}
+
+
+# --------------------------------------------------------------------------- agent files
+
+
 def thesis_actor(folder: Path, name: str = "thesis_actor.onnx", **driver_options) -> Path:
-    """A thesis-size ONNX actor (5 -> 64 -> 64 -> 2); options: tests.toolkit_models.thesis_driver's."""
+    """A thesis-size ONNX actor (5 -> 64 -> 64 -> 2); options: league.testing.thesis_driver's."""
     from league.agents import export_onnx
-    from tests.toolkit_models import thesis_driver
+    from league.testing import thesis_driver
 
     return export_onnx(thesis_driver(**driver_options), folder / name)
+
+
+def course_files(folder: Path, count: int) -> list[Path]:
+    """`count` different working agents, as a course uploads them: every combination of format
+    (ONNX, TorchScript), observation (compact 5, lidar 20) and batch (dynamic, fixed to 1) in turn."""
+    from league import testing
+    from league.agents import export_onnx, export_torchscript
+
+    files = []
+    for k in range(count):
+        torchscript, obs_dim, fixed = k % 2 == 1, (5, 20)[k // 2 % 2], k // 4 % 2 == 1
+        driver = testing.thesis_driver(obs_dim=obs_dim, seed=k, target_speed=0.18 + 0.01 * (k % 10))
+        name = f"agent{k:03d}-{'ts' if torchscript else 'onnx'}-{obs_dim}-{'fixed' if fixed else 'dynamic'}"
+        if torchscript and fixed:
+            files.append(testing.torchscript_fixed_batch(driver, folder / f"{name}.pt", obs_dim))
+        elif torchscript:
+            files.append(export_torchscript(driver, folder / f"{name}.pt"))
+        elif fixed:
+            files.append(testing.onnx_fixed_batch(driver, folder / f"{name}.onnx", obs_dim))
+        else:
+            files.append(export_onnx(driver, folder / f"{name}.onnx", obs_dim))
+    return files
+
+
+def broken_files(folder: Path) -> list[Path]:
+    """The broken uploads of a course: wrong input size, wrong output size, NaN actions, a pickle, an empty file."""
+    from league import testing
+
+    empty = folder / "empty.onnx"
+    empty.write_bytes(b"")
+    return [testing.onnx_mlp(folder / "wrong-input.onnx", in_dim=7),
+            testing.onnx_mlp(folder / "wrong-output.onnx", out_dim=3),
+            testing.onnx_mlp(folder / "nan.onnx", nan=True), testing.pickle_renamed_pt(folder / "pickle.pt"), empty]
 
 
 def plain_loop(path: Path, seeds: list[int]) -> int:
@@ -96,6 +174,13 @@ def backend(kind: str, folder: Path) -> Iterator[dict[str, str]]:
             admin.execute(f'DROP DATABASE IF EXISTS "{name}" WITH (FORCE)')
 
 
+@contextlib.contextmanager
+def database(kind: str, folder: Path) -> Iterator[str]:
+    """The URL of a new, empty database of `kind` (see backend), removed afterwards."""
+    with backend(kind, folder) as urls:
+        yield urls["LEAGUE_DATABASE_URL"]
+
+
 def started(worker_log: str) -> bool:
     """A worker's job threads run ("consumer started": a source tree from before the database was the queue)."""
     return "worker started" in worker_log or "consumer started" in worker_log.lower()
@@ -153,8 +238,8 @@ class League:
         schedules it as a group of its own, and the benchmark's clients do not share the API's."""
         with open(self.folder / log, "ab") as output:
             return subprocess.Popen([sys.executable, "-m", "league.server", *args],
-                                    env={**self.env, **(settings or {})},
-                                    cwd=self.root, stdout=output, stderr=subprocess.STDOUT, start_new_session=True)
+                                    env={**self.env, **(settings or {})}, cwd=self.root, stdout=output,
+                                    stderr=subprocess.STDOUT, start_new_session=True)
 
     def _wait_healthy(self, timeout: float = 60) -> None:
         import httpx
@@ -229,6 +314,54 @@ def enrol(client, names: list[str]) -> list[str]:
     response.raise_for_status()
     tokens = {row["name"]: row["token"] for row in response.json()["created"]}
     return [tokens[name] for name in names]
+
+
+def student_names(count: int) -> list[str]:
+    return [f"student{k:03d}" for k in range(count)]
+
+
+def course_settings(*, students: int, uploads: int, episodes: int, seed: int) -> dict[str, str]:
+    """LEAGUE_* settings of a course whose students upload `uploads` agents in all, each evaluated
+    with `episodes` episodes of `seed`: quotas that let every student send their share at once."""
+    per_student = str(math.ceil(uploads / students))
+    return {"LEAGUE_EVAL_EPISODES": str(episodes), "LEAGUE_EVAL_SEED": str(seed),
+            "LEAGUE_QUOTA_PER_DAY": per_student, "LEAGUE_MAX_JOBS_IN_FLIGHT": per_student}
+
+
+@contextlib.contextmanager
+def course_league(kind: str, prefix: str, workers: int = 2, **settings: str) -> Iterator[tuple[League, Path, str]]:
+    """A course's league in a new temporary data directory (with an empty `files/` for the agents to
+    upload) on a new database of `kind`: `league serve --no-worker` and `workers` `league worker`s
+    with the LEAGUE_* `settings` (CPU slots of their own). Yields the league, the directory and the
+    database's URL; stops the servers and removes everything afterwards."""
+    with tempfile.TemporaryDirectory(prefix=prefix) as tmp, backend(kind, Path(tmp)) as urls:
+        folder = Path(tmp)
+        (folder / "files").mkdir()
+        settings = {**urls, "LEAGUE_CPU_SLOTS_DIR": str(folder / "cpu-slots"), **settings}
+        with League(folder, embedded=False, workers=workers, settings=settings) as league:
+            yield league, folder, urls["LEAGUE_DATABASE_URL"]
+
+
+def queue_is_empty(client) -> bool:
+    return not any(client.get("/api/jobs", params={"status": status, "limit": 1}).json()
+                   for status in ("queued", "running"))
+
+
+def wait_queue_empty(league: League, timeout: float) -> float:
+    """Poll the instructor's job list until nothing is queued or running (across API restarts);
+    returns when it was first seen empty (time.perf_counter)."""
+    import httpx
+
+    deadline = Deadline(timeout, "the queue to empty")
+    with league.client() as client:
+        while True:
+            try:
+                if queue_is_empty(client):
+                    return time.perf_counter()
+            except httpx.HTTPError as error:
+                deadline.check(error)
+            deadline.check("jobs still queued or running")
+            time.sleep(0.25)
 
 
 class Deadline:

@@ -2,55 +2,77 @@
 
     python benchmarks/bench_backup.py [--backend sqlite|postgres] [--students 200] [--uploads 600]
                                       [--rounds 10] [--episodes 100] [--distinct 600] [--repeats 3]
+                                      [--restore-into both|same]
 
 Builds a semester through the API, as bench_rush.py's course does: --students students (a roster)
 upload --uploads agents (its mix of formats and observations, --distinct different files, 10 %
 broken), evaluated with --episodes episodes by two `league worker`s, then --rounds championship
 rounds of every student in heats of 10 (each heat's replay stored). Then, with the server still
-running, times the commands an administrator runs (each a new process, as from cron):
-`league backup FILE` (--repeats times), and
-`league restore FILE` into a fresh data directory (SQLite) or an empty database (PostgreSQL), of the
-same backend and of the other one (the backup format is the same for both). Printed: the database's
-size and rows, each command's wall time (median, range) and the file's size; checked, exit status 1
-if one fails: every restore holds the backup's rows.
+running, times the commands an administrator runs (each a new process, as from cron): `league
+backup FILE` (--repeats times), and `league restore FILE` into a fresh data directory (SQLite) or
+an empty database (PostgreSQL), of the same backend and of the other one (the backup format is the
+same for both; `--restore-into same`: only the same). Printed: the database's size and rows, each
+command's wall time (median, range) and the file's size; checked, exit status 1 if one fails:
+every restore holds the backup's rows.
 """
 from __future__ import annotations
 
 import argparse
-import contextlib
-import math
-import os
-import signal
 import statistics
 import subprocess
 import sys
 import tempfile
 import time
+from dataclasses import dataclass, field
 from pathlib import Path
 
-from _league import League, backend, enrol
+from _league import (
+    League, backend, broken_files, checks_line, course_files, course_league, course_settings, enrol, machine,
+    run_script, student_names, wait_queue_empty,
+)
 from bench_league import new_championship, timed_round
-from bench_rush import Uploader, broken_files, good_files, plan, wait_queue_empty
+from bench_rush import Uploader, plan
 
 TABLES = ("users", "submissions", "blobs", "evaluations", "episode_results", "jobs", "races", "race_replays")
 
 
-def build_semester(league: League, args: argparse.Namespace, folder: Path) -> None:
-    (folder / "files").mkdir()
-    uploads = plan(args.students, args.uploads, good_files(folder / "files", min(args.distinct, args.uploads)),
+MB = 2**20
+
+
+@dataclass
+class BackupFigures:
+    """What backing up and restoring a semester measured, and what the checks found."""
+
+    evaluated_s: float  # the uploads evaluated (building the semester)
+    rounds_s: float  # its rounds raced
+    database_mb: float
+    rows: dict[str, int]  # the backup's rows per table
+    backup_s: list[float]  # each `league backup FILE`
+    backup_mb: float  # the file
+    restores: dict[str, dict[str, float]] = field(default_factory=dict)  # backend -> seconds, database_mb
+    failures: list[str] = field(default_factory=list)
+
+    @property
+    def passed(self) -> bool:
+        return not self.failures
+
+
+def build_semester(league: League, args: argparse.Namespace, folder: Path) -> tuple[float, float]:
+    """The course's uploads evaluated, then its rounds raced: the seconds of each."""
+    uploads = plan(args.students, args.uploads, course_files(folder / "files", min(args.distinct, args.uploads)),
                    broken_files(folder / "files"), args.seed)
     with league.client() as instructor:
-        tokens = enrol(instructor, [f"student{k:03d}" for k in range(args.students)])
+        tokens = enrol(instructor, student_names(args.students))
     begin = time.perf_counter()
     Uploader(league, tokens, uploads, window_s=0.0).run()
     wait_queue_empty(league, 600 + args.uploads * args.episodes * 0.05)
-    print(f"  {len(uploads)} uploads evaluated in {time.perf_counter() - begin:.0f} s", flush=True)
+    evaluated = time.perf_counter() - begin
     begin = time.perf_counter()
     with league.client() as instructor:
         championship_id = new_championship(instructor, "semester cup", args.seed)
         for _ in range(args.rounds):
             timed_round(instructor, championship_id, timeout=120 + 20 * args.students)
-    print(f"  {args.rounds} rounds raced in {time.perf_counter() - begin:.0f} s", flush=True)
+    return evaluated, time.perf_counter() - begin
 
 
 def timed_command(league: League, *args: str, settings: dict[str, str] | None = None) -> tuple[float, str]:
@@ -82,29 +104,37 @@ def spread(seconds: list[float]) -> str:
             if len(seconds) > 1 else f"{seconds[0]:.1f} s")
 
 
-def measure(league: League, args: argparse.Namespace, folder: Path, database_url: str) -> list[str]:
-    """Back up and restore; print the figures, return what failed."""
-    mb = 2**20
+def backup_and_restore(league: League, args: argparse.Namespace, folder: Path, database_url: str,
+                       built: tuple[float, float]) -> BackupFigures:
+    """Back up (--repeats times) and restore into each target; the figures, and what failed."""
     backup_file = folder / "semester.bak"
-    runs = [timed_command(league, "backup", str(backup_file)) for _ in range(args.repeats)]
+    runs = [timed_command(league, "backup", str(backup_file))[0] for _ in range(args.repeats)]
     size, rows = database_size(f"sqlite:///{backup_file}")
-    print(f"  database: {database_size(database_url)[0] / mb:.1f} MB; rows: "
-          f"{', '.join(f'{n} {table}' for table, n in rows.items())}", flush=True)
-    print(f"  league backup FILE (the server running): {spread([s for s, _ in runs])}; the file "
-          f"{size / mb:.1f} MB", flush=True)
-    failures = []
-    for target in (args.backend, "postgres" if args.backend == "sqlite" else "sqlite"):
+    figures = BackupFigures(evaluated_s=built[0], rounds_s=built[1], database_mb=database_size(database_url)[0] / MB,
+                            rows=rows, backup_s=runs, backup_mb=size / MB)
+    other = "postgres" if args.backend == "sqlite" else "sqlite"
+    for target in (args.backend, other) if args.restore_into == "both" else (args.backend,):
         with tempfile.TemporaryDirectory(prefix="league-restore-") as tmp, backend(target, Path(tmp)) as urls:
             settings = {**urls, "LEAGUE_DATA_DIR": tmp}
             seconds, _ = timed_command(league, "restore", str(backup_file), settings=settings)
-            where = "a fresh data directory (SQLite)" if target == "sqlite" else "an empty PostgreSQL database"
             restored_size, restored = database_size(urls["LEAGUE_DATABASE_URL"])
-            print(f"  league restore FILE into {where}: {seconds:.1f} s; the database {restored_size / mb:.1f} MB",
-                  flush=True)
+            figures.restores[target] = {"seconds": seconds, "database_mb": restored_size / MB}
             timed_command(league, "users", "list", settings=settings)  # the restored league opens
             if restored != rows:
-                failures.append(f"restore into {target}: rows {restored}, the backup's {rows}")
-    return failures
+                figures.failures.append(f"restore into {target}: rows {restored}, the backup's {rows}")
+    return figures
+
+
+def report(figures: BackupFigures) -> None:
+    f = figures
+    print(f"  uploads evaluated in {f.evaluated_s:.0f} s; rounds raced in {f.rounds_s:.0f} s")
+    print(f"  database: {f.database_mb:.1f} MB; rows: {', '.join(f'{n} {table}' for table, n in f.rows.items())}")
+    print(f"  league backup FILE (the server running): {spread(f.backup_s)}; the file {f.backup_mb:.1f} MB")
+    for target, restore in f.restores.items():
+        where = "a fresh data directory (SQLite)" if target == "sqlite" else "an empty PostgreSQL database"
+        print(f"  league restore FILE into {where}: {restore['seconds']:.1f} s; the database "
+              f"{restore['database_mb']:.1f} MB")
+    print(checks_line(f.failures, "every restore holds the backup's rows"), flush=True)
 
 
 def parse(argv: list[str] | None) -> argparse.Namespace:
@@ -119,31 +149,27 @@ def parse(argv: list[str] | None) -> argparse.Namespace:
                         help="different working agent files (a class's files all differ; the store keeps each once)")
     parser.add_argument("--repeats", type=int, default=3, help="backups timed")
     parser.add_argument("--seed", type=int, default=1)
+    parser.add_argument("--restore-into", choices=["both", "same"], default="both",
+                        help="restore into both backends (default), or only the semester's own")
     return parser.parse_args(argv)
+
+
+def measure(args: argparse.Namespace) -> BackupFigures:
+    """The semester of `args` (parse()'s options) on a league of its own, backed up and restored."""
+    settings = course_settings(students=args.students, uploads=args.uploads, episodes=args.episodes, seed=args.seed)
+    with course_league(args.backend, "league-semester-", **settings) as (league, folder, database_url):
+        built = build_semester(league, args, folder)
+        return backup_and_restore(league, args, folder, database_url, built)
 
 
 def main(argv: list[str] | None = None) -> int:
     args = parse(argv)
-    per_student = math.ceil(args.uploads / args.students)
-    print(f"load average {' '.join(f'{x:.2f}' for x in os.getloadavg())}, {os.cpu_count()} CPUs; {args.backend}: "
-          f"{args.students} students, {args.uploads} uploads, {args.rounds} rounds, {args.episodes}-episode "
-          f"evaluations", flush=True)
-    with tempfile.TemporaryDirectory(prefix="league-semester-") as tmp, backend(args.backend, Path(tmp)) as urls:
-        folder = Path(tmp)
-        settings = {**urls, "LEAGUE_EVAL_EPISODES": str(args.episodes), "LEAGUE_EVAL_SEED": str(args.seed),
-                    "LEAGUE_QUOTA_PER_DAY": str(per_student), "LEAGUE_MAX_JOBS_IN_FLIGHT": str(per_student),
-                    "LEAGUE_CPU_SLOTS_DIR": str(folder / "cpu-slots")}
-        with League(folder, embedded=False, workers=2, settings=settings) as league:
-            build_semester(league, args, folder)
-            failures = measure(league, args, folder, urls["LEAGUE_DATABASE_URL"])
-    for failure in failures:
-        print(f"  FAILED: {failure}", flush=True)
-    print(f"checks: {'all passed' if not failures else f'{len(failures)} FAILED'} (every restore holds the "
-          f"backup's rows)", flush=True)
-    return 1 if failures else 0
+    print(f"{machine()}; {args.backend}: {args.students} students, {args.uploads} uploads, {args.rounds} rounds, "
+          f"{args.episodes}-episode evaluations", flush=True)
+    figures = measure(args)
+    report(figures)
+    return 0 if figures.passed else 1
 
 
 if __name__ == "__main__":
-    signal.signal(signal.SIGTERM, lambda *_: sys.exit(143))  # cleanup (servers, temporary files) on SIGTERM too
-    with contextlib.suppress(KeyboardInterrupt):
-        sys.exit(main())
+    run_script(main)

@@ -1,6 +1,6 @@
 """Where a SAC training iteration spends its time (one thread, as `league train`).
 
-    python benchmarks/bench_baselines.py [--updates 3000]
+    python benchmarks/bench_baselines.py [--updates 3000] [--envs 1] [--warmup 2000]
 
 Times each part of the loop of `league.baselines.sac.train` on its own: acting, stepping the
 car, storing, sampling, the critic update, the actor and temperature update, and prints
@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import argparse
 import time
+from dataclasses import dataclass
 
 import numpy as np
 import torch
@@ -19,27 +20,36 @@ from league.baselines.common.buffers import ReplayBuffer
 from league.baselines.common.cars import Cars
 from league.baselines.common.seeding import seed_everything
 
+PARTS = ("act", "env step", "store", "sample", "critic update", "actor + temperature", "target update")
 
-def main() -> None:
-    parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
-    parser.add_argument("--updates", type=int, default=3000)
-    parser.add_argument("--envs", type=int, default=1)
-    options = parser.parse_args()
-    n = options.updates
+
+@dataclass
+class LoopFigures:
+    iterations: int
+    threads: int
+    total_s: float
+    parts_s: dict[str, float]  # each part of the loop, summed over the iterations
+
+    @property
+    def ms_per_iteration(self) -> float:
+        return 1e3 * self.total_s / self.iterations
+
+
+def measure(updates: int, envs: int = 1, warmup: int = 2000) -> LoopFigures:
+    """`updates` iterations of SAC's loop after `warmup` random steps (data, and fitted observation statistics)."""
     args = sac.Args()
     seed_everything(0)
-    cars = Cars(options.envs, seed=0, neutral_prob=args.neutral_prob, observation=args.observation)
+    cars = Cars(envs, seed=0, neutral_prob=args.neutral_prob, observation=args.observation)
     agent = sac.SoftActorCritic(cars.obs_dim, args)
     rb = ReplayBuffer(args.buffer_size, cars.obs_dim, 2, seed=0)
     obs = cars.reset()
-    for _ in range(2000):  # some data, and fitted observation statistics
+    for _ in range(warmup):
         actions = np.random.uniform(-1, 1, (cars.n, 2)).astype(np.float32)
         step = cars.step(actions)
         rb.add(obs, actions, step.rewards, step.next_obs, step.terminated & ~step.finished)
         obs = cars.obs.copy()
     agent.fit_normalizers(rb.observations[:rb.size])
-    parts = {"act": 0.0, "env step": 0.0, "store": 0.0, "sample": 0.0, "critic update": 0.0,
-             "actor + temperature": 0.0, "target update": 0.0}
+    parts = dict.fromkeys(PARTS, 0.0)
 
     def clock(name, fn, *a):
         start = time.perf_counter()
@@ -48,7 +58,7 @@ def main() -> None:
         return out
 
     total = time.perf_counter()
-    for _ in range(n):
+    for _ in range(updates):
         actions = clock("act", agent.act, obs)
         step = clock("env step", cars.step, actions)
         clock("store", rb.add, obs, actions, step.rewards, step.next_obs, step.terminated & ~step.finished)
@@ -57,11 +67,25 @@ def main() -> None:
         clock("critic update", agent.update_critics, data)
         clock("actor + temperature", agent.update_actor, data)
         clock("target update", agent.update_targets)
-    total = time.perf_counter() - total
-    print(f"SAC, {n} iterations, {torch.get_num_threads()} thread(s): {1e3 * total / n:.2f} ms per iteration "
-          f"-> 50 000 iterations in {50_000 * total / n / 60:.1f} min (without evaluations)")
-    for name, seconds in parts.items():
-        print(f"  {name:<20} {1e3 * seconds / n:6.3f} ms  {100 * seconds / total:5.1f} %")
+    return LoopFigures(iterations=updates, threads=torch.get_num_threads(), total_s=time.perf_counter() - total,
+                       parts_s=parts)
+
+
+def report(figures: LoopFigures) -> None:
+    f = figures
+    print(f"SAC, {f.iterations} iterations, {f.threads} thread(s): {f.ms_per_iteration:.2f} ms per iteration "
+          f"-> 50 000 iterations in {50_000 * f.total_s / f.iterations / 60:.1f} min (without evaluations)")
+    for name, seconds in f.parts_s.items():
+        print(f"  {name:<20} {1e3 * seconds / f.iterations:6.3f} ms  {100 * seconds / f.total_s:5.1f} %")
+
+
+def main(argv: list[str] | None = None) -> None:
+    parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    parser.add_argument("--updates", type=int, default=3000)
+    parser.add_argument("--envs", type=int, default=1)
+    parser.add_argument("--warmup", type=int, default=2000, help="random steps stored before the timed loop")
+    options = parser.parse_args(argv)
+    report(measure(options.updates, options.envs, options.warmup))
 
 
 if __name__ == "__main__":

@@ -1,6 +1,7 @@
 """Benchmark of job coordination on PostgreSQL: many worker processes claiming no-op jobs.
 
     python benchmarks/bench_claims.py [--processes 16] [--owners 10000] [--depths 1000 10000] [--claims 3000]
+                                      [--backend postgres|sqlite]
 
 For each queue depth: a new database (the server's schema) holds that many queued jobs of
 --owners students (jobs spread over them in turn); --processes processes, started together, each
@@ -11,22 +12,42 @@ claims came back empty while jobs were queued (all candidates taken by others: a
 drop that queue message), and the CPU time the PostgreSQL
 processes used per job (read from /proc: the server runs on this machine, sharing its CPUs with
 the claimers). Checked (exit status 1): no job claimed twice (by the claimers' records and by
-the database: every job done once, with one attempt), nothing left running.
+the database: every job done once, with one attempt), nothing left running. `--backend sqlite`
+runs the same on SQLite (no database CPU figure: SQLite runs inside the claimers).
 """
 from __future__ import annotations
 
 import argparse
+import math
 import multiprocessing
 import os
-import sys
 import tempfile
 import time
 import uuid
+from dataclasses import dataclass, field
 from pathlib import Path
 
-from _league import backend
+from _league import database, machine, percentiles_ms, run_script
 
 NOOP = "noop"
+
+
+@dataclass
+class Depth:
+    """The figures of one queue depth, and what the audit found."""
+
+    depth: int  # jobs queued at the start
+    claimed: int  # jobs claimed and completed
+    double_claims: int
+    wall_s: float
+    misses: int  # claims that found no job while jobs were queued
+    claim_ms: dict[str, float]  # p50, p99 of each claim (empty-handed ones included)
+    database_cpu_s: float  # PostgreSQL's processes' CPU time (NaN on SQLite)
+    failures: list[str] = field(default_factory=list)
+
+    @property
+    def jobs_per_s(self) -> float:
+        return self.claimed / self.wall_s
 
 
 class NoOp:
@@ -113,6 +134,9 @@ def postgres_cpu_s() -> float:
 
 
 def measure(database_url: str, processes: int, claims: int) -> tuple[float, list[int], list[float], int, float]:
+    """Wall seconds, the claimed ids, each claim's seconds, misses, and the PostgreSQL processes' CPU
+    seconds meanwhile (NaN on SQLite)."""
+    postgres = database_url.startswith("postgresql")
     context = multiprocessing.get_context("spawn")
     start, release, done, results = context.Event(), context.Event(), context.Value("i", 0), context.Queue()
     workers = [context.Process(target=claimer, args=(database_url, start, release, done, claims, results))
@@ -121,10 +145,11 @@ def measure(database_url: str, processes: int, claims: int) -> tuple[float, list
         worker.start()
     try:
         time.sleep(3 + 0.5 * processes)  # every process imported and connected
-        cpu_before, begin = postgres_cpu_s(), time.perf_counter()
+        cpu_before, begin = postgres_cpu_s() if postgres else math.nan, time.perf_counter()
         start.set()
         reports = [results.get(timeout=600) for _ in workers]
-        wall, cpu = time.perf_counter() - begin, postgres_cpu_s() - cpu_before
+        wall = time.perf_counter() - begin
+        cpu = postgres_cpu_s() - cpu_before if postgres else math.nan
     finally:
         release.set()
         for worker in workers:
@@ -159,38 +184,50 @@ def audit(database_url: str, claimed: list[int]) -> list[str]:
     return failures[:20]
 
 
-def main(argv: list[str] | None = None) -> int:
-    import numpy as np
-
+def parse(argv: list[str] | None) -> argparse.Namespace:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--processes", type=int, default=16)
     parser.add_argument("--owners", type=int, default=10000, help="students owning the queued jobs")
     parser.add_argument("--depths", type=int, nargs="+", default=[1000, 10000], help="queued jobs at the start")
     parser.add_argument("--claims", type=int, default=3000, help="jobs claimed per depth (at most the depth)")
-    args = parser.parse_args(argv)
-    print(f"load average {' '.join(f'{x:.2f}' for x in os.getloadavg())}, {os.cpu_count()} CPUs; {args.processes} "
-          f"processes claiming no-op jobs of {args.owners} students (leases.claim_next + complete) on PostgreSQL",
-          flush=True)
+    parser.add_argument("--backend", choices=["postgres", "sqlite"], default="postgres")
+    return parser.parse_args(argv)
+
+
+def measure_depth(args: argparse.Namespace, depth: int) -> Depth:
+    with tempfile.TemporaryDirectory(prefix="league-claims-") as tmp, database(args.backend, Path(tmp)) as url:
+        fill(url, args.owners, depth)
+        wall, claimed, seconds, misses, cpu = measure(url, args.processes, min(args.claims, depth))
+        found = audit(url, claimed)
+    return Depth(depth=depth, claimed=len(claimed), double_claims=len(claimed) - len(set(claimed)), wall_s=wall,
+                 misses=misses, claim_ms=percentiles_ms(seconds), database_cpu_s=cpu, failures=found)
+
+
+def report(figures: Depth) -> None:
+    f = figures
+    cpu = ("" if math.isnan(f.database_cpu_s) else
+           f"; PostgreSQL CPU {1000 * f.database_cpu_s / max(1, f.claimed):.2f} ms per job ({f.database_cpu_s:.1f} s "
+           f"in all)")
+    print(f"  queue of {f.depth} jobs: {f.claimed} claimed and completed in {f.wall_s:.2f} s: {f.jobs_per_s:.0f} "
+          f"jobs/s; {f.misses} claims found no job while jobs were queued; a claim p50 {f.claim_ms['p50']:.1f} ms, "
+          f"p99 {f.claim_ms['p99']:.1f} ms{cpu}; double claims: {f.double_claims}"
+          f"{'' if not f.failures else '; FAILED: ' + '; '.join(f.failures)}", flush=True)
+
+
+def main(argv: list[str] | None = None) -> int:
+    args = parse(argv)
+    where = "PostgreSQL" if args.backend == "postgres" else "SQLite"
+    print(f"{machine()}; {args.processes} processes claiming no-op jobs of {args.owners} students "
+          f"(leases.claim_next + complete) on {where}", flush=True)
     failures = []
     for depth in args.depths:
-        with tempfile.TemporaryDirectory(prefix="league-claims-") as tmp, backend("postgres", Path(tmp)) as urls:
-            url = urls["LEAGUE_DATABASE_URL"]
-            fill(url, args.owners, depth)
-            claims = min(args.claims, depth)
-            wall, claimed, seconds, misses, cpu = measure(url, args.processes, claims)
-            found = audit(url, claimed)
-        p50, p99 = np.percentile(np.array(seconds) * 1000, [50, 99])
-        print(f"  queue of {depth} jobs: {len(claimed)} claimed and completed in {wall:.2f} s: "
-              f"{len(claimed) / wall:.0f} jobs/s; {misses} claims found no job while jobs were queued; "
-              f"a claim p50 {p50:.1f} ms, p99 {p99:.1f} ms; PostgreSQL CPU "
-              f"{1000 * cpu / max(1, len(claimed)):.2f} ms per job ({cpu:.1f} s in all); double claims: "
-              f"{len(claimed) - len(set(claimed))}{'' if not found else '; FAILED: ' + '; '.join(found)}",
-              flush=True)
-        failures += found
+        figures = measure_depth(args, depth)
+        report(figures)
+        failures += figures.failures
     print(f"checks: {'all passed' if not failures else f'{len(failures)} FAILED'} (no job claimed twice, "
           f"every claimed job done once)", flush=True)
     return 1 if failures else 0
 
 
 if __name__ == "__main__":
-    sys.exit(main())
+    run_script(main)

@@ -19,17 +19,17 @@ assignments unpublished.
 from __future__ import annotations
 
 import argparse
-import os
-import signal
-import sys
-import tempfile
+import math
 import time
 from concurrent.futures import ThreadPoolExecutor
+from dataclasses import dataclass, field
 from datetime import datetime, timedelta, timezone
 from pathlib import Path
 
-from _league import Deadline, League, backend, enrol
-from bench_rush import good_files, wait_queue_empty
+from _league import (
+    Deadline, League, checks_line, course_files, course_league, enrol, machine, run_script, student_names,
+    wait_queue_empty,
+)
 
 TARGET_S = 120.0
 DUE_IN_S = 3.0
@@ -79,35 +79,69 @@ def private_tests(instructor, due: datetime) -> list[dict]:
             and datetime.fromisoformat(job["started_at"].replace("Z", "+00:00")) >= due]
 
 
-def main(argv: list[str] | None = None) -> int:
+@dataclass
+class CourseFigures:
+    """What a course's due time measured, and what its checks found (`failures`: none when all passed)."""
+
+    students: int
+    episodes: int  # of each private test
+    public_s: float  # the uploads validated and evaluated on the public tracks
+    publish_s: float  # the due time -> the private board published (the server's own times)
+    private_span_s: float  # the first private test's start -> the last one's end
+    finals: int  # rows of the private board
+    failures: list[str] = field(default_factory=list)
+
+    @property
+    def passed(self) -> bool:
+        return not self.failures
+
+
+def parse(argv: list[str] | None) -> argparse.Namespace:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0], epilog="\n".join(__doc__.splitlines()[4:]),
                                      formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("--backend", choices=["sqlite", "postgres"], default="sqlite")
     parser.add_argument("--students", type=int, default=200)
     parser.add_argument("--episodes", type=int, default=20, help="episodes of each assignment's evaluations")
     parser.add_argument("--distinct", type=int, default=8, help="different agent files (bench_rush.py's kinds)")
-    args = parser.parse_args(argv)
-    print(f"load average {' '.join(f'{x:.2f}' for x in os.getloadavg())}, {os.cpu_count()} CPUs; {args.backend}: "
-          f"{args.students} students, 3 assignments, {args.episodes}-episode evaluations, 2 workers", flush=True)
-    with tempfile.TemporaryDirectory(prefix="league-course-") as tmp, backend(args.backend, Path(tmp)) as urls:
-        folder = Path(tmp)
-        (folder / "files").mkdir()
-        files = good_files(folder / "files", args.distinct)
-        with League(folder, embedded=False, workers=2, settings=urls) as league:
-            return course(league, args, files)
+    return parser.parse_args(argv)
 
 
-def course(league: League, args: argparse.Namespace, files: list[Path]) -> int:
+def measure(args: argparse.Namespace) -> CourseFigures:
+    """The course of `args` (parse()'s options) on a league of its own, stopped and removed afterwards."""
+    with course_league(args.backend, "league-course-") as (league, folder, _):
+        files = course_files(folder / "files", args.distinct)
+        return course(league, args, files)
+
+
+def report(figures: CourseFigures) -> None:
+    f = figures
+    print(f"  {f.students} uploads validated and evaluated on the public tracks in {f.public_s:.1f} s")
+    print(f"  due time -> private board published ({f.finals} finals, {f.episodes} private episodes each): "
+          f"{f.publish_s:.1f} s (target <= {TARGET_S:g} s: {'ok' if f.publish_s <= TARGET_S else 'OVER TARGET'}); "
+          f"the private tests ran {f.private_span_s:.1f} s, first start to last finish")
+    print(checks_line(f.failures, "every student's final on the private board, no job failed, the other "
+                                  "assignments untouched"), flush=True)
+
+
+def main(argv: list[str] | None = None) -> int:
+    args = parse(argv)
+    print(f"{machine()}; {args.backend}: {args.students} students, 3 assignments, {args.episodes}-episode "
+          f"evaluations, 2 workers", flush=True)
+    figures = measure(args)
+    report(figures)
+    return 0 if figures.passed else 1
+
+
+def course(league: League, args: argparse.Namespace, files: list[Path]) -> CourseFigures:
     with league.client() as instructor:
-        tokens = enrol(instructor, [f"student{k:03d}" for k in range(args.students)])
+        tokens = enrol(instructor, student_names(args.students))
         assignments = create_assignments(instructor, args.episodes)
         first = assignments[0]
         wait_queue_empty(league, 600)  # the baselines on the new assignments' tracks
         started = time.perf_counter()
         upload_all(league, tokens, files, first["name"])
         wait_queue_empty(league, 600 + 15 * args.students)  # a loaded 2-core machine: ~5 s a job
-        print(f"  {args.students} uploads validated and evaluated on the public tracks in "
-              f"{time.perf_counter() - started:.1f} s", flush=True)
+        public_s = time.perf_counter() - started
         due = datetime.now(timezone.utc) + timedelta(seconds=DUE_IN_S)
         instructor.patch(f"/api/assignments/{first['id']}", json={"due_at": due.isoformat()}).raise_for_status()
         published = wait_published(instructor, first["id"], timeout=600)
@@ -121,10 +155,7 @@ def course(league: League, args: argparse.Namespace, files: list[Path]) -> int:
     seconds = (datetime.fromisoformat(published["published_at"])
                - datetime.fromisoformat(published["due_at"])).total_seconds()
     span = (max(datetime.fromisoformat(job["finished_at"]) for job in tests)
-            - datetime.fromisoformat(tests[0]["started_at"])).total_seconds() if tests else float("nan")
-    print(f"  due time -> private board published ({board['total']} finals, {args.episodes} private episodes each): "
-          f"{seconds:.1f} s (target <= {TARGET_S:g} s: {'ok' if seconds <= TARGET_S else 'OVER TARGET'}); "
-          f"the private tests ran {span:.1f} s, first start to last finish", flush=True)
+            - datetime.fromisoformat(tests[0]["started_at"])).total_seconds() if tests else math.nan
     failures = []
     if board["total"] != args.students or any(row["stale"] or row["episodes"] != args.episodes for row in rows):
         failures.append(f"the private board has {board['total']} rows, not {args.students} of "
@@ -133,13 +164,9 @@ def course(league: League, args: argparse.Namespace, files: list[Path]) -> int:
         failures.append(f"jobs failed: {[(job['id'], job['error']) for job in failed]}")
     if any(other["published_at"] for other in others):
         failures.append("another assignment was published")
-    for failure in failures:
-        print(f"  FAILED: {failure}", flush=True)
-    print(f"checks: {'all passed' if not failures else f'{len(failures)} FAILED'} (every student's final on the "
-          f"private board, no job failed, the other assignments untouched)", flush=True)
-    return 1 if failures else 0
+    return CourseFigures(students=args.students, episodes=args.episodes, public_s=public_s, publish_s=seconds,
+                         private_span_s=span, finals=board["total"], failures=failures)
 
 
 if __name__ == "__main__":
-    signal.signal(signal.SIGTERM, lambda *_: sys.exit(143))
-    sys.exit(main())
+    run_script(main)

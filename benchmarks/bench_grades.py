@@ -17,16 +17,16 @@ from __future__ import annotations
 
 import argparse
 import statistics
-import sys
 import tempfile
 import time
 import uuid
+from dataclasses import dataclass
 from datetime import datetime, timedelta, timezone
 from pathlib import Path
 
 from fastapi.testclient import TestClient
 
-from _league import backend
+from _league import database, run_script
 
 RUBRICS = ({"kind": "points", "max_points": 10, "completed": {"kind": "linear", "points": 10}},
            {"kind": "points", "max_points": 10, "completed": {"kind": "steps", "steps": [
@@ -99,19 +99,31 @@ def median_ms(client, path: str, repeat: int, **params) -> float:
     return 1000 * statistics.median(times)
 
 
-def main(argv: list[str] | None = None) -> int:
+@dataclass
+class GradesFigures:
+    backend: str
+    students: int
+    rows: int  # of an assignment's grades, the baselines' included
+    built_s: float  # writing the course
+    repeat: int  # requests per figure
+    ms: dict[str, float]  # what -> median milliseconds
+
+
+def parse(argv: list[str] | None) -> argparse.Namespace:
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("--backend", choices=["sqlite", "postgres"], default="sqlite")
     parser.add_argument("--students", type=int, default=200)
     parser.add_argument("--repeat", type=int, default=5)
-    args = parser.parse_args(argv)
+    return parser.parse_args(argv)
 
+
+def measure(args: argparse.Namespace) -> GradesFigures:
     from league.server.app import create_app
     from league.server.config import Settings
     from league.server.db.session import make_engine, migrate
 
-    with tempfile.TemporaryDirectory() as folder, backend(args.backend, Path(folder)) as urls:
-        settings = Settings(_env_file=None, data_dir=Path(folder) / "data", database_url=urls["LEAGUE_DATABASE_URL"])
+    with tempfile.TemporaryDirectory() as folder, database(args.backend, Path(folder)) as database_url:
+        settings = Settings(_env_file=None, data_dir=Path(folder) / "data", database_url=database_url)
         engine = make_engine(settings.resolved_database_url)
         migrate(engine)
         engine.dispose()
@@ -122,22 +134,31 @@ def main(argv: list[str] | None = None) -> int:
             built = time.perf_counter() - start
             with TestClient(app, headers={"Authorization": f"Bearer {token}"}) as client:
                 rows = len(client.get(f"/api/assignments/{ids[2]}/grades").json()["rows"])
-                figures = [
-                    ("an assignment's board as grades (board.csv, before)",
-                     median_ms(client, f"/api/assignments/{ids[2]}/board.csv", args.repeat, board="private")),
-                    ("an assignment's grades, JSON",
-                     median_ms(client, f"/api/assignments/{ids[2]}/grades", args.repeat)),
-                    *[(f"an assignment's grades, {fmt} file",
-                       median_ms(client, f"/api/assignments/{ids[2]}/grades.csv", args.repeat, format=fmt))
-                      for fmt in ("generic", "canvas", "moodle")],
-                    ("the course's file (3 assignments)", median_ms(client, "/api/grades.csv", args.repeat)),
-                ]
-    print(f"{args.backend}: {args.students} students x 3 assignments ({rows} rows an assignment with the "
-          f"baselines; built in {built:.1f} s); median of {args.repeat} requests")
-    for name, ms in figures:
+                ms = {
+                    "an assignment's board as grades (board.csv, before)":
+                        median_ms(client, f"/api/assignments/{ids[2]}/board.csv", args.repeat, board="private"),
+                    "an assignment's grades, JSON": median_ms(client, f"/api/assignments/{ids[2]}/grades", args.repeat),
+                    **{f"an assignment's grades, {fmt} file":
+                       median_ms(client, f"/api/assignments/{ids[2]}/grades.csv", args.repeat, format=fmt)
+                       for fmt in ("generic", "canvas", "moodle")},
+                    "the course's file (3 assignments)": median_ms(client, "/api/grades.csv", args.repeat),
+                }
+    return GradesFigures(backend=args.backend, students=args.students, rows=rows, built_s=built, repeat=args.repeat,
+                         ms=ms)
+
+
+def report(figures: GradesFigures) -> None:
+    f = figures
+    print(f"{f.backend}: {f.students} students x 3 assignments ({f.rows} rows an assignment with the "
+          f"baselines; built in {f.built_s:.1f} s); median of {f.repeat} requests")
+    for name, ms in f.ms.items():
         print(f"  {name:<55} {ms:8.1f} ms")
+
+
+def main(argv: list[str] | None = None) -> int:
+    report(measure(parse(argv)))
     return 0
 
 
 if __name__ == "__main__":
-    sys.exit(main())
+    run_script(main)

@@ -4,7 +4,7 @@
 
 (a) Distances on the probe set (league.validation.probes), the agents run in this process: one
     network exported to ONNX and to TorchScript; thesis-size drivers that hold different speeds
-    (tests/toolkit_models.thesis_driver); the bundled baselines, pairwise. The tolerance
+    (league.testing.thesis_driver); the bundled baselines, pairwise. The tolerance
     (integrity_tolerance, 1e-3) must sit far above the first and far below the others.
 (b) league.server.integrity.integrity_report over N submissions of a course (N/3 students, random
     actions, 5 % of them copies of another student's file, 5 % another student's actions plus
@@ -17,35 +17,66 @@ from __future__ import annotations
 import argparse
 import itertools
 import statistics
-import sys
 import tempfile
 import time
+from dataclasses import dataclass
 from datetime import datetime, timezone
 from pathlib import Path
 
 import numpy as np
 
-sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
-
+from _league import run_script
 from league.agents import export_onnx, export_torchscript, load_agent
 from league.server.config import BUNDLED_BASELINES
 from league.server.integrity import Candidate, integrity_report
+from league.testing import thesis_driver
 from league.validation.probes import PROBES, probe_actions_bytes, probe_key, probe_observations
-from tests.toolkit_models import thesis_driver
+
+SPEEDS = (0.21, 0.25, 0.29, 0.37)  # the drivers' target speeds in (a)
 
 
-def distances() -> None:
-    obs5, work = probe_observations(5), Path(tempfile.mkdtemp())
-    drivers = {}
-    for speed in (0.21, 0.25, 0.29, 0.37):
-        net = thesis_driver(seed=1, target_speed=speed)
-        drivers[speed] = load_agent(export_onnx(net, work / f"{speed}.onnx"))(obs5)
-        twice = load_agent(export_torchscript(net, work / f"{speed}.pt"))(obs5)
-        print(f"(a) driver {speed}: ONNX vs TorchScript  {np.abs(drivers[speed] - twice).max():.1e}")
-    for a, b in itertools.combinations(drivers, 2):
-        print(f"(a) drivers {a} vs {b}:  {np.abs(drivers[a] - drivers[b]).max():.3f}")
+@dataclass
+class Distances:
+    """(a) max-abs distances of actions on the probe set."""
+
+    formats: dict[float, float]  # a driver's target speed -> its ONNX export against its TorchScript one
+    drivers: dict[tuple[float, float], float]  # two drivers' target speeds -> their distance
+    baselines: list[float]  # the bundled baselines, every pair
+
+
+@dataclass
+class ReportTime:
+    """(b) the report over `submissions` submissions, beside the path it replaces."""
+
+    submissions: int
+    report_s: float  # median of `repeats`
+    repeats: int
+    groups: int
+    every_pair_s: float
+
+
+def distances() -> Distances:
+    obs5 = probe_observations(5)
+    outputs, formats = {}, {}
+    with tempfile.TemporaryDirectory() as folder:
+        work = Path(folder)
+        for speed in SPEEDS:
+            net = thesis_driver(seed=1, target_speed=speed)
+            outputs[speed] = load_agent(export_onnx(net, work / f"{speed}.onnx"))(obs5)
+            twice = load_agent(export_torchscript(net, work / f"{speed}.pt"))(obs5)
+            formats[speed] = float(np.abs(outputs[speed] - twice).max())
+    drivers = {(a, b): float(np.abs(outputs[a] - outputs[b]).max()) for a, b in itertools.combinations(outputs, 2)}
     baselines = {p.stem: load_agent(p)(probe_observations(20)) for p in sorted(BUNDLED_BASELINES.glob("*.onnx"))}
-    pairs = [np.abs(baselines[a] - baselines[b]).max() for a, b in itertools.combinations(baselines, 2)]
+    pairs = [float(np.abs(baselines[a] - baselines[b]).max()) for a, b in itertools.combinations(baselines, 2)]
+    return Distances(formats=formats, drivers=drivers, baselines=pairs)
+
+
+def report_distances(found: Distances) -> None:
+    for speed, distance in found.formats.items():
+        print(f"(a) driver {speed}: ONNX vs TorchScript  {distance:.1e}")
+    for (a, b), distance in found.drivers.items():
+        print(f"(a) drivers {a} vs {b}:  {distance:.3f}")
+    pairs = found.baselines
     print(f"(a) bundled baselines pairwise ({len(pairs)} pairs): {min(pairs):.3f} to {max(pairs):.3f}")
 
 
@@ -81,20 +112,31 @@ def every_pair(submissions: list[Candidate], tolerance: float) -> int:
     return found
 
 
-def main() -> None:
+def report_time(submissions: int, repeats: int, rng: np.random.Generator) -> ReportTime:
+    candidates = course(submissions, rng)
+    seconds, report = timed(lambda: integrity_report(candidates, bundled={}, tolerance=1e-3), repeats)
+    replaced, _ = timed(lambda: every_pair(candidates, 1e-3), 1)
+    return ReportTime(submissions=submissions, report_s=seconds, repeats=repeats, groups=len(report.groups),
+                      every_pair_s=replaced)
+
+
+def parse(argv: list[str] | None) -> argparse.Namespace:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--submissions", type=int, nargs="+", default=[600, 3000])
     parser.add_argument("--repeats", type=int, default=3)
-    args = parser.parse_args()
-    distances()
+    return parser.parse_args(argv)
+
+
+def main(argv: list[str] | None = None) -> int:
+    args = parse(argv)
+    report_distances(distances())
     rng = np.random.default_rng(0)
     for n in args.submissions:
-        submissions = course(n, rng)
-        seconds, report = timed(lambda: integrity_report(submissions, bundled={}, tolerance=1e-3), args.repeats)  # noqa: B023 - called in this iteration
-        replaced, _ = timed(lambda: every_pair(submissions, 1e-3), 1)  # noqa: B023 - called in this iteration
-        print(f"(b) {n} submissions: report {seconds * 1000:.0f} ms (median of {args.repeats}), "
-              f"{len(report.groups)} groups; every pair's distance alone {replaced * 1000:.0f} ms")
+        t = report_time(n, args.repeats, rng)
+        print(f"(b) {t.submissions} submissions: report {t.report_s * 1000:.0f} ms (median of {t.repeats}), "
+              f"{t.groups} groups; every pair's distance alone {t.every_pair_s * 1000:.0f} ms")
+    return 0
 
 
 if __name__ == "__main__":
-    main()
+    run_script(main)

@@ -39,9 +39,10 @@ import sys
 import tempfile
 import threading
 import time
+from dataclasses import dataclass
 from pathlib import Path
 
-from _league import Deadline, League, backend, enrol, measure_latency, one_core, thesis_actor
+from _league import Deadline, League, backend, enrol, machine, measure_latency, one_core, thesis_actor
 
 HEAT_TARGET_S = 5.0
 SPEEDUP_TARGET = 1.7
@@ -67,10 +68,103 @@ def outcomes(classification: list[dict]) -> str:
     return ", ".join(f"{n} {outcome}" for outcome, n in sorted(counts.items()))
 
 
+# --------------------------------------------------------------------------- figures
+
+
+@dataclass
+class Heat:
+    """(a) wall seconds of each run of the heat in sandboxes on one core."""
+
+    cars: int
+    cpu: int
+    totals: list[float]  # start of the sandboxes -> classification, each run
+    starts: list[float]  # the sandboxes' start, each run
+    in_process_s: float  # the same race, models loaded in this process
+    outcomes: str  # the first run's classification, counted
+    steps: int
+    identical: bool  # every run's classification equals the in-process race's
+
+    @property
+    def median_s(self) -> float:
+        return statistics.median(self.totals)
+
+
+@dataclass
+class Ceiling:
+    """(b0) the heat raced alone on one CPU, and beside itself on a second CPU (medians)."""
+
+    cars: int
+    cpus: tuple[int, int]
+    runs: int
+    alone_s: float
+    beside_s: float
+
+    @property
+    def speedup(self) -> float:
+        return 2 * self.alone_s / self.beside_s
+
+
+@dataclass
+class RoundRun:
+    repeat: int
+    setup: str
+    seconds: float
+    heats_s: float  # the heats' run times, summed
+    heats: str  # per heat: start, run time, worker, outcomes
+
+
+@dataclass
+class Rounds:
+    """(b) a round per worker setup, `repeats` times each."""
+
+    students: int
+    heats: int
+    runs: list[RoundRun]
+    same_heats: bool  # every round had the same heats
+
+    @property
+    def times(self) -> dict[str, list[float]]:
+        times: dict[str, list[float]] = {}
+        for run in self.runs:
+            times.setdefault(run.setup, []).append(run.seconds)
+        return times
+
+    @property
+    def medians(self) -> dict[str, float]:
+        return {setup: statistics.median(runs) for setup, runs in self.times.items()}
+
+
+@dataclass
+class Leaderboard:
+    """(c) GET /api/leaderboard while two workers race, milliseconds."""
+
+    rows: int
+    rate: float
+    requests: int
+    ms: dict[str, float]  # p50, p95, p99, max
+    racing_share: float  # the share of samples in which a round was racing
+    over_target: int  # requests slower than P99_TARGET_MS
+    bursts: list[float]  # when the slow ones were sent, grouped (seconds from the start)
+    cache_control: str
+
+
+@dataclass
+class LeagueRun:
+    """(b) and (c) on one league."""
+
+    backend: str
+    students: int
+    eval_episodes: int
+    setup_s: float  # the submissions ready and evaluated
+    rounds: Rounds
+    leaderboard: Leaderboard | None = None  # not with --per-cpu
+    ceiling: float | None = None  # (b0)'s speed-up, when measured
+
+
 # --------------------------------------------------------------------------- (a) one heat, one core
 
 
-def bench_heat(models: list[Path], repeats: int) -> float:
+def bench_heat(models: list[Path], repeats: int) -> Heat:
     from league.evaluation import race
     from league.server.jobs.race import race_in_sandboxes
     from league.server.sandbox.agent import SandboxedAgent
@@ -97,19 +191,22 @@ def bench_heat(models: list[Path], repeats: int) -> float:
         begin = time.perf_counter()
         local = race(models, seed=TRACK_SEED, names=names)
         in_process = time.perf_counter() - begin
-    median = statistics.median(totals)
-    verdict = "ok" if median <= HEAT_TARGET_S else "OVER TARGET"
-    print(f"(a) {len(models)}-car heat, ONNX agents in sandboxes, one core (CPU {cpu}), sandbox start and close "
-          f"included: median {median:.2f} s over {repeats} runs (range {min(totals):.2f} .. {max(totals):.2f} s) "
-          f"(target <= {HEAT_TARGET_S:g} s: {verdict})", flush=True)
-    steps = max(len(car["acc"]) for car in results[0].replay["cars"])
-    print(f"    starting the {len(models)} sandboxes: median {statistics.median(starts):.2f} s, racing and closing: "
-          f"median {statistics.median(t - s for t, s in zip(totals, starts)):.2f} s; the same race without "
-          f"sandboxes (models loaded in-process): {in_process:.2f} s", flush=True)
-    same = all(r.classification == local.classification for r in results)
-    print(f"    classification: {outcomes(results[0].classification)}"
-          f", {steps} steps; identical to the in-process race: {same}", flush=True)
-    return median
+    return Heat(cars=len(models), cpu=cpu, totals=totals, starts=starts, in_process_s=in_process,
+                outcomes=outcomes(results[0].classification),
+                steps=max(len(car["acc"]) for car in results[0].replay["cars"]),
+                identical=all(r.classification == local.classification for r in results))
+
+
+def report_heat(f: Heat) -> None:
+    verdict = "ok" if f.median_s <= HEAT_TARGET_S else "OVER TARGET"
+    print(f"(a) {f.cars}-car heat, ONNX agents in sandboxes, one core (CPU {f.cpu}), sandbox start and close "
+          f"included: median {f.median_s:.2f} s over {len(f.totals)} runs (range {min(f.totals):.2f} .. "
+          f"{max(f.totals):.2f} s) (target <= {HEAT_TARGET_S:g} s: {verdict})", flush=True)
+    print(f"    starting the {f.cars} sandboxes: median {statistics.median(f.starts):.2f} s, racing and closing: "
+          f"median {statistics.median(t - s for t, s in zip(f.totals, f.starts)):.2f} s; the same race without "
+          f"sandboxes (models loaded in-process): {f.in_process_s:.2f} s", flush=True)
+    print(f"    classification: {f.outcomes}, {f.steps} steps; identical to the in-process race: {f.identical}",
+          flush=True)
 
 
 # --------------------------------------------------------------------------- (b0) what two CPUs give at most
@@ -133,7 +230,7 @@ def race_heats_pinned(cpu: int, models: list[Path], runs: int, barrier, times) -
             times.put(time.perf_counter() - begin)
 
 
-def bench_ceiling(models: list[Path], runs: int) -> float:
+def bench_ceiling(models: list[Path], runs: int) -> Ceiling:
     """The per-CPU speed-up this machine allows racing, without the league: the same heat raced by one
     process on one CPU, then by two processes at once, each on a CPU of its own (nothing else
     running). Two CPUs give twice the heats only if a heat takes as long beside another as alone."""
@@ -152,11 +249,13 @@ def bench_ceiling(models: list[Path], runs: int) -> float:
         for process in processes:
             process.join(timeout=60)
         medians[len(cpus)] = statistics.median(seconds)
-    ceiling = 2 * medians[1] / medians[2]
-    print(f"(b0) what two CPUs give racing on this machine, without the league: a {len(models)}-car heat in sandboxes "
-          f"takes {medians[1]:.2f} s alone on CPU {first}, {medians[2]:.2f} s beside the same heat on CPU {second} "
-          f"(medians of {runs}): two CPUs race {ceiling:.2f}x the heats of one", flush=True)
-    return ceiling
+    return Ceiling(cars=len(models), cpus=(first, second), runs=runs, alone_s=medians[1], beside_s=medians[2])
+
+
+def report_ceiling(f: Ceiling) -> None:
+    print(f"(b0) what two CPUs give racing on this machine, without the league: a {f.cars}-car heat in sandboxes "
+          f"takes {f.alone_s:.2f} s alone on CPU {f.cpus[0]}, {f.beside_s:.2f} s beside the same heat on CPU "
+          f"{f.cpus[1]} (medians of {f.runs}): two CPUs race {f.speedup:.2f}x the heats of one", flush=True)
 
 
 # --------------------------------------------------------------------------- (b) a round, 1 vs 2 workers
@@ -272,50 +371,52 @@ def start_workers(league: League, setup: Setup) -> None:
 
 
 def compare_workers(league: League, client, students: int, seed: int, repeats: int,
-                    timeout: float, per_cpu: bool = False,
-                    ceiling: float | None = None) -> tuple[dict[str, float], int]:
+                    timeout: float, per_cpu: bool = False) -> tuple[Rounds, int]:
     """Time the same heats (a new championship, same seed; each round a track of its own) with each
-    worker setup, `repeats` times, alternating. Returns the median time per setup and the last championship."""
-    print(f"(b) a round of {students} students in heats of <= {HEAT_SIZE}, from POST .../rounds to the round done, "
-          f"per worker setup (same seed: same heats; each round's track drawn secretly):", flush=True)
-    times: dict[str, list[float]] = {}
-    shapes = set()
+    worker setup, `repeats` times, alternating. Returns the rounds and the last championship."""
+    runs, shapes = [], set()
     for repeat in range(repeats):
         for setup, workers in worker_setups(per_cpu).items():
             league.stop_workers()
             start_workers(league, workers)
             championship_id = new_championship(client, f"{setup}, run {repeat + 1}", seed)
             seconds, summary = timed_round(client, championship_id, timeout)
-            report, busy = heat_report(client, summary)
-            times.setdefault(setup, []).append(seconds)
+            heats, busy = heat_report(client, summary)
+            runs.append(RoundRun(repeat=repeat + 1, setup=setup, seconds=seconds, heats_s=busy, heats=heats))
             shapes.add(str(summary["heats"]))
-            print(f"    run {repeat + 1}, {setup}: {seconds:.1f} s (the heats ran {busy:.1f} s in all)\n"
-                  f"    {report}", flush=True)
-    if len(shapes) > 1:
-        print("    warning: the rounds differ in heats", flush=True)
-    medians = {setup: statistics.median(runs) for setup, runs in times.items()}
-    print(f"    {len(summary['heats'])} heats, median over {repeats} run(s) (range):", flush=True)
+    return Rounds(students=students, heats=len(summary["heats"]), runs=runs, same_heats=len(shapes) == 1), \
+        championship_id
+
+
+def report_rounds(f: Rounds, per_cpu: bool = False, ceiling: float | None = None) -> None:
+    print(f"(b) a round of {f.students} students in heats of <= {HEAT_SIZE}, from POST .../rounds to the round done, "
+          f"per worker setup (same seed: same heats; each round's track drawn secretly):")
+    for run in f.runs:
+        print(f"    run {run.repeat}, {run.setup}: {run.seconds:.1f} s (the heats ran {run.heats_s:.1f} s in all)\n"
+              f"    {run.heats}")
+    if not f.same_heats:
+        print("    warning: the rounds differ in heats")
+    medians, times = f.medians, f.times
+    print(f"    {f.heats} heats, median over {len(f.runs) // len(times)} run(s) (range):")
     for setup, runs in times.items():
-        print(f"      {setup}: {medians[setup]:.1f} s ({min(runs):.1f} .. {max(runs):.1f} s)", flush=True)
+        print(f"      {setup}: {medians[setup]:.1f} s ({min(runs):.1f} .. {max(runs):.1f} s)")
     one_pinned, two_pinned = (medians[setup] for setup in pinned_setups())
     verdict = "ok" if one_pinned / two_pinned >= PER_CPU_TARGET else "UNDER TARGET"
     print(f"    per CPU ({' -> '.join(pinned_setups())}): speed-up {one_pinned / two_pinned:.2f}x "
-          f"(target >= {PER_CPU_TARGET:g}x: {verdict})", flush=True)
+          f"(target >= {PER_CPU_TARGET:g}x: {verdict})")
     if ceiling:
         print(f"    that is {one_pinned / two_pinned / ceiling:.0%} of the {ceiling:.2f}x that two CPUs give the same "
-              f"heats without the league (b0)", flush=True)
+              f"heats without the league (b0)")
     if not per_cpu:
         one, two, two_unplaced = medians["1 worker"], medians["2 workers"], medians["2 workers, CPU placement off"]
         verdict = "ok" if one / two >= SPEEDUP_TARGET else "UNDER TARGET"
         print(f"    1 -> 2 workers (no pinning): speed-up {one / two:.2f}x (target >= {SPEEDUP_TARGET:g}x: {verdict}); "
               f"without CPU placement {one / two_unplaced:.2f}x; one worker alone races on every CPU, "
               f"{one_pinned / one:.2f}x faster than on one", flush=True)
-    return medians, championship_id
 
 
 def bench_league(models: list[Path], *, backend_kind: str, eval_episodes: int, rate: float, seconds: float,
-                 seed: int, round_repeats: int, per_cpu: bool = False,
-                 ceiling: float | None = None) -> tuple[dict[str, float], float | None]:
+                 seed: int, round_repeats: int, per_cpu: bool = False) -> LeagueRun:
     import numpy as np
 
     round_timeout = 60 + 30 * len(models)  # generous: a heat takes seconds
@@ -323,22 +424,20 @@ def bench_league(models: list[Path], *, backend_kind: str, eval_episodes: int, r
         settings = {**urls, "LEAGUE_EVAL_EPISODES": str(eval_episodes), "LEAGUE_QUOTA_PER_DAY": "10",
                     "LEAGUE_WORKER_THREADS": "1", "LEAGUE_CPU_SLOTS_DIR": str(Path(tmp) / "cpu-slots")}
         with League(Path(tmp), embedded=False, settings=settings) as league, league.client() as client:
-            print(f"    {backend_kind} backend; setting up {len(models)} students "
-                  f"({eval_episodes}-episode evaluations) ...", flush=True)
             begin = time.perf_counter()
             for _ in range(2):
                 league.start_worker()
             setup_students(league, models, timeout=120 + 20 * len(models))
             league.stop_workers()
-            print(f"    {len(models)} submissions ready and evaluated in {time.perf_counter() - begin:.0f} s",
-                  flush=True)
+            setup_s = time.perf_counter() - begin
 
             # (b) the same heats (same seed; each round a track of its own) with one worker, then with two
-            medians, two_id = compare_workers(league, client, len(models), seed, round_repeats, round_timeout,
-                                              per_cpu, ceiling)
+            rounds, two_id = compare_workers(league, client, len(models), seed, round_repeats, round_timeout, per_cpu)
             league.stop_workers()
+            figures = LeagueRun(backend=backend_kind, students=len(models), eval_episodes=eval_episodes,
+                                setup_s=setup_s, rounds=rounds)
             if per_cpu:
-                return medians, None
+                return figures
             start_workers(league, worker_setups()["2 workers"])  # (c) runs with two workers
 
             # (c) leaderboard latency while the two workers race rounds
@@ -361,21 +460,33 @@ def bench_league(models: list[Path], *, backend_kind: str, eval_episodes: int, r
                 stop.set()
                 loader.join()
             answer = client.get("/api/leaderboard")
-            total, cache_control = answer.json()["total"], answer.headers.get("cache-control", "")
     p50, p95, p99 = np.percentile(latencies, [50, 95, 99])
-    verdict = "ok" if p99 <= P99_TARGET_MS else "OVER TARGET"
-    print(f"(c) GET /api/leaderboard ({total} rows), {len(latencies)} requests at {rate:g}/s while 2 workers race:",
-          flush=True)
-    print(f"    p50 {p50:.1f} ms, p95 {p95:.1f} ms, p99 {p99:.1f} ms, max {latencies.max():.1f} ms "
-          f"(target p99 <= {P99_TARGET_MS:g} ms: {verdict}); a round was racing in "
-          f"{100 * np.mean(busy):.0f}% of the samples; {np.sum(latencies > P99_TARGET_MS)} requests over "
-          f"{P99_TARGET_MS:g} ms", flush=True)
-    bursts = slow_bursts(np.array(sent), latencies, P99_TARGET_MS)
-    if bursts:
-        print(f"    the slow requests came in {len(bursts)} burst(s) "
-              f"(sent at {', '.join(f'{t:.1f}' for t in bursts)} s; "
-              f"the answer says Cache-Control: {cache_control!r})", flush=True)
-    return medians, float(p99)
+    figures.leaderboard = Leaderboard(
+        rows=answer.json()["total"], rate=rate, requests=len(latencies),
+        ms={"p50": float(p50), "p95": float(p95), "p99": float(p99), "max": float(latencies.max())},
+        racing_share=float(np.mean(busy)), over_target=int(np.sum(latencies > P99_TARGET_MS)),
+        bursts=slow_bursts(np.array(sent), latencies, P99_TARGET_MS),
+        cache_control=answer.headers.get("cache-control", ""))
+    return figures
+
+
+def report_leaderboard(f: Leaderboard) -> None:
+    verdict = "ok" if f.ms["p99"] <= P99_TARGET_MS else "OVER TARGET"
+    print(f"(c) GET /api/leaderboard ({f.rows} rows), {f.requests} requests at {f.rate:g}/s while 2 workers race:")
+    print(f"    p50 {f.ms['p50']:.1f} ms, p95 {f.ms['p95']:.1f} ms, p99 {f.ms['p99']:.1f} ms, max {f.ms['max']:.1f} ms "
+          f"(target p99 <= {P99_TARGET_MS:g} ms: {verdict}); a round was racing in {100 * f.racing_share:.0f}% of the "
+          f"samples; {f.over_target} requests over {P99_TARGET_MS:g} ms")
+    if f.bursts:
+        print(f"    the slow requests came in {len(f.bursts)} burst(s) (sent at "
+              f"{', '.join(f'{t:.1f}' for t in f.bursts)} s; the answer says Cache-Control: {f.cache_control!r})")
+
+
+def report_league(f: LeagueRun, per_cpu: bool = False) -> None:
+    print(f"    {f.backend} backend; {f.students} submissions ready and evaluated ({f.eval_episodes}-episode "
+          f"evaluations) in {f.setup_s:.0f} s")
+    report_rounds(f.rounds, per_cpu, f.ceiling)
+    if f.leaderboard:
+        report_leaderboard(f.leaderboard)
 
 
 def slow_bursts(sent, latencies_ms, threshold_ms: float, gap_s: float = 0.3) -> list[float]:
@@ -385,7 +496,7 @@ def slow_bursts(sent, latencies_ms, threshold_ms: float, gap_s: float = 0.3) -> 
     return [t for k, t in enumerate(times) if k == 0 or t - times[k - 1] > gap_s]
 
 
-def main() -> None:
+def main(argv: list[str] | None = None) -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0],
                                      epilog="\n".join(__doc__.splitlines()[4:]),
                                      formatter_class=argparse.RawDescriptionHelpFormatter)
@@ -406,7 +517,7 @@ def main() -> None:
     parser.add_argument("--skip-round", action="store_true", help="skip (b) and (c)")
     parser.add_argument("--per-cpu", action="store_true",
                         help="(b) with one worker on one CPU and two on a CPU each only, and no (c)")
-    args = parser.parse_args()
+    args = parser.parse_args(argv)
     signal.signal(signal.SIGTERM, lambda *_: sys.exit(143))  # cleanup (servers, temporary files) on SIGTERM too
     students = args.students or (12 if args.quick else 40)
     repeats = args.repeats or (1 if args.quick else 3)
@@ -416,16 +527,21 @@ def main() -> None:
     if not args.skip_round and len(os.sched_getaffinity(0)) < 2:
         parser.error("(b) compares one worker with two on CPUs of their own: this process may use one CPU "
                      "(use --skip-round)")
-    print(f"load average {' '.join(f'{x:.2f}' for x in os.getloadavg())}, {os.cpu_count()} CPUs", flush=True)
+    print(machine(), flush=True)
     with tempfile.TemporaryDirectory(prefix="league-bench-models-") as folder:
         models = student_models(Path(folder), students)
         if not args.skip_heat:
-            bench_heat(models[:HEAT_SIZE], repeats)
-        ceiling = bench_ceiling(models[:HEAT_SIZE], repeats) if args.per_cpu and not args.skip_round else None
+            report_heat(bench_heat(models[:HEAT_SIZE], repeats))
+        ceiling = None
+        if args.per_cpu and not args.skip_round:
+            ceiling = bench_ceiling(models[:HEAT_SIZE], repeats)
+            report_ceiling(ceiling)
         if not args.skip_round:
-            bench_league(models, backend_kind=args.backend, eval_episodes=args.eval_episodes, rate=args.rate,
-                         seconds=seconds, seed=args.seed, round_repeats=max(1, args.round_repeats),
-                         per_cpu=args.per_cpu, ceiling=ceiling)
+            figures = bench_league(models, backend_kind=args.backend, eval_episodes=args.eval_episodes, rate=args.rate,
+                                   seconds=seconds, seed=args.seed, round_repeats=max(1, args.round_repeats),
+                                   per_cpu=args.per_cpu)
+            figures.ceiling = ceiling.speedup if ceiling else None
+            report_league(figures, args.per_cpu)
     print(f"load average {' '.join(f'{x:.2f}' for x in os.getloadavg())}", flush=True)
 
 

@@ -19,10 +19,13 @@ import statistics
 import tempfile
 import time
 import uuid
+from dataclasses import dataclass
 from datetime import timedelta
 from pathlib import Path
 
-from _league import PG_ADMIN_URL  # noqa: F401 (puts the repository on sys.path)
+from _league import database, run_script
+
+REQUESTS = (("GET /metrics (a scrape)", "/metrics"), ("GET /api/health", "/api/health"))
 
 
 def fill(sessions, args) -> None:
@@ -72,7 +75,19 @@ def timed(client, path: str, token: str, repeats: int) -> list[float]:
     return times
 
 
-def main() -> None:
+@dataclass
+class MetricsFigures:
+    backend: str
+    students: int
+    submissions: int
+    episodes: int
+    jobs: int
+    written_s: float  # writing the semester's rows
+    scrapes: int  # requests timed of each kind
+    ms: dict[str, list[float]]  # request label -> each request's milliseconds
+
+
+def parse(argv: list[str] | None) -> argparse.Namespace:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("--backend", choices=["sqlite", "postgres"], default="sqlite")
     parser.add_argument("--students", type=int, default=200)
@@ -80,16 +95,17 @@ def main() -> None:
     parser.add_argument("--episodes", type=int, default=100)
     parser.add_argument("--races", type=int, default=200)
     parser.add_argument("--scrapes", type=int, default=20)
-    args = parser.parse_args()
+    return parser.parse_args(argv)
 
+
+def measure(args: argparse.Namespace) -> MetricsFigures:
     from fastapi.testclient import TestClient
 
     from league.server.app import create_app
     from league.server.config import Settings
     from league.server.db.session import make_engine, migrate
-    from tests.server.conftest import fresh_backend
 
-    with tempfile.TemporaryDirectory() as folder, fresh_backend(args.backend, Path(folder)) as database_url:
+    with tempfile.TemporaryDirectory() as folder, database(args.backend, Path(folder)) as database_url:
         settings = Settings(_env_file=None, data_dir=Path(folder) / "data", database_url=database_url,
                             bootstrap=False, metrics_token="bench")
         engine = make_engine(settings.resolved_database_url)
@@ -99,15 +115,27 @@ def main() -> None:
         with TestClient(app) as client:
             begin = time.perf_counter()
             fill(app.state.league.sessions, args)
-            print(f"{args.backend}: {args.students} students, {args.uploads} submissions, "
-                  f"{args.uploads * args.episodes} episodes, {2 * args.uploads + args.races} jobs "
-                  f"(written in {time.perf_counter() - begin:.0f} s)", flush=True)
+            written = time.perf_counter() - begin
             timed(client, "/metrics", "bench", 2)  # warm: the first queries' plans and caches
-            for label, path in (("GET /metrics (a scrape)", "/metrics"), ("GET /api/health", "/api/health")):
-                times = timed(client, path, "bench", args.scrapes)
-                print(f"  {label:<26} median {statistics.median(times):6.1f} ms  "
-                      f"(range {min(times):.1f}-{max(times):.1f}, {args.scrapes} requests)")
+            ms = {label: timed(client, path, "bench", args.scrapes) for label, path in REQUESTS}
+    return MetricsFigures(backend=args.backend, students=args.students, submissions=args.uploads,
+                          episodes=args.uploads * args.episodes, jobs=2 * args.uploads + args.races,
+                          written_s=written, scrapes=args.scrapes, ms=ms)
+
+
+def report(figures: MetricsFigures) -> None:
+    f = figures
+    print(f"{f.backend}: {f.students} students, {f.submissions} submissions, {f.episodes} episodes, {f.jobs} jobs "
+          f"(written in {f.written_s:.0f} s)")
+    for label, times in f.ms.items():
+        print(f"  {label:<26} median {statistics.median(times):6.1f} ms  "
+              f"(range {min(times):.1f}-{max(times):.1f}, {f.scrapes} requests)", flush=True)
+
+
+def main(argv: list[str] | None = None) -> int:
+    report(measure(parse(argv)))
+    return 0
 
 
 if __name__ == "__main__":
-    main()
+    run_script(main)

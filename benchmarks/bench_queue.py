@@ -14,18 +14,32 @@ exit status 1 if the maximum is over the target.
 from __future__ import annotations
 
 import argparse
-import os
 import random
 import statistics
-import sys
 import tempfile
 import time
+from dataclasses import dataclass
 from pathlib import Path
 
-from _league import Deadline, League, backend
+from _league import Deadline, League, backend, machine, run_script
 
 TARGET_S = 5.0
 READ_EVERY_S = 0.01
+CASES = (("sqlite", 0.5, False), ("postgres", 2.0, False), ("postgres", 2.0, True))  # with the default polls
+
+
+@dataclass
+class Case:
+    """One backend's figures: seconds from each job's commit to its row saying `running`."""
+
+    backend: str
+    poll_s: float  # the worker's poll period on this backend
+    wake: bool  # each job sent its wake-up (NOTIFY)
+    latencies: list[float]
+
+    @property
+    def worst(self) -> float:
+        return max(self.latencies)
 
 
 def idle(sessions) -> bool:
@@ -100,27 +114,40 @@ def summary(latencies: list[float]) -> str:
             f"(target <= {TARGET_S:g} s: {'ok' if ordered[-1] <= TARGET_S else 'OVER TARGET'})")
 
 
-def main(argv: list[str] | None = None) -> int:
+def parse(argv: list[str] | None) -> argparse.Namespace:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--backend", choices=["sqlite", "postgres", "both"], default="both",
                         help="sqlite, the local PostgreSQL (LEAGUE_BENCH_PG), or both (default)")
     parser.add_argument("--jobs", type=int, default=20, help="jobs timed per case")
     parser.add_argument("--seed", type=int, default=0)
-    args = parser.parse_args(argv)
+    return parser.parse_args(argv)
+
+
+def cases(args: argparse.Namespace) -> list[tuple[str, float, bool]]:
+    return [case for case in CASES if args.backend in (case[0], "both")]
+
+
+def measure_case(kind: str, poll_s: float, wake: bool, jobs: int, rng: random.Random) -> Case:
+    return Case(kind, poll_s, wake, measure(kind, jobs, poll_s, wake, rng))
+
+
+def report(case: Case) -> None:
+    how = "with its NOTIFY" if case.wake else "no wake-up (a lost message)"
+    print(f"{case.backend}, {how}: inserted -> running, {len(case.latencies)} jobs: {summary(case.latencies)}",
+          flush=True)
+
+
+def main(argv: list[str] | None = None) -> int:
+    args = parse(argv)
     rng = random.Random(args.seed)
-    print(f"load average {' '.join(f'{x:.2f}' for x in os.getloadavg())}, {os.cpu_count()} CPUs; "
-          f"{args.jobs} jobs per case", flush=True)
-    cases = [("sqlite", 0.5, False), ("postgres", 2.0, False), ("postgres", 2.0, True)]  # the default polls
+    print(f"{machine()}; {args.jobs} jobs per case", flush=True)
     worst = 0.0
-    for kind, poll_s, wake in cases:
-        if args.backend not in (kind, "both"):
-            continue
-        latencies = measure(kind, args.jobs, poll_s, wake, rng)
-        worst = max(worst, max(latencies))
-        how = "with its NOTIFY" if wake else "no wake-up (a lost message)"
-        print(f"{kind}, {how}: inserted -> running, {len(latencies)} jobs: {summary(latencies)}", flush=True)
+    for kind, poll_s, wake in cases(args):
+        case = measure_case(kind, poll_s, wake, args.jobs, rng)
+        report(case)
+        worst = max(worst, case.worst)
     return 0 if worst <= TARGET_S else 1
 
 
 if __name__ == "__main__":
-    sys.exit(main())
+    run_script(main)

@@ -32,22 +32,20 @@ from __future__ import annotations
 import argparse
 import heapq
 import math
-import os
+import multiprocessing
 import random
-import signal
 import subprocess
-import sys
-import tempfile
 import threading
 import time
 from collections import Counter, defaultdict
 from concurrent.futures import ProcessPoolExecutor
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 
-import multiprocessing
-
-from _league import Deadline, League, backend, enrol
+from _league import (
+    Deadline, League, broken_files, checks_line, course_files, course_league, course_settings, enrol, machine,
+    percentiles_ms, run_script, student_names, wait_queue_empty,
+)
 
 QUEUE_TARGET_S = 60.0
 P99_TARGET_MS = 50.0
@@ -58,37 +56,6 @@ FIGURES = ("completed", "episodes_total", "mean_return", "mean_steps", "mean_spe
 
 
 # --------------------------------------------------------------------------- the files and who uploads what
-
-
-def good_files(folder: Path, count: int) -> list[Path]:
-    """`count` different working agents: every combination of format, observation and batch in turn."""
-    from league.agents import export_onnx, export_torchscript
-    from tests.server import model_factory as mf
-    from tests.toolkit_models import thesis_driver
-
-    files = []
-    for k in range(count):
-        torchscript, obs_dim, fixed = k % 2 == 1, (5, 20)[k // 2 % 2], k // 4 % 2 == 1
-        driver = thesis_driver(obs_dim=obs_dim, seed=k, target_speed=0.18 + 0.01 * (k % 10))
-        name = f"agent{k:03d}-{'ts' if torchscript else 'onnx'}-{obs_dim}-{'fixed' if fixed else 'dynamic'}"
-        if torchscript and fixed:
-            files.append(mf.torchscript_fixed_batch(driver, folder / f"{name}.pt", obs_dim))
-        elif torchscript:
-            files.append(export_torchscript(driver, folder / f"{name}.pt"))
-        elif fixed:
-            files.append(mf.onnx_fixed_batch(driver, folder / f"{name}.onnx", obs_dim))
-        else:
-            files.append(export_onnx(driver, folder / f"{name}.onnx", obs_dim))
-    return files
-
-
-def broken_files(folder: Path) -> list[Path]:
-    from tests.server import model_factory as mf
-
-    empty = folder / "empty.onnx"
-    empty.write_bytes(b"")
-    return [mf.onnx_mlp(folder / "wrong-input.onnx", in_dim=7), mf.onnx_mlp(folder / "wrong-output.onnx", out_dim=3),
-            mf.onnx_mlp(folder / "nan.onnx", nan=True), mf.pickle_renamed_pt(folder / "pickle.pt"), empty]
 
 
 @dataclass
@@ -257,28 +224,6 @@ class Uploader:
 # --------------------------------------------------------------------------- the rush
 
 
-def queue_is_empty(client) -> bool:
-    return not any(client.get("/api/jobs", params={"status": status, "limit": 1}).json()
-                   for status in ("queued", "running"))
-
-
-def wait_queue_empty(league: League, timeout: float) -> float:
-    """Poll the instructor's job list until nothing is queued or running (across API restarts);
-    returns when it was first seen empty."""
-    import httpx
-
-    deadline = Deadline(timeout, "the queue to empty")
-    with league.client() as client:
-        while True:
-            try:
-                if queue_is_empty(client):
-                    return time.perf_counter()
-            except httpx.HTTPError as error:
-                deadline.check(error)
-            deadline.check("jobs still queued or running")
-            time.sleep(0.25)
-
-
 def inject_faults(league: League, at: float, events: dict[str, float]) -> None:
     """At `at` (perf_counter), kill (SIGKILL) a worker as soon as one runs a job (up to 30 s later,
     else the first), restart the API, then start a new worker."""
@@ -443,28 +388,68 @@ def check_round(summary: dict, students: int, active: set[int]) -> list[str]:
     return failures
 
 
-# --------------------------------------------------------------------------- report
+# --------------------------------------------------------------------------- figures
 
 
-def percentiles(seconds: list[float]) -> str:
-    import numpy as np
+PHASES = ("rush", "idle", "round")  # when the pollers' answers came
 
-    if not seconds:
+
+@dataclass
+class RushFigures:
+    """What a rush measured, and what its checks found (`failures`: none when all passed)."""
+
+    uploads: int
+    accepted: int  # answered 201
+    broken: int
+    refused_at_upload: int  # broken ones answered 4xx
+    ready: int  # submissions validated
+    rejected: int  # submissions refused by validation
+    upload_s: float  # first upload sent -> last one answered
+    drain_s: float  # last upload answered -> queue empty
+    latencies: dict[str, dict[str, dict[str, float]]]  # "status"/"leaderboard" -> phase -> p50, p99 (ms), answers
+    round_s: float  # POST .../rounds -> the round done
+    heats: int
+    cars: int
+    attempts: dict[int, int]  # jobs by how many attempts they took
+    faults: dict[str, float] = field(default_factory=dict)  # what -> seconds from the first upload
+    polls_refused: int = 0  # polls refused or cut while the faults were injected
+    failures: list[str] = field(default_factory=list)
+
+    @property
+    def passed(self) -> bool:
+        return not self.failures
+
+
+def latency_figures(pollers: Pollers) -> dict[str, dict[str, dict[str, float]]]:
+    return {what: {phase: {**percentiles_ms(pollers.latencies[what, phase]),
+                           "answers": len(pollers.latencies[what, phase])} for phase in PHASES}
+            for what in ("status", "leaderboard")}
+
+
+def percentiles(figures: dict[str, float]) -> str:
+    if not figures["answers"]:
         return "no answers"
-    p50, p99 = np.percentile(np.array(seconds) * 1000, [50, 99])
-    return f"p50 {p50:.1f} ms, p99 {p99:.1f} ms ({len(seconds)} answers)"
+    return f"p50 {figures['p50']:.1f} ms, p99 {figures['p99']:.1f} ms ({figures['answers']} answers)"
 
 
-def report_latencies(pollers: Pollers) -> None:
-    import numpy as np
-
-    for what in ("status", "leaderboard"):
-        rush = pollers.latencies[what, "rush"]
-        p99 = float(np.percentile(np.array(rush) * 1000, 99)) if rush else math.nan
+def report(figures: RushFigures) -> None:
+    f = figures
+    print(f"  {f.uploads} uploads in {f.upload_s:.1f} s: {f.accepted} accepted, {f.broken} broken "
+          f"({f.refused_at_upload} refused at upload); {f.ready} ready, {f.rejected} rejected")
+    if f.faults:
+        print("  faults: " + ", ".join(f"{what} at {at:.1f} s" for what, at in f.faults.items())
+              + f"; {f.polls_refused} polls refused or cut meanwhile")
+    print(f"  last upload -> queue empty: {f.drain_s:.1f} s (target <= {QUEUE_TARGET_S:g} s: "
+          f"{'ok' if f.drain_s <= QUEUE_TARGET_S else 'OVER TARGET'})")
+    for what, phases in f.latencies.items():
+        p99 = phases["rush"]["p99"]
         verdict = "ok" if p99 <= P99_TARGET_MS else "OVER TARGET"
-        print(f"  GET {what}: during the rush {percentiles(rush)} (target p99 <= {P99_TARGET_MS:g} ms: {verdict}); "
-              f"idle {percentiles(pollers.latencies[what, 'idle'])}; during the round "
-              f"{percentiles(pollers.latencies[what, 'round'])}", flush=True)
+        print(f"  GET {what}: during the rush {percentiles(phases['rush'])} (target p99 <= {P99_TARGET_MS:g} ms: "
+              f"{verdict}); idle {percentiles(phases['idle'])}; during the round {percentiles(phases['round'])}")
+    print(f"  championship round of {f.heats} heats ({f.cars} cars): {f.round_s:.1f} s from POST to done")
+    print(f"  jobs by attempts: {dict(sorted(f.attempts.items()))}")
+    print(checks_line(f.failures, "uploads accounted for, one submission each, no job lost, stuck, failed or done "
+                                  "twice, results equal to local metrics_run, the round complete"), flush=True)
 
 
 def unexpected_errors(pollers: Pollers, events: dict[str, float]) -> list[str]:
@@ -493,37 +478,41 @@ def parse(argv: list[str] | None) -> argparse.Namespace:
     parser.add_argument("--board-clients", type=int, default=100, help="clients polling the leaderboard every 5 s")
     parser.add_argument("--idle-s", type=float, default=10.0, help="polling after the queue emptied (idle figures)")
     parser.add_argument("--faults", action="store_true",
-                        help="halfway through: kill -9 a worker running a job, restart the API, "
-                             "then start a worker again")
+                        help="halfway through: kill -9 a worker running a job, restart the API, then start a "
+                             "worker again")
     args = parser.parse_args(argv)
     if args.uploads < args.students:
         parser.error("every student uploads at least once: --uploads must be >= --students")
     return args
 
 
+def header(args: argparse.Namespace) -> str:
+    return (f"{machine()}; {args.backend}: {args.students} students, {args.uploads} uploads over {args.window_s:g} s, "
+            f"{args.episodes}-episode evaluations, 2 workers{', faults' if args.faults else ''}")
+
+
+def measure(args: argparse.Namespace) -> RushFigures:
+    """The rush of `args` (parse()'s options) on a league of its own, stopped and removed afterwards."""
+    settings = {**course_settings(students=args.students, uploads=args.uploads, episodes=args.episodes, seed=args.seed),
+                # a killed worker's job goes elsewhere within seconds, not the default minute
+                "LEAGUE_HEARTBEAT_INTERVAL_S": "1", "LEAGUE_LEASE_TIMEOUT_S": "8", "LEAGUE_REAPER_INTERVAL_S": "2"}
+    with course_league(args.backend, "league-rush-", **settings) as (league, folder, database_url):
+        uploads = plan(args.students, args.uploads, course_files(folder / "files", min(args.distinct, args.uploads)),
+                       broken_files(folder / "files"), args.seed)
+        return rush(league, args, uploads, database_url)
+
+
 def main(argv: list[str] | None = None) -> int:
     args = parse(argv)
-    per_student = math.ceil(args.uploads / args.students)
-    print(f"load average {' '.join(f'{x:.2f}' for x in os.getloadavg())}, {os.cpu_count()} CPUs; {args.backend}: "
-          f"{args.students} students, {args.uploads} uploads over {args.window_s:g} s, {args.episodes}-episode "
-          f"evaluations, 2 workers{', faults' if args.faults else ''}", flush=True)
-    with tempfile.TemporaryDirectory(prefix="league-rush-") as tmp, backend(args.backend, Path(tmp)) as urls:
-        folder = Path(tmp)
-        (folder / "files").mkdir()
-        uploads = plan(args.students, args.uploads, good_files(folder / "files", min(args.distinct, args.uploads)),
-                       broken_files(folder / "files"), args.seed)
-        settings = {**urls, "LEAGUE_EVAL_EPISODES": str(args.episodes), "LEAGUE_EVAL_SEED": str(args.seed),
-                    "LEAGUE_QUOTA_PER_DAY": str(per_student), "LEAGUE_MAX_JOBS_IN_FLIGHT": str(per_student),
-                    "LEAGUE_CPU_SLOTS_DIR": str(folder / "cpu-slots"),
-                    # a killed worker's job goes elsewhere within seconds, not the default minute
-                    "LEAGUE_HEARTBEAT_INTERVAL_S": "1", "LEAGUE_LEASE_TIMEOUT_S": "8", "LEAGUE_REAPER_INTERVAL_S": "2"}
-        with League(folder, embedded=False, workers=2, settings=settings) as league:
-            return rush(league, args, uploads, urls["LEAGUE_DATABASE_URL"])
+    print(header(args), flush=True)
+    figures = measure(args)
+    report(figures)
+    return 0 if figures.passed else 1
 
 
-def rush(league: League, args: argparse.Namespace, uploads: list[Upload], database_url: str) -> int:
+def rush(league: League, args: argparse.Namespace, uploads: list[Upload], database_url: str) -> RushFigures:
     with league.client() as instructor:
-        tokens = enrol(instructor, [f"student{k:03d}" for k in range(args.students)])
+        tokens = enrol(instructor, student_names(args.students))
         course = instructor.get("/api/settings/evaluation").json()
     drain_timeout = 300 + args.uploads * args.episodes * 0.05
     wait_queue_empty(league, drain_timeout)  # the baselines' evaluations: before the rush
@@ -553,36 +542,24 @@ def rush(league: League, args: argparse.Namespace, uploads: list[Upload], databa
     with league.client() as instructor:
         listing = instructor.get("/api/submissions", params={"all": True}).json()
     final = {s["id"]: s for s in listing if s["owner"] != "baselines"}
-    accepted = sum(u.code == 201 for u in uploads)
-    print(f"  {len(uploads)} uploads in {last_upload - begin:.1f} s: {accepted} accepted, "
-          f"{sum(u.broken for u in uploads)} broken ({sum(u.broken and u.code != 201 for u in uploads)} refused at "
-          f"upload); {sum(s['status'] == 'ready' for s in final.values())} ready, "
-          f"{sum(s['status'] == 'rejected' for s in final.values())} rejected", flush=True)
-    if events:
-        print("  faults: " + ", ".join(f"{what} at {at - begin:.1f} s" for what, at in events.items())
-              + f"; {len(pollers.errors)} polls refused or cut meanwhile", flush=True)
-    drained = emptied - last_upload
-    print(f"  last upload -> queue empty: {drained:.1f} s (target <= {QUEUE_TARGET_S:g} s: "
-          f"{'ok' if drained <= QUEUE_TARGET_S else 'OVER TARGET'})", flush=True)
-    report_latencies(pollers)
-    print(f"  championship round of {len(summary['race_ids'])} heats ({sum(map(len, summary['heats']))} cars): "
-          f"{round_s:.1f} s from POST to done", flush=True)
 
     failures = unexpected_errors(pollers, events)
     failures += check_uploads(uploads, final)
     failures += check_submissions(uploads, listing)
     job_failures, attempts = check_jobs(database_url, final, summary["race_ids"])
     failures += job_failures
-    print(f"  jobs by attempts: {dict(sorted(attempts.items()))}", flush=True)
     active = {s["id"] for s in final.values() if s["active"]}
     failures += check_round(summary, args.students, active)
     failures += check_results(league, uploads, final, course)
-    for failure in failures[:50]:
-        print(f"  FAILED: {failure}", flush=True)
-    print(f"checks: {'all passed' if not failures else f'{len(failures)} FAILED'} (uploads accounted for, one "
-          f"submission each, no job lost, stuck, failed or done twice, results equal to local metrics_run, "
-          f"the round complete)", flush=True)
-    return 1 if failures else 0
+    return RushFigures(
+        uploads=len(uploads), accepted=sum(u.code == 201 for u in uploads), broken=sum(u.broken for u in uploads),
+        refused_at_upload=sum(u.broken and u.code != 201 for u in uploads),
+        ready=sum(s["status"] == "ready" for s in final.values()),
+        rejected=sum(s["status"] == "rejected" for s in final.values()),
+        upload_s=last_upload - begin, drain_s=emptied - last_upload, latencies=latency_figures(pollers),
+        round_s=round_s, heats=len(summary["race_ids"]), cars=sum(map(len, summary["heats"])),
+        attempts=dict(attempts), faults={what: at - begin for what, at in events.items()},
+        polls_refused=len(pollers.errors) if events else 0, failures=failures)
 
 
 def status_client(uploader: Uploader, tokens: list[str], student: int):
@@ -593,5 +570,4 @@ def status_client(uploader: Uploader, tokens: list[str], student: int):
 
 
 if __name__ == "__main__":
-    signal.signal(signal.SIGTERM, lambda *_: sys.exit(143))  # cleanup (servers, temporary files) on SIGTERM too
-    sys.exit(main())
+    run_script(main)

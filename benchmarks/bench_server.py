@@ -33,6 +33,7 @@ import os
 import tempfile
 import threading
 import time
+from dataclasses import dataclass
 from pathlib import Path
 
 from _league import ROOT, League, measure_latency, one_core, plain_loop, thesis_actor
@@ -43,8 +44,69 @@ RATE_TARGET = 100  # evaluations per core-minute
 P99_TARGET_MS = 50.0
 
 
-def bench_evaluation(model: Path, episodes: int) -> float:
-    """(a): returns the plain loop's seconds, the reference of (b)."""
+@dataclass
+class Evaluation:
+    """(a) wall seconds on one core."""
+
+    episodes: int
+    first_sandbox_s: float  # a worker thread's first sandbox: its fork server and isolation probe
+    plain_s: float
+    lockstep_s: float  # metrics_run, no sandbox
+    sandboxed_s: float  # metrics_run in a sandbox, its start included
+    completed: int
+
+
+@dataclass
+class WorkerOnOneCpu:
+    """(b), (c): a `league worker` on one CPU."""
+
+    cpu: str
+    episodes: int
+    first_upload_s: float  # upload to figures, the first upload the worker sees
+    upload_s: float  # the next one
+    uploads: int  # at once, in (c)
+    uploads_s: float
+
+    @property
+    def per_core_minute(self) -> float:
+        return 60 * self.uploads / self.uploads_s
+
+
+@dataclass
+class Status:
+    """(d) latencies of GET /api/submissions/{id}, in milliseconds."""
+
+    embedded: bool  # the worker is `league serve`'s child (else a `league worker` process)
+    root: Path | None  # the source tree, when not this one
+    rate: float
+    ms: dict[str, float]  # p50, p95, p99, max, under load
+    requests: int
+    busy_share: float  # the share of samples in which a job was running
+    idle_ms: dict[str, float]  # p50, p99 before the load
+
+
+@dataclass
+class EvaluationJob:
+    """(e) an evaluation job's run time, as the server recorded it."""
+
+    episodes: int
+    placement: bool
+    seconds: float
+    status: str
+
+
+@dataclass
+class FirstTorchScript:
+    """(f) TorchScript uploads to a new worker, in order: seconds to ready and to evaluated."""
+
+    settle_s: float
+    root: Path
+    times: list[tuple[float, float]]
+    fork_server_mb: list[float]
+
+
+def bench_evaluation(model: Path, episodes: int) -> Evaluation:
+    """(a): its plain loop's seconds are the reference of (b)."""
     from league.evaluation import episode_seeds, metrics_run
     from league.track import set_track_cache_size
     from league.server.sandbox.agent import SandboxedAgent
@@ -63,16 +125,22 @@ def bench_evaluation(model: Path, episodes: int) -> float:
         start = time.perf_counter()
         result = sandboxed()
         seconds = time.perf_counter() - start
-    print(f"(a) {episodes} episodes of a thesis-size ONNX actor, one core, every track drawn "
-          f"(a worker thread's first sandbox, started before: {first:.2f} s, its fork server and isolation probe):")
-    print(f"    plain loop (gym.make + ONNX Runtime, one call per step):   {plain:6.2f} s")
-    print(f"    metrics_run in lockstep, no sandbox:                        {local:6.2f} s")
-    print(f"    metrics_run in lockstep, in a sandbox (start included):     {seconds:6.2f} s  "
-          f"(target <= {EVALUATION_TARGET_S:g} s: {verdict(seconds <= EVALUATION_TARGET_S)})")
-    print(f"    the sandbox costs {seconds / local:.2f}x the unsandboxed lockstep run "
-          f"(target <= {SANDBOX_COST_TARGET:g}x: {verdict(seconds / local <= SANDBOX_COST_TARGET)}); "
-          f"the sandboxed run is {plain / seconds:.1f}x the plain loop; completed {result.completed}/{episodes}")
-    return plain
+    return Evaluation(episodes=episodes, first_sandbox_s=first, plain_s=plain, lockstep_s=local, sandboxed_s=seconds,
+                      completed=result.completed)
+
+
+def report_evaluation(f: Evaluation) -> None:
+    print(f"(a) {f.episodes} episodes of a thesis-size ONNX actor, one core, every track drawn (a worker thread's "
+          f"first sandbox, started before: {f.first_sandbox_s:.2f} s, its fork server and isolation probe):")
+    print(f"    plain loop (gym.make + ONNX Runtime, one call per step):   {f.plain_s:6.2f} s")
+    print(f"    metrics_run in lockstep, no sandbox:                        {f.lockstep_s:6.2f} s")
+    print(f"    metrics_run in lockstep, in a sandbox (start included):     {f.sandboxed_s:6.2f} s  "
+          f"(target <= {EVALUATION_TARGET_S:g} s: {verdict(f.sandboxed_s <= EVALUATION_TARGET_S)})")
+    cost = f.sandboxed_s / f.lockstep_s
+    print(f"    the sandbox costs {cost:.2f}x the unsandboxed lockstep run "
+          f"(target <= {SANDBOX_COST_TARGET:g}x: {verdict(cost <= SANDBOX_COST_TARGET)}); "
+          f"the sandboxed run is {f.plain_s / f.sandboxed_s:.1f}x the plain loop; completed "
+          f"{f.completed}/{f.episodes}")
 
 
 def wall_time(work) -> float:
@@ -88,7 +156,7 @@ def verdict(ok: bool) -> str:
 # --------------------------------------------------------------------------- (b), (c) a worker on one CPU
 
 
-def bench_worker_on_one_cpu(model: Path, episodes: int, plain: float, uploads: int) -> None:
+def bench_worker_on_one_cpu(model: Path, episodes: int, uploads: int) -> WorkerOnOneCpu:
     """(b) one upload to its figures; (c) `uploads` uploads at once, evaluations per core-minute."""
     cpu = str(max(os.sched_getaffinity(0)))
     with tempfile.TemporaryDirectory(prefix="league-bench-") as tmp:
@@ -98,13 +166,18 @@ def bench_worker_on_one_cpu(model: Path, episodes: int, plain: float, uploads: i
             client = league.client()
             first = wall_time(lambda: wait_evaluated(client, [upload_file(client, model)]))  # starts its fork servers
             second = wall_time(lambda: wait_evaluated(client, [upload_file(client, model)]))
-            print(f"(b) upload to figures, {episodes} episodes, a `league worker` on CPU {cpu}: {second:.2f} s, "
-                  f"{plain / second:.2f}x the plain loop of (a) (target >= 1x: {verdict(plain / second >= 1)}); "
-                  f"the first upload a new worker sees: {first:.2f} s")
             seconds = wall_time(lambda: wait_evaluated(client, [upload_file(client, model) for _ in range(uploads)]))
-    rate = 60 * uploads / seconds
-    print(f"(c) {uploads} uploads at once, validated and evaluated ({episodes} episodes) by that worker: "
-          f"{seconds:.1f} s, {rate:.0f} evaluations per core-minute "
+    return WorkerOnOneCpu(cpu=cpu, episodes=episodes, first_upload_s=first, upload_s=second, uploads=uploads,
+                          uploads_s=seconds)
+
+
+def report_worker(f: WorkerOnOneCpu, plain_s: float) -> None:
+    print(f"(b) upload to figures, {f.episodes} episodes, a `league worker` on CPU {f.cpu}: {f.upload_s:.2f} s, "
+          f"{plain_s / f.upload_s:.2f}x the plain loop of (a) (target >= 1x: {verdict(plain_s / f.upload_s >= 1)}); "
+          f"the first upload a new worker sees: {f.first_upload_s:.2f} s")
+    rate = f.per_core_minute
+    print(f"(c) {f.uploads} uploads at once, validated and evaluated ({f.episodes} episodes) by that worker: "
+          f"{f.uploads_s:.1f} s, {rate:.0f} evaluations per core-minute "
           f"(target >= {RATE_TARGET}: {verdict(rate >= RATE_TARGET)})")
 
 
@@ -159,7 +232,7 @@ def evaluated(client, model: Path, timeout: float = 300) -> int:
     return submission_id
 
 
-def bench_status(model: Path, rate: float, seconds: float, embedded: bool, root: Path | None = None) -> float:
+def bench_status(model: Path, rate: float, seconds: float, embedded: bool, root: Path | None = None) -> Status:
     import numpy as np
 
     with tempfile.TemporaryDirectory(prefix="league-bench-") as tmp:
@@ -179,20 +252,26 @@ def bench_status(model: Path, rate: float, seconds: float, embedded: bool, root:
                 stop.set()
                 loader.join()
     p50, p95, p99 = np.percentile(latencies, [50, 95, 99])
-    where = "by `league serve`" if embedded else "in a `league worker` process"
-    print(f"(d) GET status, {len(latencies)} requests at {rate:g}/s, evaluations running {where}"
-          f"{f' (source tree {root})' if root else ''}:")
-    print(f"    p50 {p50:.1f} ms, p95 {p95:.1f} ms, p99 {p99:.1f} ms, max {latencies.max():.1f} ms "
-          f"(target p99 <= {P99_TARGET_MS:g} ms: {verdict(p99 <= P99_TARGET_MS)}); a job was running in "
-          f"{100 * np.mean(np.array(busy) > 0):.0f}% of the samples; idle before: p50 "
-          f"{np.percentile(idle, 50):.1f} ms, p99 {np.percentile(idle, 99):.1f} ms", flush=True)
-    return float(p99)
+    return Status(embedded=embedded, root=root, rate=rate,
+                  ms={"p50": float(p50), "p95": float(p95), "p99": float(p99), "max": float(latencies.max())},
+                  requests=len(latencies), busy_share=float(np.mean(np.array(busy) > 0)),
+                  idle_ms={"p50": float(np.percentile(idle, 50)), "p99": float(np.percentile(idle, 99))})
+
+
+def report_status(f: Status) -> None:
+    where = "by `league serve`" if f.embedded else "in a `league worker` process"
+    print(f"(d) GET status, {f.requests} requests at {f.rate:g}/s, evaluations running {where}"
+          f"{f' (source tree {f.root})' if f.root else ''}:")
+    print(f"    p50 {f.ms['p50']:.1f} ms, p95 {f.ms['p95']:.1f} ms, p99 {f.ms['p99']:.1f} ms, max {f.ms['max']:.1f} ms "
+          f"(target p99 <= {P99_TARGET_MS:g} ms: {verdict(f.ms['p99'] <= P99_TARGET_MS)}); a job was running in "
+          f"{100 * f.busy_share:.0f}% of the samples; idle before: p50 {f.idle_ms['p50']:.1f} ms, p99 "
+          f"{f.idle_ms['p99']:.1f} ms", flush=True)
 
 
 # --------------------------------------------------------------------------- (e) evaluation job
 
 
-def bench_evaluation_job(model: Path, episodes: int, placement: bool) -> float:
+def bench_evaluation_job(model: Path, episodes: int, placement: bool) -> EvaluationJob:
     from datetime import datetime
 
     with tempfile.TemporaryDirectory(prefix="league-bench-") as tmp:
@@ -213,17 +292,20 @@ def bench_evaluation_job(model: Path, episodes: int, placement: bool) -> float:
                 time.sleep(0.2)
     job = evaluation[0]
     seconds = (datetime.fromisoformat(job["finished_at"]) - datetime.fromisoformat(job["started_at"])).total_seconds()
-    print(f"(e) {episodes}-episode evaluation job in a `league worker` on every CPU, CPU placement "
-          f"{'on (the default)' if placement else 'off'}: {seconds:.2f} s ({job['status']})", flush=True)
-    return seconds
+    return EvaluationJob(episodes=episodes, placement=placement, seconds=seconds, status=job["status"])
+
+
+def report_job(f: EvaluationJob) -> None:
+    print(f"(e) {f.episodes}-episode evaluation job in a `league worker` on every CPU, CPU placement "
+          f"{'on (the default)' if f.placement else 'off'}: {f.seconds:.2f} s ({f.status})", flush=True)
 
 
 # --------------------------------------------------------------------------- (f) first TorchScript upload
 
 
 def bench_first_torchscript(model: Path, episodes: int, settle_s: float, uploads: int = 3,
-                            root: Path = ROOT) -> list[tuple[float, float]]:
-    """(f): (seconds to ready, seconds to evaluated) of each upload, in order."""
+                            root: Path = ROOT) -> FirstTorchScript:
+    """(f): (seconds to ready, seconds to evaluated) of each upload, in order, and the fork server's memory."""
     times = []
     with tempfile.TemporaryDirectory(prefix="league-bench-") as tmp:
         settings = {"LEAGUE_EVAL_EPISODES": str(episodes), "LEAGUE_WORKER_THREADS": "1"}
@@ -239,13 +321,17 @@ def bench_first_torchscript(model: Path, episodes: int, settle_s: float, uploads
                 ready = time.perf_counter() - start
                 wait_evaluated(client, [submission_id])
                 times.append((ready, time.perf_counter() - start))
-            memory = ", ".join(f"{fork_server_rss_mb(pid):.0f} MB" for pid in fork_servers(worker.pid))
-    first, later = times[0], times[1:]
-    print(f"(f) TorchScript uploads to a new `league worker`, the first {settle_s:g} s after its start"
-          f"{f' (source tree {root})' if root != ROOT else ''}: to ready {first[0]:.2f} s, to evaluated "
+            memory = [fork_server_rss_mb(pid) for pid in fork_servers(worker.pid)]
+    return FirstTorchScript(settle_s=settle_s, root=root, times=times, fork_server_mb=memory)
+
+
+def report_torchscript(f: FirstTorchScript) -> None:
+    first, later = f.times[0], f.times[1:]
+    print(f"(f) TorchScript uploads to a new `league worker`, the first {f.settle_s:g} s after its start"
+          f"{f' (source tree {f.root})' if f.root != ROOT else ''}: to ready {first[0]:.2f} s, to evaluated "
           f"{first[1]:.2f} s; later ones: to ready {sum(t[0] for t in later) / len(later):.2f} s, to evaluated "
-          f"{sum(t[1] for t in later) / len(later):.2f} s; its fork server's resident memory: {memory}", flush=True)
-    return times
+          f"{sum(t[1] for t in later) / len(later):.2f} s; its fork server's resident memory: "
+          f"{', '.join(f'{mb:.0f} MB' for mb in f.fork_server_mb)}", flush=True)
 
 
 def fork_servers(worker: int) -> list[int]:
@@ -262,7 +348,7 @@ def fork_server_rss_mb(pid: int) -> float:
     return float("nan")
 
 
-def main() -> None:
+def main(argv: list[str] | None = None) -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--episodes", type=int, default=100)
     parser.add_argument("--rate", type=float, default=200.0, help="GET requests per second")
@@ -275,35 +361,40 @@ def main() -> None:
                         help="only (f), run from each of these source trees in turn")
     parser.add_argument("--settle", type=float, default=20.0, help="seconds from a worker's start to the first "
                                                                    "upload in (f)")
-    args = parser.parse_args()
+    args = parser.parse_args(argv)
     with tempfile.TemporaryDirectory(prefix="league-bench-model-") as folder:
         model = thesis_actor(Path(folder))
         scripted = thesis_torchscript(Path(folder))
         if args.torchscript_trees:
             for tree in args.torchscript_trees:
-                bench_first_torchscript(scripted, args.episodes, args.settle, root=tree.resolve())
+                report_torchscript(bench_first_torchscript(scripted, args.episodes, args.settle, root=tree.resolve()))
             return
         if args.status_trees:
-            p99s = [bench_status(model, args.rate, args.seconds, embedded=True, root=tree.resolve())
-                    for tree in args.status_trees]
-            print("    p99: " + ", ".join(f"{tree}: {p99:.1f} ms" for tree, p99 in zip(args.status_trees, p99s)))
+            statuses = []
+            for tree in args.status_trees:
+                statuses.append(bench_status(model, args.rate, args.seconds, embedded=True, root=tree.resolve()))
+                report_status(statuses[-1])
+            print("    p99: " + ", ".join(f"{status.root}: {status.ms['p99']:.1f} ms" for status in statuses))
             return
         if not args.only_jobs:
-            plain = bench_evaluation(model, args.episodes)
-            bench_worker_on_one_cpu(model, args.episodes, plain, args.uploads)
-            bench_status(model, args.rate, args.seconds, embedded=False)
-            bench_status(model, args.rate, args.seconds, embedded=True)
+            evaluation = bench_evaluation(model, args.episodes)
+            report_evaluation(evaluation)
+            report_worker(bench_worker_on_one_cpu(model, args.episodes, args.uploads), evaluation.plain_s)
+            report_status(bench_status(model, args.rate, args.seconds, embedded=False))
+            report_status(bench_status(model, args.rate, args.seconds, embedded=True))
         placed = bench_evaluation_job(model, args.episodes, placement=True)
+        report_job(placed)
         unplaced = bench_evaluation_job(model, args.episodes, placement=False)
-        print(f"    CPU placement makes the evaluation job {unplaced / placed:.1f}x faster")
+        report_job(unplaced)
+        print(f"    CPU placement makes the evaluation job {unplaced.seconds / placed.seconds:.1f}x faster")
         if not args.only_jobs:
-            bench_first_torchscript(scripted, args.episodes, args.settle)
+            report_torchscript(bench_first_torchscript(scripted, args.episodes, args.settle))
 
 
 def thesis_torchscript(folder: Path) -> Path:
     """The thesis-size actor of (a), scripted (torch.jit.script) as a student exports it."""
     from league.agents import export_torchscript
-    from tests.toolkit_models import thesis_driver
+    from league.testing import thesis_driver
 
     return export_torchscript(thesis_driver(), folder / "thesis_actor.pt")
 

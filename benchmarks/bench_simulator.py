@@ -25,18 +25,21 @@ new track every episode >= 5x make_vec(..., "sync"), from a track pool >= 1M ste
 from __future__ import annotations
 
 import argparse
+import functools
 import json
 import os
 import subprocess
 import sys
 import time
 import timeit
+from dataclasses import dataclass
 from pathlib import Path
 
 import gymnasium as gym
 import numpy as np
 
 import league
+from _league import pin_to_one_core
 from league import lidar, render
 from league.agents import heuristic_actions as heuristic
 
@@ -74,14 +77,6 @@ BEFORE_SETUP = """import league
 
 def median_us(samples) -> float:
     return float(np.median(samples) * 1e6)
-
-
-def pin_to_one_core() -> str:
-    if hasattr(os, "sched_setaffinity"):
-        core = min(os.sched_getaffinity(0))
-        os.sched_setaffinity(0, {core})
-        return f"pinned to core {core}"
-    return "not pinned"
 
 
 def bench_reset(n: int) -> float:
@@ -182,54 +177,66 @@ def bench_vector(make, seconds: float) -> float:
     return rate
 
 
-def main():
+@dataclass
+class Row:
+    """One figure, printed as a row: what, its value in `unit`, and its target or comparison."""
+
+    name: str
+    value: float
+    unit: str
+    note: str = ""
+
+
+def measure(scale: float = 1.0, reference: Path | None = None, before: Path | None = None) -> list[Row]:
+    """Every figure, in print order; `scale` multiplies every count and duration (0.1: --quick)."""
+    reset_us = bench_reset(max(3, int(300 * scale)))
+    rows = [Row("reset, new random track, all options on", reset_us, "us", "<= 1000")]
+    if before:
+        before_us = bench_elsewhere(before, BEFORE_SETUP, max(3, int(300 * scale)))["reset_us"]
+        rows.append(Row("  the same, --before checkout", before_us, "us", f"({before_us / reset_us:.1f}x ours)"))
+    if reference:
+        ref = bench_elsewhere(reference, REFERENCE_SETUP, max(3, int(30 * scale)), REFERENCE_STEP)
+        rows.append(Row("  the same, reference implementation", ref["reset_us"], "us",
+                        f"({ref['reset_us'] / reset_us:.0f}x ours, target >= 150x)"))
+    steps = max(10, int(20000 * scale))
+    rows += [
+        Row("MicroRacerEnv.step, one car", bench_step(league.MicroRacerEnv(), steps), "us", "<= 5"),
+        Row("gym.make(...).step (with Gymnasium's wrappers)", bench_step(gym.make("league/MicroRacer-v0"), steps),
+            "us"),
+    ]
+    if reference:
+        rows.append(Row("  Racer.step of the reference implementation", ref["step_us"], "us"))
+    frames = max(1, int(200 * scale))
+    rows += [
+        Row("lidar of one car (19 rays)", bench_lidar(max(10, int(100000 * scale))), "us", "<= 1.5"),
+        Row("rgb_array frame, 1 car with a 600-point trail", bench_frame(1, frames), "us"),
+        Row("rgb_array frame, 10 cars with 600-point trails", bench_frame(10, frames), "us", "<= 30000"),
+        Row("PettingZoo step, 64 cars", bench_parallel(64, 3 * scale, batched=False), "car-steps/s", ">= 250000"),
+        Row("batched step_arrays, 64 cars", bench_parallel(64, 3 * scale, batched=True), "car-steps/s", ">= 1000000"),
+    ]
+    seconds = 4 * scale
+    sync = bench_vector(lambda: gym.make_vec("league/MicroRacer-v0", num_envs=8, vectorization_mode="sync"), seconds)
+    rows.append(Row('make_vec(..., "sync"), 8 envs, new track every episode', sync, "steps/s"))
+    for num_envs in (8, 64, 256):
+        fresh = bench_vector(functools.partial(league.make_vector_env, num_envs=num_envs), seconds)
+        rows.append(Row(f"league.vector_env, {num_envs} envs, new track every episode", fresh, "steps/s",
+                        f"{fresh / sync:.1f}x sync, target >= 5x"))
+    for num_envs, pool_size in ((256, 8), (256, 100)):
+        pool = bench_vector(functools.partial(league.make_vector_env, num_envs=num_envs, track_pool=pool_size), seconds)
+        rows.append(Row(f"league.vector_env, {num_envs} envs, pool of {pool_size} tracks", pool, "steps/s",
+                        "target >= 1000000"))
+    return rows
+
+
+def main(argv: list[str] | None = None) -> None:
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("--quick", action="store_true", help="fewer repetitions (a smoke run)")
     parser.add_argument("--reference", type=Path, help="a checkout of github.com/asperti/MicroRacer, timed beside ours")
     parser.add_argument("--before", type=Path, help="a built checkout of this project at an earlier commit")
-    args = parser.parse_args()
-    scale = 0.1 if args.quick else 1.0
+    args = parser.parse_args(argv)
     print(f"simulator benchmark, {pin_to_one_core()}")
-
-    reset_us = bench_reset(int(300 * scale))
-    print(f"{'reset, new random track, all options on':<58} {reset_us:>12,.1f}  us          <= 1000")
-    if args.before:
-        before = bench_elsewhere(args.before, BEFORE_SETUP, int(300 * scale))["reset_us"]
-        print(f"{'  the same, --before checkout':<58} {before:>12,.1f}  us          ({before / reset_us:.1f}x ours)")
-    if args.reference:
-        reference = bench_elsewhere(args.reference, REFERENCE_SETUP, max(3, int(30 * scale)), REFERENCE_STEP)
-        print(f"{'  the same, reference implementation':<58} {reference['reset_us']:>12,.1f}  us          "
-              f"({reference['reset_us'] / reset_us:.0f}x ours, target >= 150x)")
-
-    rows = [
-        ("MicroRacerEnv.step, one car", bench_step(league.MicroRacerEnv(), int(20000 * scale)), "us", "<= 5"),
-        ("gym.make(...).step (with Gymnasium's wrappers)",
-         bench_step(gym.make("league/MicroRacer-v0"), int(20000 * scale)), "us", ""),
-    ]
-    if args.reference:
-        rows.append(("  Racer.step of the reference implementation", reference["step_us"], "us", ""))
-    rows += [
-        ("lidar of one car (19 rays)", bench_lidar(int(100000 * scale)), "us", "<= 1.5"),
-        ("rgb_array frame, 1 car with a 600-point trail", bench_frame(1, int(200 * scale)), "us", ""),
-        ("rgb_array frame, 10 cars with 600-point trails", bench_frame(10, int(200 * scale)), "us", "<= 30000"),
-        ("PettingZoo step, 64 cars", bench_parallel(64, 3 * scale, batched=False), "car-steps/s", ">= 250000"),
-        ("batched step_arrays, 64 cars", bench_parallel(64, 3 * scale, batched=True), "car-steps/s", ">= 1000000"),
-    ]
-    for name, value, unit, target in rows:
-        print(f"{name:<58} {value:>12,.1f}  {unit:<12} {target}")
-
-    seconds = 4 * scale
-    sync = bench_vector(lambda: gym.make_vec("league/MicroRacer-v0", num_envs=8, vectorization_mode="sync"), seconds)
-    label = 'make_vec(..., "sync"), 8 envs, new track every episode'
-    print(f"{label:<58} {sync:>12,.1f}  steps/s")
-    for num_envs in (8, 64, 256):
-        fresh = bench_vector(lambda: league.make_vector_env(num_envs=num_envs), seconds)  # noqa: B023 - called in this iteration
-        print(f"{f'league.vector_env, {num_envs} envs, new track every episode':<58} {fresh:>12,.1f}  steps/s"
-              f"     {fresh / sync:.1f}x sync, target >= 5x")
-    for num_envs, pool_size in ((256, 8), (256, 100)):
-        pool = bench_vector(lambda: league.make_vector_env(num_envs=num_envs, track_pool=pool_size), seconds)  # noqa: B023 - called in this iteration
-        print(f"{f'league.vector_env, {num_envs} envs, pool of {pool_size} tracks':<58} {pool:>12,.1f}  steps/s"
-              f"     target >= 1000000")
+    for row in measure(0.1 if args.quick else 1.0, args.reference, args.before):
+        print(f"{row.name:<58} {row.value:>12,.1f}  {row.unit:<12} {row.note}".rstrip())
 
 
 if __name__ == "__main__":

@@ -30,13 +30,13 @@ def pytest_collection_modifyitems(items):
 
 # toolkit fixtures ------------------------------------------------------------------------
 # A thesis-size actor (5 -> 64 -> 64 -> 2) exported once per session to ONNX and TorchScript,
-# plus its lidar-size twin; see tests/toolkit_models.py.
+# plus its lidar-size twin; see league/testing.py.
 
 
 @pytest.fixture(scope="session")
 def thesis_module():
     pytest.importorskip("torch")
-    from .toolkit_models import thesis_driver
+    from league.testing import thesis_driver
 
     return thesis_driver()
 
@@ -66,6 +66,6 @@ def lidar_onnx_actor(models_dir):
     pytest.importorskip("onnxruntime")
     from league.agents import export_onnx
 
-    from .toolkit_models import thesis_driver
+    from league.testing import thesis_driver
 
     return export_onnx(thesis_driver(obs_dim=20), models_dir / "lidar_actor.onnx", obs_dim=20)

@@ -10,6 +10,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from league import testing as models
 from league.agents import (
     Agent,
     AgentError,
@@ -23,8 +24,6 @@ from league.agents import (
     import_onnxruntime,
     load_agent,
 )
-
-from . import toolkit_models as models
 
 torch = pytest.importorskip("torch")
 pytest.importorskip("onnxruntime")
@@ -247,15 +246,17 @@ def bad_file(kind, tmp_path, onnx_actor, torchscript_actor):
     elif kind == "empty":
         path.write_bytes(b"")
     elif kind == "truncated":
-        models.truncated_copy(onnx_actor, path)
+        models.truncated(onnx_actor, path)
     elif kind == "truncated_pt":
-        models.truncated_copy(torchscript_actor, path)
+        models.truncated(torchscript_actor, path)
     elif kind == "pickle":
         models.pickle_renamed_pt(path)
     elif kind == "checkpoint":
         torch.save(models.thesis_driver(), path)
     else:
-        getattr(models, f"onnx_{kind}")(path)
+        options = {"wrong_input": {"in_dim": 7}, "three_outputs": {"out_dim": 3}, "nan_outputs": {"nan": True},
+                   "integer_outputs": {"integer": True}}[kind]
+        models.onnx_mlp(path, **options)
     return path
 
 

@@ -20,7 +20,7 @@ from pathlib import Path
 import httpx
 import pytest
 
-from . import model_factory as mf
+from league import testing as mf
 
 REPO = Path(__file__).resolve().parents[2]
 PG_ADMIN_URL = os.environ.get("LEAGUE_TEST_PG", "postgresql://postgres@127.0.0.1:5432/test")
@@ -269,7 +269,7 @@ def models(tmp_path_factory) -> dict[str, Path]:
     d = tmp_path_factory.mktemp("server-models")
     from league.agents import export_onnx, export_torchscript
 
-    from ..toolkit_models import thesis_driver
+    from league.testing import thesis_driver
 
     good_onnx = export_onnx(thesis_driver(), d / "thesis_actor.onnx")
     return {

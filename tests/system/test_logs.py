@@ -10,10 +10,10 @@ import pytest
 from prometheus_client.parser import text_string_to_metric_families
 from sqlalchemy import func, select
 
+from league import testing as mf
 from league.server.db.models import Job
 from league.server.db.session import make_engine
 
-from ..server import model_factory as mf
 from ..server.conftest import create_student, fresh_backend, make_server, upload, wait_settled
 
 

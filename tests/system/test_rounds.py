@@ -33,7 +33,7 @@ def drivers(tmp_path_factory) -> list[Path]:
     """Eight thesis-size ONNX drivers that all lap the track, each at a speed of its own."""
     from league.agents import export_onnx
 
-    from ..toolkit_models import thesis_driver
+    from league.testing import thesis_driver
 
     d = tmp_path_factory.mktemp("round-drivers")
     speeds = [0.20, 0.22, 0.24, 0.26, 0.28, 0.21, 0.23, 0.25]

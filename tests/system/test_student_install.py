@@ -41,7 +41,7 @@ def export(how: str, folder: Path) -> Path:
     """The thesis-like driver exported as a student would, with each exporter's defaults."""
     import torch
 
-    from ..toolkit_models import thesis_driver
+    from league.testing import thesis_driver
 
     model, example = thesis_driver().eval(), (torch.zeros(1, 5),)
     path = folder / ("policy.pt" if how.startswith("jit") else "policy.onnx")

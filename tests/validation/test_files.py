@@ -6,11 +6,10 @@ import numpy as np
 import onnx
 import pytest
 
+from league import testing as mf
 from league.agents import load_agent
 from league.validation.checks import ModelRejected, check_onnx
 from league.validation.files import model_kind_of, read_upload
-
-from ..server import model_factory as mf
 
 MB = 1024 * 1024
 

@@ -5,11 +5,10 @@ import numpy as np
 
 from league.agents import compact_from_lidar, export_onnx, export_torchscript, load_agent
 from league.constants import COMPACT_DIM, LIDAR_DIM
+from league.testing import thesis_driver
 from league.validation.probes import (
     PROBES, probe_actions_bytes, probe_actions_from_bytes, probe_key, probe_observations,
 )
-
-from ..toolkit_models import thesis_driver
 
 
 def test_the_probe_set_is_fixed_and_the_compact_one_is_the_lidar_one_seen_compactly():

@@ -7,10 +7,9 @@ from pathlib import Path
 
 import pytest
 
+from league import testing as mf
 from league.server.sandbox.validation import validate_model
 from league.validation.limits import SandboxLimits
-
-from .. import model_factory as mf
 
 LIMITS = SandboxLimits(load_cpu_s=60, max_restarts=0)
 

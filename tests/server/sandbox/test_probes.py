@@ -4,12 +4,11 @@ from __future__ import annotations
 
 import numpy as np
 
+from league import testing as mf
 from league.agents import load_agent
 from league.server.sandbox.validation import probe_model, validate_model
 from league.validation.limits import SandboxLimits
 from league.validation.probes import probe_actions_from_bytes, probe_key, probe_observations
-
-from .. import model_factory as mf
 
 FAST = SandboxLimits(first_call_allowance_s=0.3, load_cpu_s=20, max_restarts=1)
 

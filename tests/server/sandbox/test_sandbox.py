@@ -14,14 +14,13 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from league import testing as mf
 from league.agents import AgentError, dry_run_observations
 from league.server.sandbox.agent import SandboxedAgent
 from league.server.sandbox.log import LogBuffer
 from league.server.sandbox.process import ForkServer, Isolation, IsolationUnavailable, _child_environment
 from league.server.sandbox.validation import validate_model
 from league.validation.limits import SandboxLimits
-
-from .. import model_factory as mf
 
 FAST = SandboxLimits(first_call_allowance_s=0.3, load_cpu_s=20, max_restarts=1)
 

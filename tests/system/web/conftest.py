@@ -167,8 +167,8 @@ def agent_files(tmp_path_factory) -> dict[str, Path]:
     pytest.importorskip("torch")
     from league.agents import export_onnx
 
-    from ..server import model_factory as mf
-    from ..toolkit_models import thesis_driver
+    from league import testing as mf
+    from league.testing import thesis_driver
 
     d = tmp_path_factory.mktemp("web-agents")
     files = {f"driver_{speed}": export_onnx(thesis_driver(target_speed=speed, seed=i), d / f"driver_{speed}.onnx")

@@ -14,16 +14,16 @@ from types import SimpleNamespace
 import numpy as np
 import pytest
 
+from league import testing as mf
 from league.agents import export_onnx
 from league.championship import split_into_heats
 from league.evaluation import episode_seeds
+from league.testing import thesis_driver
 
 from ...conftest import (
     add_user_in_new_course, assert_same_classification, baseline_submission, create_student, fresh_backend,
     make_server, race_locally, stored_model, upload, upload_ready, wait_for, wait_race, wait_settled,
 )
-from ... import model_factory as mf
-from ....toolkit_models import thesis_driver
 
 DEFAULT_POINTS = [25, 18, 15, 12, 10, 8, 6, 4, 2, 1]
 NAN_REASON = "the model returned NaN or infinite actions"

@@ -16,8 +16,8 @@ from league.server.config import BUNDLED_BASELINES
 from league.server.db.models import Submission
 from league.server.db.session import make_engine, make_sessionmaker
 from league.server.integrity import CSV_COLUMNS
+from league.testing import thesis_driver
 
-from ....toolkit_models import thesis_driver
 from ...conftest import add_user_in_new_course, submission, upload, wait_for
 
 

@@ -10,10 +10,10 @@ import uuid
 import pytest
 from sqlalchemy import select
 
+from league import testing as mf
 from league.server.db.models import INSTRUCTOR, Submission
 
 from ....test_spreadsheet import formula_cells
-from ... import model_factory as mf
 from ...conftest import (
     add_user_in_new_course, baseline_submission, create_student, fresh_backend, make_server, upload_ready,
 )

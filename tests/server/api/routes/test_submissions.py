@@ -245,7 +245,7 @@ def test_a_rejected_uploads_file_is_deleted(app_league, tmp_path):
     from league.server.jobs.validate import ValidateSubmission
     from league.validation.report import ValidationReport
 
-    from ... import model_factory as mf
+    from league import testing as mf
 
     user, student = app_league.student("reject")
     bad = mf.random_bytes(tmp_path / "random.onnx")

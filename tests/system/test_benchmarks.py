@@ -1,0 +1,146 @@
+"""Each benchmark's measuring function at its smallest size: it runs, and its figures are there,
+finite and positive, with the counts asked for. Timings are never checked against targets here
+(a busy machine would fail them); the benchmarks print those.
+
+Not run here: bench_reference.py (it needs a checkout of the original MicroRacer) and
+baselines_report.py (finished training runs); of bench_server.py only (a), of bench_league.py only
+(a): their other parts start several leagues and race rounds for minutes at any size. The rush
+at a small size is tests/system/test_rush.py (with its checks). bench_claims.py runs on SQLite
+here (PostgreSQL in the benchmark).
+
+bench_queue.py, bench_course.py and bench_backup.py start a league of servers (`serve` and
+workers): 10-30 s each at their smallest size on a quiet 2-CPU machine, a minute or more on a busy
+one (marked `long`: this file starts first in the whole suite). The file takes about 70 s.
+"""
+from __future__ import annotations
+
+import math
+import random
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+BENCHMARKS = Path(__file__).resolve().parents[2] / "benchmarks"
+sys.path.insert(0, str(BENCHMARKS))
+
+import bench_backup  # noqa: E402
+import bench_baselines  # noqa: E402
+import bench_claims  # noqa: E402
+import bench_course  # noqa: E402
+import bench_grades  # noqa: E402
+import bench_integrity  # noqa: E402
+import bench_league  # noqa: E402
+import bench_metrics  # noqa: E402
+import bench_queue  # noqa: E402
+import bench_server  # noqa: E402
+import bench_simulator  # noqa: E402
+import bench_toolkit  # noqa: E402
+
+
+def positive(*values: float) -> bool:
+    return all(math.isfinite(value) and value > 0 for value in values)
+
+
+def test_simulator():
+    rows = bench_simulator.measure(scale=0.01)
+    assert len(rows) == 14  # no --reference, no --before
+    assert [row.name for row in rows][:2] == ["reset, new random track, all options on", "MicroRacerEnv.step, one car"]
+    assert positive(*(row.value for row in rows))
+    assert {row.unit for row in rows} == {"us", "car-steps/s", "steps/s"}
+
+
+def test_toolkit(tmp_path):
+    f = bench_toolkit.measure(episodes=2, out=tmp_path, cars=2)
+    assert f.episodes == 2 and 0 <= f.completed <= 2 and 0 <= f.plain_completed <= 2
+    assert f.steps >= 2 and f.cars == 2 and f.race_steps > 0 and 0 <= f.finishers <= 2
+    assert 0 <= f.outcome_or_steps_changed <= 2 and f.outcomes_changed <= f.outcome_or_steps_changed
+    assert f.largest_return_difference >= 0
+    assert positive(f.plain_s, f.one_at_a_time_s, f.cold_s, f.warm_s, f.race_s, f.gif_s, f.replay_kib, f.gif_kib,
+                    f.onnx_fixed_before_s, f.onnx_fixed_after_s, f.torchscript_fixed_before_s,
+                    f.torchscript_fixed_after_s)
+    assert f.onnx_fixed_path in ("row by row", "free batch")
+    assert (tmp_path / "race.gif").stat().st_size == round(f.gif_kib * 1024)
+
+
+def test_baselines_loop():
+    f = bench_baselines.measure(updates=3, warmup=100)
+    assert f.iterations == 3 and f.threads >= 1
+    assert list(f.parts_s) == list(bench_baselines.PARTS) and positive(*f.parts_s.values())
+    assert sum(f.parts_s.values()) <= f.total_s and positive(f.ms_per_iteration)
+
+
+def test_integrity():
+    distances = bench_integrity.distances()
+    assert list(distances.formats) == list(bench_integrity.SPEEDS)
+    assert len(distances.drivers) == 6 and len(distances.baselines) >= 1
+    # what the benchmark shows: one network in two formats is far closer than two drivers
+    assert max(distances.formats.values()) < 1e-3 < min(distances.drivers.values())
+    t = bench_integrity.report_time(30, 1, np.random.default_rng(0))
+    assert t.submissions == 30 and t.repeats == 1 and t.groups >= 0 and positive(t.report_s, t.every_pair_s)
+
+
+def test_grades():
+    f = bench_grades.measure(bench_grades.parse(["--students", "3", "--repeat", "1"]))
+    assert f.backend == "sqlite" and f.students == 3 and f.rows >= 3  # the baselines' rows beside
+    assert len(f.ms) == 6 and positive(f.built_s, *f.ms.values())
+
+
+def test_metrics():
+    f = bench_metrics.measure(bench_metrics.parse(["--students", "2", "--uploads", "3", "--episodes", "2",
+                                                   "--races", "2", "--scrapes", "2"]))
+    assert (f.students, f.submissions, f.episodes, f.jobs) == (2, 3, 6, 8)
+    assert list(f.ms) == [label for label, _ in bench_metrics.REQUESTS]
+    assert all(len(times) == 2 and positive(*times) for times in f.ms.values())
+
+
+def test_claims_on_sqlite():
+    args = bench_claims.parse(["--backend", "sqlite", "--processes", "2", "--owners", "5", "--depths", "12",
+                               "--claims", "10"])
+    f = bench_claims.measure_depth(args, 12)
+    assert f.failures == [] and (f.depth, f.claimed, f.double_claims) == (12, 10, 0)
+    assert positive(f.wall_s, f.jobs_per_s, *f.claim_ms.values()) and f.misses >= 0
+    assert math.isnan(f.database_cpu_s)  # SQLite runs inside the claimers
+
+
+def test_server_evaluation(tmp_path):
+    """(a): the plain loop, lockstep metrics_run, and the same in a sandbox."""
+    from _league import thesis_actor
+
+    f = bench_server.bench_evaluation(thesis_actor(tmp_path), episodes=2)
+    assert f.episodes == 2 and 0 <= f.completed <= 2
+    assert positive(f.first_sandbox_s, f.plain_s, f.lockstep_s, f.sandboxed_s)
+
+
+def test_league_heat(tmp_path):
+    """(a): a heat in sandboxes on one core, beside the same race in this process."""
+    f = bench_league.bench_heat(bench_league.student_models(tmp_path, 2), repeats=1)
+    assert f.cars == 2 and len(f.totals) == len(f.starts) == 1 and f.steps > 0
+    assert f.identical  # a sandboxed race classifies as the in-process one
+    assert positive(*f.totals, *f.starts, f.in_process_s) and f.starts[0] <= f.totals[0]
+
+
+@pytest.mark.long
+def test_queue_on_sqlite():
+    case = bench_queue.measure_case("sqlite", 0.5, False, jobs=2, rng=random.Random(0))
+    assert (case.backend, case.wake, len(case.latencies)) == ("sqlite", False, 2)
+    assert positive(*case.latencies)
+
+
+@pytest.mark.long
+def test_course():
+    f = bench_course.measure(bench_course.parse(["--students", "2", "--episodes", "1", "--distinct", "2"]))
+    assert f.failures == [] and (f.students, f.episodes, f.finals) == (2, 1, 2)
+    assert positive(f.public_s, f.publish_s, f.private_span_s)
+
+
+@pytest.mark.long
+def test_backup():
+    f = bench_backup.measure(bench_backup.parse(["--students", "2", "--uploads", "3", "--rounds", "1",
+                                                 "--episodes", "1", "--distinct", "2", "--repeats", "1",
+                                                 "--restore-into", "same"]))
+    assert f.failures == [] and list(f.restores) == ["sqlite"] and len(f.backup_s) == 1
+    assert set(f.rows) == set(bench_backup.TABLES) and f.rows["users"] >= 2 and f.rows["races"] >= 1
+    assert positive(f.evaluated_s, f.rounds_s, f.database_mb, f.backup_mb, *f.backup_s,
+                    *f.restores["sqlite"].values())
