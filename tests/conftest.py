@@ -4,8 +4,11 @@
     python -m pytest -n 2 --dist loadfile --no-loadscope-reorder   the whole suite (what CI runs)
     python -m pytest -n 2 --dist loadfile --no-loadscope-reorder tests/system   the system tests alone
 
-The slow tier: tests/system/ (leagues of processes, hosts, browsers, installs), the API route tests
-that run jobs on a `league serve` subprocess (SERVER_FIXTURES), and tests marked `slow` (trainings).
+The slow tier: the folder tests/system/ (leagues of `league serve` and `league worker` processes,
+hosts, browsers, installs), marked here by folder, and the tests marked `slow` (the baselines'
+trainings). A test elsewhere that imports what starts those processes (tests/system/servers.py) is
+a system test in the wrong folder: collection fails and says so. (Their fixtures, in
+tests/system/conftest.py, are not even visible elsewhere.)
 """
 from __future__ import annotations
 
@@ -14,19 +17,33 @@ from pathlib import Path
 import pytest
 
 SYSTEM = Path(__file__).parent / "system"
-# Fixtures of tests/server/ that start `league serve` processes: the API route tests that run jobs.
-SERVER_FIXTURES = {"league_server", "season"}
+SERVERS = "tests.system.servers"  # the module that starts leagues as processes
 
 
 def pytest_collection_modifyitems(items):
+    elsewhere = {item.path: getattr(item, "module", None) for item in items if SYSTEM not in item.path.parents}
+    misplaced = sorted(str(path.relative_to(SYSTEM.parent.parent)) for path, module in elsewhere.items()
+                       if starts_servers(module))
+    if misplaced:
+        raise pytest.UsageError(f"{', '.join(misplaced)}: a test outside tests/system uses {SERVERS} (leagues "
+                                f"as processes): move it to tests/system/, or run the app in process "
+                                f"(tests/server/api/conftest.py)")
     for item in items:
-        if SYSTEM in item.path.parents or SERVER_FIXTURES & set(getattr(item, "fixturenames", ())):
+        if item.path not in elsewhere:
             item.add_marker(pytest.mark.slow)
     # The files of `long` tests first: under `pytest -n 2 --dist loadfile --no-loadscope-reorder`
     # (the README's command; without the last option xdist sends the files with most tests first) a
     # file started last ends the run, and these take a minute or more each.
     long_files = {item.path for item in items if item.get_closest_marker("long")}
     items.sort(key=lambda item: item.path not in long_files)  # stable: the rest keep their order
+
+
+def starts_servers(module) -> bool:
+    """Whether a test module holds the module that starts leagues as processes, or anything of it."""
+    return module is not None and any(
+        getattr(value, "__module__", None) == SERVERS or getattr(value, "__name__", None) == SERVERS
+        for value in vars(module).values())
+
 
 # toolkit fixtures ------------------------------------------------------------------------
 # A thesis-size actor (5 -> 64 -> 64 -> 2) exported once per session to ONNX and TorchScript,

@@ -229,7 +229,6 @@ def test_observation_follows_the_agent():
         metrics_run("heuristic", episodes=1, observation="lidar")
 
 
-@pytest.mark.slow
 def test_heuristic_fidelity_all_options_on():
     """SPEC: 133 / 150 laps, mean speed 0.267 on the reference; tolerance of the simulator issue."""
     result = metrics_run("heuristic", episodes=150, seed=0)
@@ -237,7 +236,6 @@ def test_heuristic_fidelity_all_options_on():
     assert 0.25 <= result.mean_speed <= 0.28
 
 
-@pytest.mark.slow
 def test_heuristic_fidelity_all_options_off():
     """SPEC: 150 / 150 laps, mean speed 0.261 on the reference."""
     result = metrics_run("heuristic", episodes=150, seed=0, **ALL_OFF)

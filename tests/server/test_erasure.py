@@ -19,8 +19,7 @@ from league.server.db.models import (
 from league.server.jobs.race import RaceOutcome, car_name
 from league.server.rounds import create_race
 
-from .api.conftest import in_process_league, unique
-from .api.routes.test_round_tracks import every_get
+from .api.conftest import every_get, in_process_league, unique
 from .conftest import BACKENDS
 
 CONTRACT = Path(__file__).resolve().parents[2] / "docs" / "CONTRACT.md"

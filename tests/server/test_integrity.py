@@ -1,5 +1,5 @@
 """The integrity report's grouping, on submissions as the report reads them (no server; the routes
-and the sandboxed probes are tested over HTTP in tests/server/api/routes/test_integrity.py)."""
+and the sandboxed probes are tested over HTTP in tests/system/api/test_integrity.py)."""
 from __future__ import annotations
 
 import itertools

@@ -1,10 +1,57 @@
 """System tests: the league as its users run it. Servers and workers as processes (killed, restarted,
 upgraded, backed up), workers on other hosts (network namespaces), browsers, installs into fresh venvs
-by ordinary users, the student guide run block by block. All of them are the slow tier (tests/conftest.py).
+by ordinary users, the student guide run block by block, and the API's routes where they run jobs on
+a `league serve` and its worker (tests/system/api/). All of them are the slow tier (tests/conftest.py).
 
-The databases, settings, `LeagueServer` and HTTP helpers are the server tests' (tests/server/conftest.py):
-the API route tests that run jobs start the same servers.
+The databases, settings, model files and HTTP helpers are the server tests' (tests/server/conftest.py);
+the servers and what the tests do with them are in servers.py; the fixtures shared by several files
+of this folder are here.
 """
 from __future__ import annotations
 
+from pathlib import Path
+
+import pytest
+
+from ..server.conftest import BACKENDS, fresh_backend
 from ..server.conftest import backend, models  # noqa: F401 - fixtures: a database of each backend, the model files
+from .servers import make_server
+
+
+@pytest.fixture(scope="package", params=BACKENDS)
+def league_server(request, tmp_path_factory):
+    """A running `league serve` (API + its worker process) per backend, shared by the API tests."""
+    tmp_path = tmp_path_factory.mktemp(f"league-{request.param}")
+    with fresh_backend(request.param, tmp_path) as database_url:
+        server = make_server(tmp_path, database_url)
+        server.start_api()
+        try:
+            yield server
+        finally:
+            server.stop_all()
+
+
+@pytest.fixture(scope="module")
+def sqlite_server(tmp_path_factory):
+    """A running `league serve` on SQLite, shared by a module's tests (the student's toolkit against it)."""
+    tmp = tmp_path_factory.mktemp("client")
+    with fresh_backend("sqlite", tmp) as database_url:
+        server = make_server(tmp, database_url)
+        server.start_api()
+        try:
+            yield server
+        finally:
+            server.stop_all()
+
+
+@pytest.fixture(scope="module")
+def drivers(tmp_path_factory) -> list[Path]:
+    """Eight thesis-size ONNX drivers that all lap the track, each at a speed of its own."""
+    from league.agents import export_onnx
+
+    from league.testing import thesis_driver
+
+    d = tmp_path_factory.mktemp("round-drivers")
+    speeds = [0.20, 0.22, 0.24, 0.26, 0.28, 0.21, 0.23, 0.25]
+    return [export_onnx(thesis_driver(target_speed=speed, seed=k), d / f"driver_{k}.onnx")
+            for k, speed in enumerate(speeds)]

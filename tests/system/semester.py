@@ -21,7 +21,8 @@ from sqlalchemy import text
 
 from league.server.db.session import make_engine
 
-from ..server.conftest import LeagueServer, upload, wait_for, wait_race, wait_settled
+from ..server.conftest import upload, wait_for, wait_settled
+from .servers import LeagueServer, wait_race
 
 PAGE = 100  # the API's largest page
 STUDENTS = 3

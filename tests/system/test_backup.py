@@ -16,7 +16,8 @@ from league.server.backup import BackupError, backup, backup_revision, holds_lea
 from league.server.db.session import head_revision, make_engine, revision_of, upgrade
 
 from .semester import collect, differences, drained, semester
-from ..server.conftest import LeagueServer, fresh_backend, make_server, upload
+from ..server.conftest import fresh_backend, upload
+from .servers import LeagueServer, make_server
 
 LOAD_UPLOADS = 9  # arriving while the backup is taken
 

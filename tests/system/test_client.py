@@ -21,10 +21,8 @@ from league.client import EXIT_AUTH, EXIT_OK, EXIT_REFUSED, EXIT_REJECTED, EXIT_
 from league.server.api.deps import UNKNOWN_TOKEN
 from league.evaluation import metrics_run
 
-from ..server.conftest import (
-    REPO, TEST_SETTINGS, baseline_submission, create_student, free_port, fresh_backend, make_server, upload,
-    wait_for, wait_settled,
-)
+from ..server.conftest import REPO, TEST_SETTINGS, create_student, upload, wait_for, wait_settled
+from .servers import baseline_submission, free_port
 
 EPISODES, SEED = int(TEST_SETTINGS["LEAGUE_EVAL_EPISODES"]), int(TEST_SETTINGS["LEAGUE_EVAL_SEED"])
 # Too slow: the load's dry run, a call or the median may be the first to use up its CPU time
@@ -33,18 +31,6 @@ TIMED = {"slow": r"ms of CPU per observation|may use 20 ms per observation"}
 
 def unique(name: str) -> str:
     return f"{name}-{uuid.uuid4().hex[:6]}"
-
-
-@pytest.fixture(scope="module")
-def server(tmp_path_factory):
-    tmp = tmp_path_factory.mktemp("client")
-    with fresh_backend("sqlite", tmp) as database_url:
-        league_server = make_server(tmp, database_url)
-        league_server.start_api()
-        try:
-            yield league_server
-        finally:
-            league_server.stop_all()
 
 
 def league(*args: str, config, **env: str) -> subprocess.CompletedProcess:
@@ -67,17 +53,17 @@ def student_token(server, name: str) -> str:
 
 
 @pytest.mark.long
-def test_check_rejects_exactly_what_the_server_rejects(server, models, tmp_path):
+def test_check_rejects_exactly_what_the_server_rejects(sqlite_server, models, tmp_path):
     """Every model file of the server tests, good and hostile: uploaded (one student each), and
     checked here with one `league check` of them all against the server's limits; the same verdict
     and reason, file for file, in order."""
     uploaded = {}
     for kind, path in models.items():
-        response = upload(create_student(server, unique(kind)), path)
+        response = upload(create_student(sqlite_server, unique(kind)), path)
         assert response.status_code == 201, response.text
         uploaded[kind] = response.json()["id"]
-    checked = league("check", *map(str, models.values()), "--server", server.url, config=tmp_path)
-    with server.client(server.instructor_token) as instructor:
+    checked = league("check", *map(str, models.values()), "--server", sqlite_server.url, config=tmp_path)
+    with sqlite_server.client(sqlite_server.instructor_token) as instructor:
         served = {kind: wait_settled(instructor, uploaded[kind], timeout=120) for kind in models}
 
     assert checked.returncode == EXIT_REJECTED, checked.stderr  # some are rejected: not every file would pass
@@ -102,7 +88,7 @@ def test_check_rejects_exactly_what_the_server_rejects(server, models, tmp_path)
                 (verdict["error"], report)
     assert sum(v["status"] == "ready" for v in served.values()) == 3  # the good ones: onnx, torchscript, heuristic
     good = [models[kind] for kind in models if served[kind]["status"] == "ready" or kind == "external_data"]
-    all_good = league("check", *map(str, good), "--server", server.url, config=tmp_path)
+    all_good = league("check", *map(str, good), "--server", sqlite_server.url, config=tmp_path)
     assert all_good.returncode == EXIT_OK, all_good.stdout + all_good.stderr
     assert all_good.stdout.count("the server would accept it") == 4
 
@@ -116,11 +102,11 @@ def test_check_says_its_verdict_only_and_a_timing_once(models, tmp_path):
                         r"it uses [\d.]+ ms of CPU per observation, the limit is 0.001 ms\n", checked.stdout)
 
 
-def test_a_student_logs_in_submits_waits_and_races_from_the_terminal(server, models, tmp_path):
+def test_a_student_logs_in_submits_waits_and_races_from_the_terminal(sqlite_server, models, tmp_path):
     name = unique("terminal")
-    token = student_token(server, name)
+    token = student_token(sqlite_server, name)
 
-    login = league("login", "--server", server.url, "--token", token, config=tmp_path)
+    login = league("login", "--server", sqlite_server.url, "--token", token, config=tmp_path)
     assert login.returncode == EXIT_OK, login.stderr
     assert f"as {name} (student)" in login.stdout
     saved = next(tmp_path.rglob("client.json"))
@@ -146,7 +132,7 @@ def test_a_student_logs_in_submits_waits_and_races_from_the_terminal(server, mod
     piped.stdout.close()  # `league submissions | head` once head has quit
     assert (piped.stderr.read(), piped.wait(timeout=120)) == ("", 141)
 
-    baseline = baseline_submission(server)
+    baseline = baseline_submission(sqlite_server)
     raced = league("race-server", rows[0]["id"], str(baseline["id"]), "--seed", "5",
                    "--replay", str(tmp_path / "race.json"), config=tmp_path)
     assert raced.returncode == EXIT_OK, raced.stderr
@@ -156,13 +142,13 @@ def test_a_student_logs_in_submits_waits_and_races_from_the_terminal(server, mod
     assert replayed.returncode == EXIT_OK and replayed.stdout.splitlines()[1:] == raced.stdout.splitlines()[1:]
 
 
-def test_instructors_get_the_grades_from_the_terminal(server, tmp_path):
+def test_instructors_get_the_grades_from_the_terminal(sqlite_server, tmp_path):
     name = unique("graded")
-    student_token(server, name)
-    with server.client(server.instructor_token) as instructor:
+    student_token(sqlite_server, name)
+    with sqlite_server.client(sqlite_server.instructor_token) as instructor:
         cup = unique("cup")
         championship = instructor.post("/api/championships", json={"name": cup}).json()["id"]
-    env = {"LEAGUE_SERVER": server.url, "LEAGUE_TOKEN": server.instructor_token}
+    env = {"LEAGUE_SERVER": sqlite_server.url, "LEAGUE_TOKEN": sqlite_server.instructor_token}
     standings = league("standings", str(championship), "--csv", config=tmp_path, **env)
     by_name = league("standings", cup.upper(), "--csv", config=tmp_path, **env)  # students know its name
     assert by_name.returncode == EXIT_OK and by_name.stdout == standings.stdout, by_name.stderr
@@ -171,14 +157,14 @@ def test_instructors_get_the_grades_from_the_terminal(server, tmp_path):
     no_round = [row for row in csv.DictReader(io.StringIO(standings.stdout)) if row["student"] == name]
     assert no_round == [{**{key: "" for key in no_round[0]}, "student": name}]
     assert name in [row["student"] for row in csv.DictReader(io.StringIO(grades.stdout))]
-    refused = league("standings", str(championship), "--csv", config=tmp_path, LEAGUE_SERVER=server.url,
-                     LEAGUE_TOKEN=student_token(server, unique("nosy")))
+    refused = league("standings", str(championship), "--csv", config=tmp_path, LEAGUE_SERVER=sqlite_server.url,
+                     LEAGUE_TOKEN=student_token(sqlite_server, unique("nosy")))
     assert refused.returncode == EXIT_AUTH
     assert refused.stderr == "league: error: the server refused: only instructors may do this\n"
 
 
 @pytest.mark.long
-def test_an_assignment_is_graded_on_its_private_tracks_and_exported_from_the_terminal(server, models, tmp_path):
+def test_an_assignment_is_graded_on_its_private_tracks_and_exported_from_the_terminal(sqlite_server, models, tmp_path):
     """End to end on a running server: two students upload, the due time is moved into the past, the
     server freezes their finals and its worker evaluates them on the private tracks; the instructor
     sets a rubric and exports the grades (generic, Canvas, Moodle); a student reads their own grade
@@ -186,7 +172,7 @@ def test_an_assignment_is_graded_on_its_private_tracks_and_exported_from_the_ter
     from datetime import datetime, timedelta, timezone
 
     title, now = unique("Graded"), datetime.now(timezone.utc)
-    with server.client(server.instructor_token) as instructor:
+    with sqlite_server.client(sqlite_server.instructor_token) as instructor:
         created = instructor.post("/api/assignments", json={"name": title, "episodes": EPISODES,
                                                             "due_at": (now + timedelta(hours=1)).isoformat()})
         assert created.status_code == 201, created.text
@@ -196,29 +182,31 @@ def test_an_assignment_is_graded_on_its_private_tracks_and_exported_from_the_ter
             answer = instructor.post("/api/users", json={"name": unique(who), "email": email})
             students[who] = answer.json()
     for who, model in (("fast", models["onnx"]), ("slow", models["heuristic_onnx"])):
-        with server.client(students[who]["token"]) as client, open(model, "rb") as handle:
+        with sqlite_server.client(students[who]["token"]) as client, open(model, "rb") as handle:
             sent = client.post("/api/submissions", files={"file": (model.name, handle)},
                                data={"name": who, "assignment": title})
             assert sent.status_code == 201, sent.text
             assert wait_settled(client, sent.json()["id"], timeout=180)["status"] == "ready"
-    with server.client(server.instructor_token) as instructor:  # the due time passes: the reaper closes it
+    # the due time passes: the reaper closes it
+    with sqlite_server.client(sqlite_server.instructor_token) as instructor:
         moved = instructor.patch(f"/api/assignments/{assignment['id']}",
                                  json={"due_at": (now - timedelta(minutes=1)).isoformat()})
         assert moved.status_code == 200, moved.text
     (tmp_path / "rubric.json").write_text(json.dumps({"kind": "formula", "max_points": 10,
                                                        "formula": "10 * completed"}))
-    env = {"LEAGUE_SERVER": server.url, "LEAGUE_TOKEN": server.instructor_token}
+    env = {"LEAGUE_SERVER": sqlite_server.url, "LEAGUE_TOKEN": sqlite_server.instructor_token}
     set_rubric = league("grades", title, "--set-rubric", str(tmp_path / "rubric.json"), config=tmp_path, **env)
     assert set_rubric.returncode == EXIT_OK and f"{title}: rubric set" in set_rubric.stderr, set_rubric.stderr
 
-    with server.client(server.instructor_token) as instructor:
+    with sqlite_server.client(sqlite_server.instructor_token) as instructor:
         wait_for(lambda: instructor.get(f"/api/assignments/{assignment['id']}/grades").json()["rows"],
                  lambda rows: sum(row["status"] == "graded" for row in rows) == 2, timeout=180, interval=0.2)
     table = league("grades", title, config=tmp_path, **env)
     assert table.returncode == EXIT_OK, table.stderr
     rows = {row["name"]: row for row in csv.DictReader(io.StringIO(table.stdout)) if row["role"] == "student"}
     fast, slow = rows[students["fast"]["name"]], rows[students["slow"]["name"]]
-    private_run = metrics_run(load_agent(models["onnx"]), episodes=EPISODES, seed=_private_seed(server, assignment))
+    private_run = metrics_run(load_agent(models["onnx"]), episodes=EPISODES,
+                              seed=_private_seed(sqlite_server, assignment))
     assert float(fast["completed"]) == pytest.approx(private_run.completed / EPISODES, abs=1e-4)
     assert float(fast["points"]) == pytest.approx(round(10 * private_run.completed / EPISODES, 2))
     assert {fast["rank"], slow["rank"]} <= {"1", "2"} and fast["late"] == slow["late"] == ""
@@ -232,10 +220,10 @@ def test_an_assignment_is_graded_on_its_private_tracks_and_exported_from_the_ter
                                                                 ["fast@uni.example", fast["points"]]]
     assert students["slow"]["name"] in moodle.stderr  # left out: no email
 
-    student = {"LEAGUE_SERVER": server.url, "LEAGUE_TOKEN": students["fast"]["token"]}
+    student = {"LEAGUE_SERVER": sqlite_server.url, "LEAGUE_TOKEN": students["fast"]["token"]}
     early = league("grades", title, config=tmp_path, **student)
     assert early.returncode == EXIT_REFUSED and f"the grades of {title} are not published" in early.stderr
-    with server.client(server.instructor_token) as instructor:
+    with sqlite_server.client(sqlite_server.instructor_token) as instructor:
         assert instructor.post(f"/api/assignments/{assignment['id']}/publish").status_code == 200
     mine = league("grades", title, config=tmp_path, **student)
     assert mine.returncode == EXIT_OK, mine.stderr
@@ -247,34 +235,34 @@ def _private_seed(server, assignment: dict) -> int:
         return instructor.get(f"/api/assignments/{assignment['id']}").json()["private_seed"]
 
 
-def test_standings_by_name_for_anyone_and_names_that_name_none_or_several(server, tmp_path):
+def test_standings_by_name_for_anyone_and_names_that_name_none_or_several(sqlite_server, tmp_path):
     cup = unique("spring cup")
-    with server.client(server.instructor_token) as instructor:
+    with sqlite_server.client(sqlite_server.instructor_token) as instructor:
         first = instructor.post("/api/championships", json={"name": cup}).json()["id"]
-        table = league("standings", cup, "--server", server.url, config=tmp_path)  # public, no token
+        table = league("standings", cup, "--server", sqlite_server.url, config=tmp_path)  # public, no token
         assert table.returncode == EXIT_OK, table.stderr
         assert table.stdout.split() == ["rank", "student", "agent", "id", "points", "wins", "heats", "rating"]
-        unknown = league("standings", "no such cup", "--server", server.url, config=tmp_path)
+        unknown = league("standings", "no such cup", "--server", sqlite_server.url, config=tmp_path)
         assert unknown.returncode == 2 and "no championship named 'no such cup'; the championships: " in unknown.stderr
         assert f"{first} ({cup})" in unknown.stderr  # what there is to ask for
         second = instructor.post("/api/championships", json={"name": cup}).json()["id"]
-    twice = league("standings", cup, "--server", server.url, config=tmp_path)
+    twice = league("standings", cup, "--server", sqlite_server.url, config=tmp_path)
     assert twice.returncode == 2
     assert twice.stderr == (f"league: error: 2 championships are named {cup!r}: "
                             f"give the id of one of {first}, {second}\n")
 
 
-def test_a_bad_token_a_spent_quota_and_a_server_down_say_so(server, models, tmp_path):
-    old = student_token(server, name := unique("renewed"))
-    with server.client(server.instructor_token) as instructor:
+def test_a_bad_token_a_spent_quota_and_a_server_down_say_so(sqlite_server, models, tmp_path):
+    old = student_token(sqlite_server, name := unique("renewed"))
+    with sqlite_server.client(sqlite_server.instructor_token) as instructor:
         user = next(u for u in instructor.get("/api/users").json() if u["name"] == name)
         assert instructor.post(f"/api/users/{user['id']}/token").status_code == 200  # a new token replaces it
-    bad = league("submissions", "--server", server.url, "--token", old, config=tmp_path)
+    bad = league("submissions", "--server", sqlite_server.url, "--token", old, config=tmp_path)
     assert (bad.returncode, bad.stderr) == (EXIT_AUTH, f"league: error: the server refused the token: "
                                             f"{UNKNOWN_TOKEN}; once you have a new one: league login --server "
-                                            f"{server.url}\n")
+                                            f"{sqlite_server.url}\n")
 
-    env = {"LEAGUE_SERVER": server.url, "LEAGUE_TOKEN": student_token(server, unique("busy"))}
+    env = {"LEAGUE_SERVER": sqlite_server.url, "LEAGUE_TOKEN": student_token(sqlite_server, unique("busy"))}
     for _ in range(int(TEST_SETTINGS["LEAGUE_QUOTA_PER_DAY"])):
         done = league("submit", str(models["heuristic_onnx"]), "--no-check", config=tmp_path, **env)
         assert done.returncode == EXIT_OK, done.stderr

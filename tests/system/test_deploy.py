@@ -27,7 +27,8 @@ from league.cli import build_parser
 from league.server.config import Settings
 from league.server.jobs.alive import alive_file, stale_reason
 
-from ..server.conftest import fresh_backend, free_port, make_server, wait_for
+from ..server.conftest import fresh_backend, wait_for
+from .servers import free_port, make_server
 
 REPO = Path(__file__).resolve().parents[2]
 PINNED_IMAGE = re.compile(r"^[\w./-]+(:\d+(\.\d+)+[\w.-]*|@sha256:[0-9a-f]{64})$")  # a version with a dot, or a digest

@@ -31,10 +31,11 @@ import pytest
 from league.agents import load_agent
 from league.evaluation import metrics_run, race
 
-from ..server.conftest import TEST_SETTINGS, LeagueServer, make_server, wait_for
+from ..server.conftest import TEST_SETTINGS, wait_for
+from .servers import LeagueServer, make_server
 from .network import ip, require_namespaces, unused_prefix
-from .test_rounds import (  # noqa: F401 - drivers is a fixture
-    LONG_HEATS, ONE_AT_A_TIME, ROUND_SETTINGS, check_round_counted_once, drivers, enter_students, race_jobs, read_round,
+from .test_rounds import (
+    LONG_HEATS, ONE_AT_A_TIME, ROUND_SETTINGS, check_round_counted_once, enter_students, race_jobs, read_round,
     standings, start_round, wait_idle, wait_round_over, worker_pid,
 )
 
@@ -220,7 +221,7 @@ def submissions_of(server: LeagueServer, ids: list[int]) -> dict[int, dict]:
 # --------------------------------------------------------------------------- the test
 
 
-def test_workers_on_other_hosts_share_the_league_and_survive_a_cut_link(tmp_path, drivers):  # noqa: F811 - an imported fixture
+def test_workers_on_other_hosts_share_the_league_and_survive_a_cut_link(tmp_path, drivers):
     with contextlib.ExitStack() as stack:
         net = stack.enter_context(network(HOSTS))
         database_url = stack.enter_context(services(net))

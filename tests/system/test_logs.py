@@ -14,7 +14,8 @@ from league import testing as mf
 from league.server.db.models import Job
 from league.server.db.session import make_engine
 
-from ..server.conftest import create_student, fresh_backend, make_server, upload, wait_settled
+from ..server.conftest import create_student, fresh_backend, upload, wait_settled
+from .servers import make_server
 
 
 def test_json_lines_from_the_api_uvicorn_and_the_worker(tmp_path):

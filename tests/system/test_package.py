@@ -15,7 +15,8 @@ from pathlib import Path
 import httpx
 import pytest
 
-from ..server.conftest import TEST_SETTINGS, LeagueServer, wait_for
+from ..server.conftest import TEST_SETTINGS, wait_for
+from .servers import LeagueServer
 
 REPO = Path(__file__).resolve().parents[2]
 BUNDLED = sorted(p.stem for p in (REPO / "league" / "baselines" / "agents").glob("*.onnx"))

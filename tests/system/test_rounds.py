@@ -15,9 +15,8 @@ from league.agents import load_agent
 from league.evaluation import race
 from league.server.jobs.placement import CpuSlots
 
-from ..server.conftest import (
-    TEST_SETTINGS, LeagueServer, create_student, fresh_backend, make_server, upload, wait_for, wait_settled,
-)
+from ..server.conftest import TEST_SETTINGS, create_student, fresh_backend, upload, wait_for, wait_settled
+from .servers import LeagueServer, make_server
 
 LEASE_S = float(TEST_SETTINGS["LEAGUE_LEASE_TIMEOUT_S"])
 POINTS = [25, 18, 15, 12, 10, 8, 6, 4, 2, 1]
@@ -26,19 +25,6 @@ ROUND_SETTINGS = {"LEAGUE_PUBLIC_CACHE_S": "0", "LEAGUE_EVAL_EPISODES": "1"}
 ONE_AT_A_TIME = {"LEAGUE_WORKER_THREADS": "1"}
 # heats of 2 cars in finer steps: a heat lasts long enough (> 0.5 s) for a worker to be killed in it
 LONG_HEATS = {"tstep": 0.01, "max_episode_steps": 16000}
-
-
-@pytest.fixture(scope="module")
-def drivers(tmp_path_factory) -> list[Path]:
-    """Eight thesis-size ONNX drivers that all lap the track, each at a speed of its own."""
-    from league.agents import export_onnx
-
-    from league.testing import thesis_driver
-
-    d = tmp_path_factory.mktemp("round-drivers")
-    speeds = [0.20, 0.22, 0.24, 0.26, 0.28, 0.21, 0.23, 0.25]
-    return [export_onnx(thesis_driver(target_speed=speed, seed=k), d / f"driver_{k}.onnx")
-            for k, speed in enumerate(speeds)]
 
 
 # --------------------------------------------------------------------------- helpers

@@ -10,7 +10,8 @@ import sys
 
 import pytest
 
-from ..server.conftest import REPO, baseline_submission, fresh_backend, make_server
+from ..server.conftest import REPO, fresh_backend
+from .servers import baseline_submission, make_server
 
 GUIDE = REPO / "docs" / "STUDENT_GUIDE.md"
 BLOCK = re.compile(r"^```(python|bash)\n(.*?)^```", re.S | re.M)

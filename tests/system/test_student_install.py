@@ -5,7 +5,7 @@
   PIP_FIND_LINKS passed on, so that torch would stay the CPU build if anything asked for it);
   `league evaluate` there gives the server's figures for the same file on the same seed;
 - `league check` in that venv, which has the onnx and client extras and not the server's: with no
-  server, and with a saved server that is down;
+  sqlite_server, and with a saved server that is down;
 - every common export path (torch.onnx.export with its defaults, whose weights go beside the model,
   the legacy exporter, torch.jit.script, torch.jit.trace) checked, submitted, ready and evaluated
   with `league evaluate`'s figures.
@@ -28,7 +28,7 @@ from league.client import EXIT_OK, EXIT_USAGE
 
 from ..server.conftest import TEST_SETTINGS
 from .ordinary import SYSTEM_PYTHON, ordinary_user, require_root_tools, shared_directory
-from .test_client import league, server, student_env, student_token, unique  # noqa: F401 (server: a fixture)
+from .test_client import league, student_env, student_token, unique
 
 EPISODES, SEED = TEST_SETTINGS["LEAGUE_EVAL_EPISODES"], TEST_SETTINGS["LEAGUE_EVAL_SEED"]
 PIP_CACHE = Path("/tmp/league-student-pip-cache")  # the ordinary user's downloads, kept between runs
@@ -68,7 +68,7 @@ EXPORTS = ["onnx", "onnx-legacy", "jit-script", "jit-trace"]
 
 
 @pytest.mark.long
-def test_every_common_export_is_checked_submitted_and_evaluated_as_league_evaluate_does(server, tmp_path):  # noqa: F811 - an imported fixture
+def test_every_common_export_is_checked_submitted_and_evaluated_as_league_evaluate_does(sqlite_server, tmp_path):
     """Each export checked (one `league check` of them all), then submitted and waited for (all at once,
     one student each) and evaluated here: the server's figures are `league evaluate`'s."""
     paths = {}
@@ -76,7 +76,7 @@ def test_every_common_export_is_checked_submitted_and_evaluated_as_league_evalua
         (tmp_path / how).mkdir()
         paths[how] = export(how, tmp_path / how)
     assert (tmp_path / "onnx" / "policy.onnx.data").is_file()  # torch's default: the weights beside the model
-    checked = league("check", *map(str, paths.values()), "--server", server.url, config=tmp_path)
+    checked = league("check", *map(str, paths.values()), "--server", sqlite_server.url, config=tmp_path)
     assert checked.returncode == EXIT_OK, checked.stdout + checked.stderr
     lines = checked.stdout.splitlines()
     assert [line.split(":")[0] for line in lines] == [path.name for path in paths.values()]
@@ -84,8 +84,9 @@ def test_every_common_export_is_checked_submitted_and_evaluated_as_league_evalua
     assert ["its weights in policy.onnx.data are packed in" in line for line in lines] == [True, False, False, False]
 
     submits = {how: subprocess.Popen(
-        [sys.executable, "-m", "league.cli", "submit", str(path), "--wait", "--no-progress", "--server", server.url,
-         "--token", student_token(server, unique(how))], cwd=tmp_path, env=student_env(tmp_path),
+        [sys.executable, "-m", "league.cli", "submit", str(path), "--wait", "--no-progress",
+         "--server", sqlite_server.url, "--token", student_token(sqlite_server, unique(how))],
+        cwd=tmp_path, env=student_env(tmp_path),
         stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True) for how, path in paths.items()}
     for how, submit in submits.items():
         stdout, stderr = submit.communicate(timeout=600)
@@ -132,10 +133,10 @@ class Student:
 
 
 @pytest.fixture(scope="module")
-def student(server):  # noqa: F811 - an imported fixture
+def student(sqlite_server):
     """The toolkit installed as the server says, in a fresh venv of an ordinary user."""
     require_root_tools()
-    package = httpx.get(f"{server.url}/api/package", timeout=120).json()
+    package = httpx.get(f"{sqlite_server.url}/api/package", timeout=120).json()
     wheel = next(file for file in package["files"] if file["kind"] == "wheel")
     with shared_directory() as root:
         student = Student(root)
@@ -147,17 +148,17 @@ def student(server):  # noqa: F811 - an imported fixture
 
 
 @pytest.mark.long
-def test_a_fresh_venv_installs_the_servers_own_package_and_evaluates_as_the_server(server, student, tmp_path):  # noqa: F811 - an imported fixture
+def test_a_fresh_venv_installs_the_servers_own_package_and_evaluates_as_the_server(sqlite_server, student, tmp_path):
     where = student.run("python", "-c", "import league; print(league.__file__, league.__version__)").stdout.split()
-    assert Path(where[0]).is_relative_to(student.venv) and where[1] == httpx.get(f"{server.url}/api/package").json()[
-        "version"]
+    served = httpx.get(f"{sqlite_server.url}/api/package").json()
+    assert Path(where[0]).is_relative_to(student.venv) and where[1] == served["version"]
     installed = student.run("pip", "list", "--format=json").stdout
     assert not [p["name"] for p in json.loads(installed) if p["name"].startswith(("torch", "nvidia"))]
 
     model = student.give(export("onnx", tmp_path))
-    token = student_token(server, unique("fresh-venv"))
+    token = student_token(sqlite_server, unique("fresh-venv"))
     evaluated = student.run("league", "evaluate", model.name, "--episodes", EPISODES, "--seed", SEED, "--no-progress")
-    submitted = student.run("league", "submit", model.name, "--wait", "--no-progress", "--server", server.url,
+    submitted = student.run("league", "submit", model.name, "--wait", "--no-progress", "--server", sqlite_server.url,
                             "--token", token)
     assert "its weights in policy.onnx.data are packed in" in submitted.stderr
     assert submitted.stdout.splitlines()[2:] == evaluated_table(evaluated)
@@ -201,7 +202,7 @@ def _figure(line: str) -> str:
 
 
 def _closed_port() -> int:
-    from ..server.conftest import free_port
+    from .servers import free_port
 
     return free_port()
 
@@ -247,7 +248,7 @@ def tensorflow_python() -> Path:
 
 @pytest.mark.long
 def test_the_thesis_keras_actor_goes_to_onnx_both_ways_and_is_evaluated_as_league_evaluate_does(
-        server, tensorflow_python, tmp_path):  # noqa: F811 - an imported fixture
+        sqlite_server, tensorflow_python, tmp_path):
     import numpy as np
 
     from league.agents import load_agent
@@ -262,11 +263,11 @@ def test_the_thesis_keras_actor_goes_to_onnx_both_ways_and_is_evaluated_as_leagu
     for name in ("keras_actor.onnx", "tf2onnx_actor.onnx"):
         path = tmp_path / name
         np.testing.assert_allclose(load_agent(path)(probe), np.load(tmp_path / "keras_actions.npy"), atol=1e-5)
-        checked = league("check", str(path), "--server", server.url, config=tmp_path)
+        checked = league("check", str(path), "--server", sqlite_server.url, config=tmp_path)
         assert checked.returncode == EXIT_OK, checked.stdout + checked.stderr
-        token = student_token(server, unique("keras"))
-        submitted = league("submit", str(path), "--wait", "--no-progress", "--server", server.url, "--token", token,
-                           config=tmp_path)
+        token = student_token(sqlite_server, unique("keras"))
+        submitted = league("submit", str(path), "--wait", "--no-progress", "--server", sqlite_server.url,
+                           "--token", token, config=tmp_path)
         assert submitted.returncode == EXIT_OK, submitted.stdout + submitted.stderr
         evaluated = league("evaluate", str(path), "--episodes", EPISODES, "--seed", SEED, "--no-progress",
                            config=tmp_path)

@@ -19,7 +19,8 @@ import pytest
 
 from league.server.db.session import head_revision
 
-from ..server.conftest import REPO, TEST_SETTINGS, LeagueServer, fresh_backend
+from ..server.conftest import REPO, TEST_SETTINGS, fresh_backend
+from .servers import LeagueServer
 from .semester import collect, differences, drained, semester
 
 # commit -> the schema revision its code writes: releases a course may upgrade from

@@ -1,9 +1,15 @@
-"""A `league worker` as users start it: what its job threads prepare before their first job."""
+"""A `league worker` as users start it: the CPUs its threads run on, and what its job threads prepare
+before their first job."""
 from __future__ import annotations
 
+import os
+import subprocess
+import sys
+import time
 from pathlib import Path
 
-from ..server.conftest import fresh_backend, make_server, wait_for
+from ..server.conftest import REPO, fresh_backend, server_command, wait_for
+from .servers import make_server
 
 
 def fork_servers(worker: int) -> list[int]:
@@ -41,3 +47,26 @@ def test_a_new_workers_job_threads_prepare_torch_before_their_first_job(tmp_path
             server.stop_all()
     assert nice == {10}  # their sandboxes inherit it
     assert threads == {1}  # prepared, still forkable: torch and onnxruntime started no thread
+
+
+def test_a_worker_runs_its_threads_on_the_cpus_it_is_given(tmp_path):
+    """`league worker --cpus N` of the toolkit's CLI: every thread of the worker on CPU N."""
+    cpu = str(min(os.sched_getaffinity(0)))
+    log = tmp_path / "worker.log"
+    env = {**os.environ, "LEAGUE_DATA_DIR": str(tmp_path), "PYTHONPATH": str(REPO)}
+    assert server_command(tmp_path, "init", LEAGUE_DATA_DIR=str(tmp_path)).returncode == 0
+    with open(log, "wb") as output:
+        worker = subprocess.Popen([sys.executable, "-m", "league.cli", "worker", "--cpus", cpu], env=env, cwd=tmp_path,
+                                  stdout=output, stderr=subprocess.STDOUT)
+    try:
+        deadline = time.monotonic() + 60
+        while "worker started" not in log.read_text():  # its job threads run by now
+            assert worker.poll() is None and time.monotonic() < deadline, log.read_text()
+            time.sleep(0.1)
+        threads = list(Path(f"/proc/{worker.pid}/task").iterdir())
+        allowed = {(task / "status").read_text().split("Cpus_allowed_list:")[1].split()[0] for task in threads}
+    finally:
+        worker.terminate()
+        worker.wait(timeout=30)
+    assert f"running on CPUs {cpu}" in log.read_text()
+    assert len(threads) > 1 and allowed == {cpu}

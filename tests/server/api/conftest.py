@@ -1,12 +1,14 @@
 """The in-process tier of the API tests: the app itself (FastAPI's TestClient), on a real database
 of each backend, with no worker. For every answer that needs no job to run (validation, 4xx,
 permissions, quotas); submissions and evaluations a test needs are written to the database as
-the jobs would write them. What needs real processes (jobs, sandboxes, kill -9) uses the
-subprocess servers of tests/server/conftest.py.
+the jobs would write them; `every_get` lists every GET path the app serves. What needs real
+processes (jobs run by a worker in sandboxes, kill -9) is a system test: tests/system/api/.
 """
 from __future__ import annotations
 
 import contextlib
+import itertools
+import re
 import uuid
 from collections.abc import Callable
 from dataclasses import dataclass
@@ -23,6 +25,23 @@ from league.server.db.session import make_engine, make_sessionmaker, migrate
 from league.server.results import settings_key
 
 from ..conftest import BACKENDS, TEST_SETTINGS, fresh_backend
+
+
+# the pages (not in the API's schema) that every_get reads too
+PAGES = ["/", "/login", "/submissions", "/races/{race_id}", "/replay", "/instructor", "/openapi.json"]
+
+
+def every_get(app, ids: dict[str, list]) -> list[str]:
+    """Every GET path of the API (its OpenAPI schema) and the pages, with each combination of the
+    ids given for its path parameters."""
+    paths = []
+    for template in [*(path for path, methods in app.openapi()["paths"].items() if "get" in methods), *PAGES]:
+        names = re.findall(r"{(\w+)}", template)
+        missing = set(names) - set(ids)
+        assert not missing, f"{template}: which {', '.join(sorted(missing))} should this test read? add it to ids"
+        for values in itertools.product(*(ids[name] for name in names)):
+            paths.append(template.format(**dict(zip(names, values))))
+    return paths
 
 
 def unique(name: str) -> str:

@@ -17,7 +17,8 @@ from urllib.parse import urlsplit
 import httpx
 import pytest
 
-from ...server.conftest import REPO, add_user_in_new_course, fresh_backend, make_server, settled, wait_for
+from ...server.conftest import REPO, fresh_backend, settled, wait_for
+from ..servers import add_user_in_new_course, make_server
 
 CHROMIUM = os.environ.get("LEAGUE_TEST_CHROMIUM", "/usr/bin/chromium")
 CHROMIUM_ARGS = ["--no-sandbox", "--disable-gpu", "--disable-background-networking", "--disable-component-update",

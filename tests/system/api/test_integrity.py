@@ -18,7 +18,8 @@ from league.server.db.session import make_engine, make_sessionmaker
 from league.server.integrity import CSV_COLUMNS
 from league.testing import thesis_driver
 
-from ...conftest import add_user_in_new_course, submission, upload, wait_for
+from ...server.conftest import submission, upload, wait_for
+from ..servers import add_user_in_new_course
 
 
 def unique(name: str) -> str:

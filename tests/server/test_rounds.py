@@ -1,16 +1,16 @@
-"""A championship round's track is drawn secretly when the round is created and is shown once the
-round is over: before, nothing anyone can read derives it; while its heats are raced, no answer
-(JSON, CSV, replay, log, page) holds its seed or its track; after, the stored seed races it again.
+"""A championship round's track (league/server/rounds.py) is drawn secretly when the round is created
+and is shown once the round is over: before, nothing anyone can read derives it; while its heats are
+raced, no answer (JSON, CSV, replay, log, page) holds its seed or its track; after, the stored seed
+races it again.
 
 In process, with the heats raced here as a worker races them (the toolkit's `race`, heuristic
 drivers): the state between two heats is a state a test can stand in.
 """
 from __future__ import annotations
 
-import itertools
 import json
-import re
 
+import pytest
 from sqlalchemy import select
 
 from league.evaluation import episode_seeds, race
@@ -19,9 +19,17 @@ from league.server.db.models import INSTRUCTOR, QUEUED, ChampionshipRound, Job, 
 from league.server.jobs.race import RaceOutcome, car_name, entrant_of, public
 from league.track import episode_start
 
-from ..conftest import unique
+from .api.conftest import every_get, in_process_league, unique
+from .conftest import BACKENDS
 
 ALIKE = {"name": "cup", "seed": 5, "heat_size": 2, "include_baselines": False, "env_options": {"n_obstacles": 3}}
+
+
+@pytest.fixture(scope="module", params=BACKENDS)
+def app_league(request, tmp_path_factory):
+    """The app in process on each backend (tests/server/api/conftest.py), no worker."""
+    with in_process_league(request.param, tmp_path_factory.mktemp(f"rounds-{request.param}")) as league:
+        yield league
 
 
 def course_with_students(league, students: int) -> tuple[str, list[str]]:
@@ -62,22 +70,6 @@ def secrets_of(seed: int, env_options: dict) -> list[str]:
     track, _ = episode_start(seed, RaceOptions(**env_options))
     coordinates = [json.dumps(x) for point in track.to_dict()["control_points"] for x in point]
     return [str(seed), *(c for c in coordinates if len(c) >= 12)]
-
-
-PAGES = ["/", "/login", "/submissions", "/races/{race_id}", "/replay", "/instructor", "/openapi.json"]
-
-
-def every_get(app, ids: dict[str, list]) -> list[str]:
-    """Every GET path of the API (its OpenAPI schema) and the pages, with each combination of the
-    ids given for its path parameters."""
-    paths = []
-    for template in [*(path for path, methods in app.openapi()["paths"].items() if "get" in methods), *PAGES]:
-        names = re.findall(r"{(\w+)}", template)
-        missing = set(names) - set(ids)
-        assert not missing, f"{template}: which {', '.join(sorted(missing))} should this test read? add it to ids"
-        for values in itertools.product(*(ids[name] for name in names)):
-            paths.append(template.format(**dict(zip(names, values))))
-    return paths
 
 
 def walk(league, tokens: list[str | None], paths: list[str]) -> dict[tuple[str | None, str], object]:

@@ -1,0 +1,68 @@
+"""Model validation in a sandbox (league/server/sandbox/validation.py): the static checks of
+TorchScript uploads on their structure -- no code runs at load, and every method and hook is held to
+the operator allow-list -- and the actions on the integrity report's probe set, computed at
+validation and by the probe job's own sandbox (a model that fails on the set is still accepted).
+The ONNX checks on their own: tests/validation/test_checks.py."""
+from __future__ import annotations
+
+import uuid
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from league import testing as mf
+from league.agents import load_agent
+from league.server.sandbox.validation import probe_model, validate_model
+from league.validation.limits import SandboxLimits
+from league.validation.probes import probe_actions_from_bytes, probe_key, probe_observations
+
+LIMITS = SandboxLimits(load_cpu_s=60, max_restarts=0)  # the static checks
+FAST = SandboxLimits(first_call_allowance_s=0.3, load_cpu_s=20, max_restarts=1)  # the probe set
+
+
+# --------------------------------------------------------------------------- static checks
+
+
+@pytest.mark.parametrize("spelling", sorted(mf.LOAD_HOOK_SPELLINGS))
+def test_an_archive_that_runs_code_at_load_is_refused_however_it_is_written(tmp_path, spelling):
+    target = Path(f"/tmp/league-loaded-{uuid.uuid4().hex}")  # where its __setstate__ would write
+    model = mf.torchscript_runs_code_at_load(tmp_path / "hook.pt", spelling, target=str(target))
+    report = validate_model(model, "torchscript", LIMITS)
+    assert not report.ok
+    assert report.error.startswith("the TorchScript code defines __getstate__, which runs while the file is loaded")
+    assert not target.exists()
+
+
+def test_a_forbidden_operator_beside_forward_is_refused(tmp_path):
+    report = validate_model(mf.torchscript_forbidden_op_beside_forward(tmp_path / "side.pt"), "torchscript", LIMITS)
+    assert not report.ok
+    assert report.error == ("operator aten::from_file (in RecursiveScriptModule.peek) is not allowed in league "
+                            "models (MLP/CNN operators only)")
+
+
+def test_a_plain_scripted_policy_passes(torchscript_actor):
+    report = validate_model(torchscript_actor, "torchscript", LIMITS)
+    assert report.ok, report.error
+
+
+# --------------------------------------------------------------------------- the probe set
+
+
+def test_validation_records_the_actions_the_model_gives_on_the_probe_set(tmp_path):
+    model = mf.torchscript_mlp(tmp_path / "mlp.pt", seed=5)
+    report = validate_model(model, "torchscript", FAST)
+    assert report.ok and report.probe.key == probe_key(5) and report.probe.error is None
+    expected = load_agent(model)(probe_observations(5))
+    np.testing.assert_allclose(probe_actions_from_bytes(report.probe.actions), expected, atol=1e-6)
+    again, _ = probe_model(model, "torchscript", 5, FAST, name="mlp")  # the probe job's path: the same actions
+    assert again == report.probe
+
+
+def test_a_model_that_fails_on_the_probe_set_is_accepted_without_actions(tmp_path):
+    """It returns NaN when the road runs straight or right: the timed dry run sees none of that, the
+    probe set does (its evaluation decides what it costs)."""
+    report = validate_model(mf.onnx_nan_when_straight(tmp_path / "nan.onnx"), "onnx", FAST)
+    assert report.ok and report.obs_dim == 5
+    assert (report.probe.key, report.probe.actions) == (probe_key(5), None)
+    assert "NaN" in report.probe.error and "no actions on the integrity report's probe set" in report.log
