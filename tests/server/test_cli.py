@@ -84,6 +84,3 @@ def test_a_worker_refuses_cpus_it_cannot_have(tmp_path):
     backwards = league(tmp_path, "worker", "--cpus", "3-1")
     assert backwards.returncode == 2
     assert "'3-1' is not a CPU number or range such as 2 or 0-3" in backwards.stderr
-
-
-# --------------------------------------------------------------------------- `league serve` and its worker process

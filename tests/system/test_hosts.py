@@ -32,8 +32,8 @@ from league.agents import load_agent
 from league.evaluation import metrics_run, race
 
 from ..server.conftest import TEST_SETTINGS, wait_for
-from .servers import LeagueServer, make_server
 from .network import ip, require_namespaces, unused_prefix
+from .servers import LeagueServer, make_server
 from .test_rounds import (
     LONG_HEATS, ONE_AT_A_TIME, ROUND_SETTINGS, check_round_counted_once, enter_students, race_jobs, read_round,
     standings, start_round, wait_idle, wait_round_over, worker_pid,

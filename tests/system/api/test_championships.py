@@ -100,6 +100,9 @@ def test_a_student_picks_the_submission_that_races_in_championships(league_serve
     assert after_unpick == default
 
 
+# --------------------------------------------------------------------------- a season
+
+
 HEAT_SIZE = 3
 
 

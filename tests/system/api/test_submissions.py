@@ -16,14 +16,13 @@ import pytest
 
 from league.evaluation import league_versions
 
-from ...server.conftest import create_student, episodes, upload, wait_settled
+from ...server.conftest import TEST_SETTINGS, create_student, episodes, upload, wait_settled
+
+EPISODES, SEED = int(TEST_SETTINGS["LEAGUE_EVAL_EPISODES"]), int(TEST_SETTINGS["LEAGUE_EVAL_SEED"])
 
 
 def unique(name: str) -> str:
     return f"{name}-{uuid.uuid4().hex[:6]}"
-
-
-EPISODES, SEED = 3, 11  # conftest.TEST_SETTINGS
 
 
 @pytest.mark.parametrize("kind", ["onnx", "torchscript"])

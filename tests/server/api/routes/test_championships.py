@@ -19,9 +19,6 @@ def create(client, **body):
     return client.post("/api/championships", json={"name": unique("cup"), **body})
 
 
-# --------------------------------------------------------------------------- in process, and on the shared servers
-
-
 def test_only_instructors_create_championships_and_start_rounds(app_league):
     student = create_student(app_league, unique("sam"))
     with app_league.client(app_league.instructor_token) as instructor, app_league.client() as anonymous:
@@ -117,6 +114,3 @@ def test_an_instructor_of_another_course_cannot_start_a_round(app_league):
         response = stranger.post(f"/api/championships/{championship['id']}/rounds")
     assert response.status_code == 403
     assert response.json() == {"detail": "this championship belongs to another course"}
-
-
-# --------------------------------------------------------------------------- a season

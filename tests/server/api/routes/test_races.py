@@ -34,7 +34,7 @@ def app_grid(app_league):
                            baseline=as_dict(app_league.submission(baselines, public=True)))
 
 
-# --------------------------------------------------------------------------- a race
+# --------------------------------------------------------------------------- races and replays
 
 
 @pytest.mark.parametrize("path", ["/api/races?page=9223372036854775808", "/api/leaderboard?page=100001",
