@@ -514,6 +514,10 @@ def serve(agent, proto_in: int, proto_out: int, memory_mb: int) -> None:
 
 
 def main(argv: list[str]) -> int:
+    # This tree's package, whether or not it is installed (python -P keeps the script's own folder,
+    # the sandbox's, off the path; a worker may run from a checkout).
+    if str(LEAGUE_DIR.parent) not in sys.path:
+        sys.path.insert(0, str(LEAGUE_DIR.parent))
     if argv[1:2] == ["--fork-server"]:
         return fork_server(int(argv[2]), prepare_all="--prepare-all" in argv[3:])
     return run_sandbox(argv[1:], os.getppid())
@@ -575,7 +579,4 @@ def probe_runtimes() -> dict:
 
 
 if __name__ == "__main__":
-    # This tree's package, whether or not it is installed (python -P keeps the script's own folder,
-    # the sandbox's, off the path; a worker may run from a checkout).
-    sys.path.insert(0, str(LEAGUE_DIR.parent))
     sys.exit(main(sys.argv))
