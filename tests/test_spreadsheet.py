@@ -2,39 +2,18 @@
 from __future__ import annotations
 
 import csv
-import io
 
 import pytest
 
 from league.spreadsheet import csv_text, safe_text
 
-TRIGGERS = ("=", "+", "-", "@", "\t", "\r")
-SEPARATORS = (",", ";", "\t")
+from .formulas import formula_cells
+
 HOSTILE = [
     "fast;=2+5;=cmd|' /C calc'!A0",  # issue 22: Excel splitting on ';' made cells starting with '='
     "=1+1", "+1", "-1+1", "@SUM(A1)", "\t=1", "\r=1", "a\n=1", "a\r\n@1", 'x;"=1"', "x, =1", "x|=1", "x; '=1",
     "x;\t=1", "x\u2028=1", "x;;=1", '=HYPERLINK("http://evil.example")', "-5",
 ]
-
-
-def is_number(text: str) -> bool:
-    try:
-        float(text)
-    except ValueError:
-        return False
-    return True
-
-
-def formula_cells(text: str) -> set[str]:
-    """The cells of `text` a spreadsheet would run, splitting on commas, semicolons or tabs: with the
-    csv module (quotes honoured) and by plain splitting (quotes taken as text), each also with its
-    spaces trimmed. Numbers (-1.5) are not formulas."""
-    cells = []
-    for separator in SEPARATORS:
-        cells += [cell for row in csv.reader(io.StringIO(text), delimiter=separator) for cell in row]
-        cells += [cell for line in text.splitlines() for cell in line.split(separator)]
-    return {cell for cell in cells for candidate in (cell, cell.strip())
-            if candidate.startswith(TRIGGERS) and not is_number(candidate)}
 
 
 def test_no_cell_starts_a_formula_whatever_the_separator_and_numbers_stay_numbers():

@@ -4,8 +4,8 @@ by ordinary users, the student guide run block by block, and the API's routes wh
 a `league serve` and its worker (tests/system/api/). All of them are the slow tier (tests/conftest.py).
 
 The databases, settings, model files and HTTP helpers are the server tests' (tests/server/conftest.py);
-the servers and what the tests do with them are in servers.py; the fixtures shared by several files
-of this folder are here.
+the servers and what the tests do with them are in servers.py, championship rounds in rounds.py, the
+student's `league` command in students.py; the fixtures shared by several files of this folder are here.
 """
 from __future__ import annotations
 

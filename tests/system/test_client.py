@@ -7,12 +7,10 @@ from __future__ import annotations
 import csv
 import io
 import json
-import os
 import re
 import stat
 import subprocess
 import sys
-import uuid
 
 import pytest
 
@@ -21,35 +19,13 @@ from league.client import EXIT_AUTH, EXIT_OK, EXIT_REFUSED, EXIT_REJECTED, EXIT_
 from league.server.api.deps import UNKNOWN_TOKEN
 from league.evaluation import metrics_run
 
-from ..server.conftest import REPO, TEST_SETTINGS, create_student, upload, wait_for, wait_settled
+from ..server.conftest import TEST_SETTINGS, create_student, upload, wait_for, wait_settled
 from .servers import baseline_submission, free_port
+from .students import league, student_env, student_token, unique
 
 EPISODES, SEED = int(TEST_SETTINGS["LEAGUE_EVAL_EPISODES"]), int(TEST_SETTINGS["LEAGUE_EVAL_SEED"])
 # Too slow: the load's dry run, a call or the median may be the first to use up its CPU time
 TIMED = {"slow": r"ms of CPU per observation|may use 20 ms per observation"}
-
-
-def unique(name: str) -> str:
-    return f"{name}-{uuid.uuid4().hex[:6]}"
-
-
-def league(*args: str, config, **env: str) -> subprocess.CompletedProcess:
-    """`league ARGS` as a student runs it: its own config directory, no LEAGUE_* server settings
-    but the ones given."""
-    return subprocess.run([sys.executable, "-m", "league.cli", *args], cwd=config, env=student_env(config, **env),
-                          capture_output=True, text=True, timeout=300)
-
-
-def student_env(config, **env: str) -> dict:
-    base = {k: v for k, v in os.environ.items() if not k.startswith("LEAGUE_")}
-    return {**base, "XDG_CONFIG_HOME": str(config), "PYTHONPATH": str(REPO), **env}
-
-
-def student_token(server, name: str) -> str:
-    with server.client(server.instructor_token) as instructor:
-        response = instructor.post("/api/users", json={"name": name})
-    assert response.status_code == 201, response.text
-    return response.json()["token"]
 
 
 @pytest.mark.long

@@ -33,11 +33,11 @@ from league.evaluation import metrics_run, race
 
 from ..server.conftest import TEST_SETTINGS, wait_for
 from .network import ip, require_namespaces, unused_prefix
-from .servers import LeagueServer, make_server
-from .test_rounds import (
+from .rounds import (
     LONG_HEATS, ONE_AT_A_TIME, ROUND_SETTINGS, check_round_counted_once, enter_students, race_jobs, read_round,
     standings, start_round, wait_idle, wait_round_over, worker_pid,
 )
+from .servers import LeagueServer, make_server
 
 SERVICE_USER = "postgres"  # PostgreSQL refuses to run as root
 PG_PORT = 5432

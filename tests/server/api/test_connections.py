@@ -1,78 +1,27 @@
 """The connection guard (league/server/api/connections.py): uvicorn's own HTTP protocol with bounds on
 connections (in all, per client address), on the time and size of a request head. Each test runs a
-real uvicorn server with the guard on a real socket, in a thread, in front of a tiny ASGI app; the
-clients are raw sockets, some from another loopback address (127.0.0.2) to be another client.
+real uvicorn server with the guard on a real socket, in a thread, in front of a tiny ASGI app (guarded_servers.py);
+the clients are raw sockets, some from another loopback address (127.0.0.2) to be another client.
 The whole league under attack, run by an ordinary user: test_hostile_clients.py."""
 from __future__ import annotations
 
-import asyncio
-import contextlib
-import socket
 import subprocess
 import sys
-import threading
 import time
 
 import pytest
-import uvicorn
 
-from league.server.api.connections import ConnectionLimits, client_address, effective_limits, uvicorn_protocols
+from league.server.api.connections import ConnectionLimits, client_address, effective_limits
+
+from .guarded_servers import connect, guarded_server, read_all, status_line
 
 OTHER_CLIENT = "127.0.0.2"  # every 127.x.y.z is this host's: another client address without a network
-
-
-async def app(scope, receive, send):
-    """200 "ok"; /slow holds its answer for half a second (a connection busy with a request)."""
-    if scope["type"] != "http":
-        return
-    if scope["path"] == "/slow":
-        await asyncio.sleep(0.5)
-    await send({"type": "http.response.start", "status": 200, "headers": [(b"content-type", b"text/plain")]})
-    await send({"type": "http.response.body", "body": b"ok"})
-
-
-@contextlib.contextmanager
-def guarded_server(asgi_app=app, **limits):
-    """A uvicorn server of `asgi_app` with the guard of `limits`, as league serve runs it; yields its
-    (host, port)."""
-    listener = socket.socket()
-    listener.bind(("127.0.0.1", 0))
-    config = uvicorn.Config(asgi_app, **uvicorn_protocols(ConnectionLimits(**limits)), lifespan="off",
-                            log_level="warning", timeout_keep_alive=30)
-    server = uvicorn.Server(config)
-    thread = threading.Thread(target=server.run, kwargs={"sockets": [listener]}, daemon=True)
-    thread.start()
-    while not server.started:
-        time.sleep(0.01)
-    try:
-        yield listener.getsockname()
-    finally:
-        server.should_exit = True
-        thread.join(10)
-        listener.close()
-
-
-def connect(address, source: str = "127.0.0.1") -> socket.socket:
-    sock = socket.create_connection(address, timeout=10, source_address=(source, 0))
-    return sock
-
-
-def read_all(sock: socket.socket) -> bytes:
-    """What the server sends until it closes the connection."""
-    data = b""
-    while chunk := sock.recv(65536):
-        data += chunk
-    return data
 
 
 def request(address, path: str = "/", source: str = "127.0.0.1") -> bytes:
     with connect(address, source) as sock:
         sock.sendall(f"GET {path} HTTP/1.1\r\nHost: league\r\nConnection: close\r\n\r\n".encode())
         return read_all(sock)
-
-
-def status_line(answer: bytes) -> str:
-    return answer.split(b"\r\n", 1)[0].decode()
 
 
 HALF_A_HEAD = b"GET / HTTP/1.1\r\nHost: league\r\nX-Wait: "

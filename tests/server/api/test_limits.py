@@ -14,7 +14,7 @@ from starlette.responses import StreamingResponse
 
 from league.server.api.limits import KB, BodyLimits, Limit
 
-from .test_connections import connect, guarded_server, read_all, status_line
+from .guarded_servers import connect, guarded_server, read_all, status_line
 
 HUGE = 75 * 1024 * 1024
 

@@ -2,9 +2,7 @@
 axe-core on every page, the focus ring on every control, and the keyboard-only paths of the
 common tasks, asserting where focus lands and what a screen reader is told.
 
-axe-core comes from PyPI's `axe-playwright-python` (pinned in pyproject.toml's `web-test` extra;
-it bundles axe-core 4.12.1, whose licence is MPL-2.0). The test injects its `axe.min.js` into the
-page through the browser's debugging protocol: the app never serves it.
+The axe-core audit is axe.py's (the integrity page's tests use it too).
 """
 from __future__ import annotations
 
@@ -21,27 +19,11 @@ from playwright.sync_api import expect
 from league.server.api.deps import UNKNOWN_TOKEN
 
 from ...server.conftest import upload, wait_for, wait_settled
+from .axe import DESKTOP, PHONE, Audit
 from .colours import contrast, hex_rgb
 from .conftest import instructor_of_a_new_course, require_browser, student_token, unique, viewer_step
 
 require_browser()
-axe_playwright = pytest.importorskip("axe_playwright_python.base",
-                                     reason="the accessibility tests need `pip install axe-playwright-python`")
-
-AXE_TAGS = ["wcag2a", "wcag2aa", "wcag21a", "wcag21aa"]
-# Every rule of those WCAG levels, the experimental ones too (they include "label in name", 2.5.3).
-RUN_AXE = """async (tags) => {
-  const experimental = axe.getRules(tags).filter((rule) => rule.tags.includes("experimental"));
-  const results = await axe.run(document, {
-    runOnly: {type: "tag", values: tags}, resultTypes: ["violations"],
-    rules: Object.fromEntries(experimental.map((rule) => [rule.ruleId, {enabled: true}])),
-  });
-  return results.violations.map((v) => `${v.id} (${v.help}): ` +
-    v.nodes.map((node) => `${node.target.join(" ")} [${node.failureSummary.replaceAll("\\n", " ")}]`).join("; "));
-}"""
-NEXT_FRAMES = "() => new Promise((done) => requestAnimationFrame(() => requestAnimationFrame(done)))"
-PHONE = {"width": 320, "height": 640}  # WCAG 1.4.10 reflow: 320 CSS px
-DESKTOP = {"width": 1280, "height": 900}
 
 # What a screen reader is told: the text of a live region (role status or alert, or aria-live) each
 # time it changes, if the region was rendered before the change (one that appears with its text,
@@ -113,32 +95,6 @@ def keyboard_login(web, token: str) -> None:
     web.page.keyboard.type(token)
     web.page.keyboard.press("Enter")
     web.page.wait_for_url(lambda url: "/login" not in url)
-
-
-def axe_violations(page) -> list[str]:
-    if not page.evaluate("typeof axe !== 'undefined'"):
-        page.evaluate(axe_playwright.AXE_SCRIPT)
-    return page.evaluate(RUN_AXE, AXE_TAGS)
-
-
-class Audit:
-    """axe's violations on each state of a page, at a desktop's and a phone's width."""
-
-    def __init__(self, web):
-        self.web = web
-        self.found: dict[str, list[str]] = {}
-
-    def check(self, state: str, widths=(DESKTOP, PHONE)) -> None:
-        for size in widths:
-            self.web.page.set_viewport_size(size)
-            self.web.page.evaluate(NEXT_FRAMES)  # the resize observers have run
-            violations = axe_violations(self.web.page)
-            if violations:
-                self.found[f"{state} at {size['width']} px"] = violations
-        self.web.page.set_viewport_size(DESKTOP)
-
-    def assert_clean(self) -> None:
-        assert not self.found, json.dumps(self.found, indent=1, ensure_ascii=False)
 
 
 @pytest.fixture(scope="module")

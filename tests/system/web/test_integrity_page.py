@@ -11,8 +11,8 @@ from playwright.sync_api import expect
 from league.server.integrity import CSV_COLUMNS
 
 from ...server.conftest import upload, wait_for
+from .axe import Audit
 from .conftest import instructor_of_a_new_course, require_browser, unique
-from .test_accessibility import Audit
 
 require_browser()
 

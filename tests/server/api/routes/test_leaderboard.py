@@ -12,7 +12,7 @@ from sqlalchemy import select
 
 from league.server.db.models import INSTRUCTOR, Submission
 
-from ....test_spreadsheet import formula_cells
+from ....formulas import formula_cells
 
 
 def unique(name: str) -> str:
