@@ -10,17 +10,19 @@ trainings). A test elsewhere that imports what starts those processes (tests/sys
 a system test in the wrong folder: collection fails and says so. (Their fixtures, in
 tests/system/conftest.py, are not even visible elsewhere.) Nor does a test module import another
 test module: what two of them share goes in a helper module of their folder (tests/formulas.py,
-tests/system/rounds.py, ...), and collection fails on such an import.
+tests/system/rounds.py, ...), and collection fails on such an import. Nor does any module of the
+tests import from a conftest: conftests hold fixtures and hooks, which pytest gives by name; the
+helpers they use live in helper modules (tests/server/backends.py, api_calls.py, ...). The checks
+are in tests/layout.py.
 """
 from __future__ import annotations
 
-import ast
+import sys
 from pathlib import Path
 
 import pytest
 
-SYSTEM = Path(__file__).parent / "system"
-SERVERS = "tests.system.servers"  # the module that starts leagues as processes
+from .layout import SERVERS, SYSTEM, imported_conftests, imported_test_modules, starts_servers
 
 
 def pytest_collection_modifyitems(items):
@@ -30,13 +32,21 @@ def pytest_collection_modifyitems(items):
     if misplaced:
         raise pytest.UsageError(f"{', '.join(misplaced)}: a test outside tests/system uses {SERVERS} (leagues "
                                 f"as processes): move it to tests/system/, or run the app in process "
-                                f"(tests/server/api/conftest.py)")
+                                f"(tests/server/api/in_process.py)")
     crossed = [f"{path.relative_to(SYSTEM.parent.parent)} imports {', '.join(names)}"
                for path in sorted({item.path for item in items}) if (names := imported_test_modules(path))]
     if crossed:
         raise pytest.UsageError(f"{'; '.join(crossed)}: a test module imports another test module: move what "
                                 f"they share to a helper module of the folder (not test_*.py), or a conftest "
                                 f"if it is a fixture")
+    helpers = {Path(module.__file__) for name, module in list(sys.modules.items())
+               if name.startswith("tests.") and not name.endswith("conftest") and getattr(module, "__file__", None)}
+    importers = [f"{path.relative_to(SYSTEM.parent.parent)} imports {', '.join(names)}"
+                 for path in sorted({item.path for item in items} | helpers) if (names := imported_conftests(path))]
+    if importers:
+        raise pytest.UsageError(f"{'; '.join(importers)}: a module of the tests imports from a conftest: a fixture "
+                                f"needs no import (pytest gives it by name), and what is not a fixture goes in a "
+                                f"helper module of the folder")
     for item in items:
         if item.path not in elsewhere:
             item.add_marker(pytest.mark.slow)
@@ -45,28 +55,6 @@ def pytest_collection_modifyitems(items):
     # file started last ends the run, and these take a minute or more each.
     long_files = {item.path for item in items if item.get_closest_marker("long")}
     items.sort(key=lambda item: item.path not in long_files)  # stable: the rest keep their order
-
-
-def imported_test_modules(path: Path) -> list[str]:
-    """What the file at `path` imports of this package's test modules (test_*.py): the modules, or
-    names that start with test_ (a test module, or a test function, which would then run twice)."""
-    found = []
-    for node in ast.walk(ast.parse(path.read_text(encoding="utf-8"))):
-        if isinstance(node, ast.Import):
-            found += [alias.name for alias in node.names
-                      if alias.name.startswith("tests.") and alias.name.rsplit(".", 1)[-1].startswith("test_")]
-        elif isinstance(node, ast.ImportFrom) and (node.level or (node.module or "").split(".")[0] == "tests"):
-            module = "." * node.level + (node.module or "")
-            found += [module] if module.rsplit(".", 1)[-1].startswith("test_") else \
-                [f"{alias.name} from {module}" for alias in node.names if alias.name.startswith("test_")]
-    return found
-
-
-def starts_servers(module) -> bool:
-    """Whether a test module holds the module that starts leagues as processes, or anything of it."""
-    return module is not None and any(
-        getattr(value, "__module__", None) == SERVERS or getattr(value, "__name__", None) == SERVERS
-        for value in vars(module).values())
 
 
 # toolkit fixtures ------------------------------------------------------------------------

@@ -11,7 +11,7 @@ from league.server.config import (
 )
 from league.validation.limits import SandboxLimits
 
-from .conftest import REPO, server_command
+from .commands import REPO, server_command
 
 
 def test_unknown_variables_are_named_with_the_closest_setting(tmp_path):

@@ -12,7 +12,8 @@ from sqlalchemy import create_engine, text
 
 from league.server.db.session import head_revision, upgrade
 
-from .conftest import REPO, fresh_backend, server_command
+from .backends import fresh_backend
+from .commands import REPO, server_command
 
 
 def revision(url: str) -> str | None:

@@ -15,7 +15,7 @@ from league.server.db.models import Base
 from league.server.db.session import alembic_config, make_engine, migrate
 from league.server.results import settings_key
 
-from .conftest import BACKENDS
+from .backends import BACKENDS
 
 
 def alembic(engine: Engine, action: str, revision: str) -> None:
@@ -79,7 +79,7 @@ def test_downgrade_to_nothing_and_back(backend):
 
 # --------------------------------------------------------------------------- 0007: results carry what produced them
 
-COURSE_SETTINGS = {"seed": 11, "episodes": 3, "env_options": {}}  # conftest.TEST_SETTINGS: the server's defaults
+COURSE_SETTINGS = {"seed": 11, "episodes": 3, "env_options": {}}  # backends.TEST_SETTINGS: the server's defaults
 EARLIER_SETTINGS = {"seed": 5, "episodes": 7, "env_options": {"obstacles": False}}  # changed, never re-run
 
 
@@ -139,7 +139,7 @@ def test_0007_keys_existing_results_so_that_the_board_keeps_what_0006_ranked(kin
     settings keeps its rank and figures; what it mixed in from earlier settings is shown apart,
     stale; what produced each finished result is recorded; the queued upload keeps its place; and
     down to 0006 again, nothing is lost."""
-    from .api.conftest import in_process_league
+    from .api.in_process import in_process_league
 
     with in_process_league(kind, tmp_path, prepare=fill_0006, bootstrap=False) as league:
         with league.client(league.instructor_token) as member:  # names: a visitor sees display names
@@ -206,7 +206,7 @@ def test_0010_makes_each_course_one_default_assignment_and_every_answer_stays(ki
     default assignment's (no due time, open), every submission and evaluation belongs to it, the
     assignment's public board is the leaderboard, which ranks as before; down to 0008, the course's
     settings are back."""
-    from .api.conftest import in_process_league
+    from .api.in_process import in_process_league
 
     with in_process_league(kind, tmp_path, prepare=fill_0006, bootstrap=False) as league:
         with league.client(league.instructor_token) as instructor:  # (visitors see pseudonyms)

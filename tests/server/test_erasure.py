@@ -19,8 +19,9 @@ from league.server.db.models import (
 from league.server.jobs.race import RaceOutcome, car_name
 from league.server.rounds import create_race
 
-from .api.conftest import every_get, in_process_league, unique
-from .conftest import BACKENDS
+from .api.in_process import every_get, in_process_league
+from .api_calls import unique
+from .backends import BACKENDS
 
 CONTRACT = Path(__file__).resolve().parents[2] / "docs" / "CONTRACT.md"
 

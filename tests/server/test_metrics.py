@@ -15,8 +15,8 @@ from league.server.jobs.leases import claim
 from league.server.metrics import JOB_BUCKETS
 from league.validation.report import ValidationReport
 
-from .api.conftest import evaluation_outcome, in_process_league
-from .conftest import BACKENDS
+from .api.in_process import evaluation_outcome, in_process_league
+from .backends import BACKENDS
 
 
 def scrape(client) -> dict[str, dict[tuple, float]]:

@@ -19,15 +19,16 @@ from league.server.db.models import INSTRUCTOR, QUEUED, ChampionshipRound, Job, 
 from league.server.jobs.race import RaceOutcome, car_name, entrant_of, public
 from league.track import episode_start
 
-from .api.conftest import every_get, in_process_league, unique
-from .conftest import BACKENDS
+from .api.in_process import every_get, in_process_league
+from .api_calls import unique
+from .backends import BACKENDS
 
 ALIKE = {"name": "cup", "seed": 5, "heat_size": 2, "include_baselines": False, "env_options": {"n_obstacles": 3}}
 
 
 @pytest.fixture(scope="module", params=BACKENDS)
 def app_league(request, tmp_path_factory):
-    """The app in process on each backend (tests/server/api/conftest.py), no worker."""
+    """The app in process on each backend (tests/server/api/in_process.py), no worker."""
     with in_process_league(request.param, tmp_path_factory.mktemp(f"rounds-{request.param}")) as league:
         yield league
 

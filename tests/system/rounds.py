@@ -6,7 +6,7 @@ from __future__ import annotations
 from collections import Counter
 from pathlib import Path
 
-from ..server.conftest import create_student, upload, wait_for, wait_settled
+from ..server.api_calls import create_student, upload, wait_for, wait_settled
 from .servers import LeagueServer
 
 POINTS = [25, 18, 15, 12, 10, 8, 6, 4, 2, 1]

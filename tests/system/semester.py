@@ -21,7 +21,7 @@ from sqlalchemy import text
 
 from league.server.db.session import make_engine
 
-from ..server.conftest import upload, wait_for, wait_settled
+from ..server.api_calls import upload, wait_for, wait_settled
 from .servers import LeagueServer, wait_race
 
 PAGE = 100  # the API's largest page

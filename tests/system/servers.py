@@ -3,7 +3,7 @@ database of each backend, with the test settings, spoken to over HTTP; and what 
 with them (ready agents, races raced again locally, users of another course).
 
 Only the system tests start these (tests/conftest.py refuses a test elsewhere that imports this
-module); the unit tests of the API run the app in process (tests/server/api/conftest.py).
+module); the unit tests of the API run the app in process (tests/server/api/in_process.py).
 """
 from __future__ import annotations
 
@@ -20,7 +20,9 @@ from pathlib import Path
 import httpx
 import pytest
 
-from ..server.conftest import REPO, TEST_SETTINGS, upload, wait_for, wait_settled
+from ..server.api_calls import settled, unique, upload, wait_for, wait_settled
+from ..server.backends import TEST_SETTINGS
+from ..server.commands import REPO
 
 
 def free_port() -> int:
@@ -194,3 +196,25 @@ def add_user_in_new_course(server: LeagueServer, name: str, course_name: str, ro
     finally:
         engine.dispose()
     return token
+
+
+def student_token(server, name: str) -> str:
+    """A new student of the shared course (its instructor creates them); returns their token."""
+    with server.client(server.instructor_token) as instructor:
+        response = instructor.post("/api/users", json={"name": name})
+    assert response.status_code == 201, response.text
+    return response.json()["token"]
+
+
+def instructor_of_a_new_course(server) -> str:
+    """An instructor of a course of their own: their students, settings and re-runs change nothing
+    another test sees (re-running the shared course's evaluations kept the worker busy for later tests)."""
+    return add_user_in_new_course(server, unique("prof"), unique("course"), role="instructor")
+
+
+def wait_for_the_baselines(server) -> None:
+    """Until the first start's baselines are evaluated, as users find the league after `league serve`:
+    a test that came first would otherwise see (and the public cache keep) a league without them."""
+    with server.client(server.instructor_token) as instructor:
+        wait_for(lambda: instructor.get("/api/submissions?all=true").json(),
+                 lambda submissions: submissions and all(settled(s) for s in submissions))

@@ -15,8 +15,9 @@ from sqlalchemy import create_engine, text
 from league.server.backup import BackupError, backup, backup_revision, holds_league, restore
 from league.server.db.session import head_revision, make_engine, revision_of, upgrade
 
+from ..server.api_calls import upload
+from ..server.backends import fresh_backend
 from .semester import collect, differences, drained, semester
-from ..server.conftest import fresh_backend, upload
 from .servers import LeagueServer, make_server
 
 LOAD_UPLOADS = 9  # arriving while the backup is taken

@@ -19,9 +19,10 @@ from league.client import EXIT_AUTH, EXIT_OK, EXIT_REFUSED, EXIT_REJECTED, EXIT_
 from league.server.api.deps import UNKNOWN_TOKEN
 from league.evaluation import metrics_run
 
-from ..server.conftest import TEST_SETTINGS, create_student, upload, wait_for, wait_settled
-from .servers import baseline_submission, free_port
-from .students import league, student_env, student_token, unique
+from ..server.api_calls import create_student, unique, upload, wait_for, wait_settled
+from ..server.backends import TEST_SETTINGS
+from .servers import baseline_submission, free_port, student_token
+from .students import league, student_env
 
 EPISODES, SEED = int(TEST_SETTINGS["LEAGUE_EVAL_EPISODES"]), int(TEST_SETTINGS["LEAGUE_EVAL_SEED"])
 # Too slow: the load's dry run, a call or the median may be the first to use up its CPU time

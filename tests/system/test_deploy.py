@@ -27,7 +27,8 @@ from league.cli import build_parser
 from league.server.config import Settings
 from league.server.jobs.alive import alive_file, stale_reason
 
-from ..server.conftest import fresh_backend, wait_for
+from ..server.api_calls import wait_for
+from ..server.backends import fresh_backend
 from .servers import free_port, make_server
 
 REPO = Path(__file__).resolve().parents[2]

@@ -9,7 +9,8 @@ import pytest
 from league.agents import load_agent
 from league.evaluation import metrics_run
 
-from ..server.conftest import TEST_SETTINGS, create_student, episodes, submission, upload, wait_for, wait_settled
+from ..server.api_calls import create_student, episodes, submission, upload, wait_for, wait_settled
+from ..server.backends import TEST_SETTINGS
 from .servers import make_server
 
 LONG_EPISODES = "100"  # an evaluation of a second or more (lockstep): long enough to be stopped in the middle

@@ -31,7 +31,8 @@ import pytest
 from league.agents import load_agent
 from league.evaluation import metrics_run, race
 
-from ..server.conftest import TEST_SETTINGS, wait_for
+from ..server.api_calls import wait_for
+from ..server.backends import TEST_SETTINGS
 from .network import ip, require_namespaces, unused_prefix
 from .rounds import (
     LONG_HEATS, ONE_AT_A_TIME, ROUND_SETTINGS, check_round_counted_once, enter_students, race_jobs, read_round,

@@ -14,7 +14,8 @@ from league import testing as mf
 from league.server.db.models import Job
 from league.server.db.session import make_engine
 
-from ..server.conftest import create_student, fresh_backend, upload, wait_settled
+from ..server.api_calls import create_student, upload, wait_settled
+from ..server.backends import fresh_backend
 from .servers import make_server
 
 

@@ -15,7 +15,8 @@ from pathlib import Path
 import httpx
 import pytest
 
-from ..server.conftest import TEST_SETTINGS, wait_for
+from ..server.api_calls import wait_for
+from ..server.backends import TEST_SETTINGS
 from .servers import LeagueServer
 
 REPO = Path(__file__).resolve().parents[2]

@@ -14,7 +14,8 @@ from league.agents import load_agent
 from league.evaluation import race
 from league.server.jobs.placement import CpuSlots
 
-from ..server.conftest import TEST_SETTINGS, create_student, fresh_backend, wait_for
+from ..server.api_calls import create_student, wait_for
+from ..server.backends import TEST_SETTINGS, fresh_backend
 from .rounds import (
     LONG_HEATS, ONE_AT_A_TIME, ROUND_SETTINGS, baseline_ids, check_round_counted_once, enter_students, race_jobs,
     races_of, read_round, standings, start_round, wait_idle, wait_round_over, worker_pid,

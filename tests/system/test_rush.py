@@ -9,7 +9,7 @@ import sys
 
 import pytest
 
-from ..server.conftest import REPO
+from ..server.commands import REPO
 
 sys.path.insert(0, str(REPO / "benchmarks"))
 import bench_rush

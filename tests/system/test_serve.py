@@ -6,7 +6,8 @@ from pathlib import Path
 
 import pytest
 
-from ..server.conftest import create_student, fresh_backend, submission, upload, wait_for
+from ..server.api_calls import create_student, submission, upload, wait_for
+from ..server.backends import fresh_backend
 from .servers import make_server
 
 

@@ -10,7 +10,8 @@ import sys
 
 import pytest
 
-from ..server.conftest import REPO, fresh_backend
+from ..server.backends import fresh_backend
+from ..server.commands import REPO
 from .servers import baseline_submission, make_server
 
 GUIDE = REPO / "docs" / "STUDENT_GUIDE.md"

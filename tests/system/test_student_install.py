@@ -26,9 +26,11 @@ import pytest
 
 from league.client import EXIT_OK, EXIT_USAGE
 
-from ..server.conftest import TEST_SETTINGS
+from ..server.api_calls import unique
+from ..server.backends import TEST_SETTINGS
 from .ordinary import SYSTEM_PYTHON, ordinary_user, require_root_tools, shared_directory
-from .students import league, student_env, student_token, unique
+from .servers import student_token
+from .students import league, student_env
 
 EPISODES, SEED = TEST_SETTINGS["LEAGUE_EVAL_EPISODES"], TEST_SETTINGS["LEAGUE_EVAL_SEED"]
 PIP_CACHE = Path("/tmp/league-student-pip-cache")  # the ordinary user's downloads, kept between runs

@@ -19,9 +19,10 @@ import pytest
 
 from league.server.db.session import head_revision
 
-from ..server.conftest import REPO, TEST_SETTINGS, fresh_backend
-from .servers import LeagueServer
+from ..server.backends import TEST_SETTINGS, fresh_backend
+from ..server.commands import REPO
 from .semester import collect, differences, drained, semester
+from .servers import LeagueServer
 
 # commit -> the schema revision its code writes: releases a course may upgrade from
 RELEASES = {

@@ -8,7 +8,9 @@ import sys
 import time
 from pathlib import Path
 
-from ..server.conftest import REPO, fresh_backend, server_command, wait_for
+from ..server.api_calls import wait_for
+from ..server.backends import fresh_backend
+from ..server.commands import REPO, server_command
 from .servers import make_server
 
 

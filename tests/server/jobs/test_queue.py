@@ -17,7 +17,7 @@ from league.server.jobs.runner import WorkerContext
 from league.server.jobs.worker import Worker
 from league.server.storage import BlobStore
 
-from ..conftest import wait_for
+from ..api_calls import wait_for
 
 
 class Counting:

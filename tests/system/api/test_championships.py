@@ -7,7 +7,6 @@ from __future__ import annotations
 import csv
 import io
 import threading
-import uuid
 from concurrent.futures import ThreadPoolExecutor
 from types import SimpleNamespace
 
@@ -20,17 +19,14 @@ from league.championship import split_into_heats
 from league.evaluation import episode_seeds
 from league.testing import thesis_driver
 
-from ...server.conftest import create_student, fresh_backend, upload, wait_for, wait_settled
+from ...server.api_calls import create_student, unique, upload, wait_for, wait_settled
+from ...server.backends import fresh_backend
 from ..servers import (
     add_user_in_new_course, assert_same_classification, baseline_submission, make_server, race_locally, stored_model,
     upload_ready, wait_race,
 )
 
 NAN_REASON = "the model returned NaN or infinite actions"
-
-
-def unique(name: str) -> str:
-    return f"{name}-{uuid.uuid4().hex[:6]}"
 
 
 def create(client, **body):

@@ -10,7 +10,7 @@ import pytest
 from league.agents import load_agent
 from league.evaluation import metrics_run
 
-from ...server.conftest import create_student, episodes, submission, upload, wait_for, wait_settled
+from ...server.api_calls import create_student, episodes, submission, upload, wait_for, wait_settled
 
 
 def test_a_settings_change_re_evaluates_the_submissions_with_the_new_settings(league_server, models):

@@ -7,7 +7,6 @@ import io
 import os
 import subprocess
 import sys
-import uuid
 
 from sqlalchemy import update
 
@@ -18,12 +17,8 @@ from league.server.db.session import make_engine, make_sessionmaker
 from league.server.integrity import CSV_COLUMNS
 from league.testing import thesis_driver
 
-from ...server.conftest import submission, upload, wait_for
+from ...server.api_calls import submission, unique, upload, wait_for
 from ..servers import add_user_in_new_course
-
-
-def unique(name: str) -> str:
-    return f"{name}-{uuid.uuid4().hex[:6]}"
 
 
 def upload_all(uploads: dict[str, tuple]) -> dict[str, int]:

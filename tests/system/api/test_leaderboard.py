@@ -3,16 +3,12 @@ test_championships.py): each student's best agent and the baselines, and an agen
 board while a worker has yet to evaluate it again. Paging, the CSV and the cache: tests/server/api/routes/."""
 from __future__ import annotations
 
-import uuid
 
 from league import testing as mf
 
-from ...server.conftest import create_student, fresh_backend
+from ...server.api_calls import create_student, unique
+from ...server.backends import fresh_backend
 from ..servers import add_user_in_new_course, baseline_submission, make_server, upload_ready
-
-
-def unique(name: str) -> str:
-    return f"{name}-{uuid.uuid4().hex[:6]}"
 
 
 def score(row: dict) -> tuple[float, float]:

@@ -5,7 +5,7 @@ from __future__ import annotations
 import socket
 import time
 
-from ...server.conftest import fresh_backend
+from ...server.backends import fresh_backend
 from ..servers import make_server
 
 

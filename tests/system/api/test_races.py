@@ -5,7 +5,6 @@ from __future__ import annotations
 
 import json
 import threading
-import uuid
 from concurrent.futures import ThreadPoolExecutor
 from types import SimpleNamespace
 
@@ -13,7 +12,7 @@ import pytest
 
 from league.evaluation import REPLAY_FORMAT, REPLAY_VERSION, load_replay
 
-from ...server.conftest import create_student, not_raceable, post_race, upload, wait_settled
+from ...server.api_calls import create_student, not_raceable, post_race, unique, upload, wait_settled
 from ..servers import (
     add_user_in_new_course, assert_same_classification, baseline_submission, make_server, race_locally, stored_model,
     upload_ready, wait_race,
@@ -22,10 +21,6 @@ from ..servers import (
 RACE_SEED = 4242
 RACE_OPTIONS = {"n_obstacles": 4, "chicanes": False}
 OUTCOMES = {"finished", "off_road", "wrong_direction", "too_slow", "timeout", "dnf"}
-
-
-def unique(name: str) -> str:
-    return f"{name}-{uuid.uuid4().hex[:6]}"
 
 
 @pytest.fixture(scope="module")

@@ -9,20 +9,16 @@ import re
 import subprocess
 import sys
 import threading
-import uuid
 from concurrent.futures import ThreadPoolExecutor
 
 import pytest
 
 from league.evaluation import league_versions
 
-from ...server.conftest import TEST_SETTINGS, create_student, episodes, upload, wait_settled
+from ...server.api_calls import create_student, episodes, unique, upload, wait_settled
+from ...server.backends import TEST_SETTINGS
 
 EPISODES, SEED = int(TEST_SETTINGS["LEAGUE_EVAL_EPISODES"]), int(TEST_SETTINGS["LEAGUE_EVAL_SEED"])
-
-
-def unique(name: str) -> str:
-    return f"{name}-{uuid.uuid4().hex[:6]}"
 
 
 @pytest.mark.parametrize("kind", ["onnx", "torchscript"])

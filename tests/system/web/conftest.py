@@ -3,64 +3,19 @@ Debian's Chromium driven by Playwright, and a page that records every request it
 
 Needs `pip install playwright` (the wheel carries its driver; never `playwright install`) and
 `apt-get install chromium`; the tests are skipped, saying so, when either is missing.
-Screenshots go to test-artifacts/web/.
+Screenshots go to test-artifacts/web/. The browser's helpers are in browsing.py.
 """
 from __future__ import annotations
 
-import base64
-import os
 import shutil
-import uuid
 from pathlib import Path
-from urllib.parse import urlsplit
 
 import httpx
 import pytest
 
-from ...server.conftest import REPO, fresh_backend, settled, wait_for
-from ..servers import add_user_in_new_course, make_server
-
-CHROMIUM = os.environ.get("LEAGUE_TEST_CHROMIUM", "/usr/bin/chromium")
-CHROMIUM_ARGS = ["--no-sandbox", "--disable-gpu", "--disable-background-networking", "--disable-component-update",
-                 "--disable-sync", "--no-first-run"]
-ARTIFACTS = REPO / "test-artifacts" / "web"
-TIMEOUT_MS = 30_000
-
-
-def require_browser() -> None:
-    """Skip, saying what to install, when Playwright or Chromium is missing (call at a test module's top)."""
-    pytest.importorskip("playwright.sync_api", reason="browser tests need `pip install playwright`")
-    if not Path(CHROMIUM).exists():
-        pytest.skip(f"browser tests need Chromium at {CHROMIUM} (apt-get install chromium)", allow_module_level=True)
-
-
-# --------------------------------------------------------------------------- helpers
-
-
-def unique(name: str) -> str:
-    return f"{name}-{uuid.uuid4().hex[:6]}"
-
-
-def student_token(server, name: str) -> str:
-    """A new student of the shared course (its instructor creates them); returns their token."""
-    with server.client(server.instructor_token) as instructor:
-        response = instructor.post("/api/users", json={"name": name})
-    assert response.status_code == 201, response.text
-    return response.json()["token"]
-
-
-def instructor_of_a_new_course(server) -> str:
-    """An instructor of a course of their own: their students, settings and re-runs change nothing
-    another test sees (re-running the shared course's evaluations kept the worker busy for later tests)."""
-    return add_user_in_new_course(server, unique("prof"), unique("course"), role="instructor")
-
-
-def viewer_step(web) -> int:
-    """The step the race viewer shows."""
-    return int(web.page.get_attribute("#viewer", "data-step"))
-
-
-# --------------------------------------------------------------------------- server and browser
+from ...server.backends import fresh_backend
+from ..servers import make_server, wait_for_the_baselines
+from .browsing import ARTIFACTS, CHROMIUM, CHROMIUM_ARGS, RecordedPage
 
 
 @pytest.fixture(scope="package")
@@ -81,14 +36,6 @@ def web_server(tmp_path_factory):
             server.stop_all()
 
 
-def wait_for_the_baselines(server) -> None:
-    """Until the first start's baselines are evaluated, as users find the league after `league serve`:
-    a test that came first would otherwise see (and the public cache keep) a league without them."""
-    with server.client(server.instructor_token) as instructor:
-        wait_for(lambda: instructor.get("/api/submissions?all=true").json(),
-                 lambda submissions: submissions and all(settled(s) for s in submissions))
-
-
 @pytest.fixture(scope="package")
 def browser():
     from playwright.sync_api import sync_playwright
@@ -97,54 +44,6 @@ def browser():
         chromium = playwright.chromium.launch(executable_path=CHROMIUM, args=CHROMIUM_ARGS)
         yield chromium
         chromium.close()
-
-
-class RecordedPage:
-    """A Playwright page plus every request it made and every uncaught script error."""
-
-    def __init__(self, page, server_url: str):
-        self.page = page
-        self.base = server_url
-        self.requests: list[str] = []
-        self.errors: list[str] = []
-        page.on("request", lambda request: self.requests.append(request.url))
-        page.on("pageerror", lambda error: self.errors.append(str(error)))
-        page.set_default_timeout(TIMEOUT_MS)
-
-    def goto(self, path: str):
-        return self.page.goto(self.base + path)
-
-    def login(self, token: str) -> None:
-        """Log in through the login page's form."""
-        self.goto("/login")
-        self.page.fill("#token", token)
-        self.page.click("#login-form button[type=submit]")
-        self.page.wait_for_url(lambda url: "/login" not in url)
-
-    def screenshot(self, name: str, full_page: bool = True) -> Path:
-        ARTIFACTS.mkdir(parents=True, exist_ok=True)
-        path = ARTIFACTS / f"{name}.png"
-        self.page.screenshot(path=str(path), full_page=full_page)
-        return path
-
-    def foreign_hosts(self) -> set[str]:
-        own = urlsplit(self.base).netloc
-        hosts = {urlsplit(url).netloc for url in self.requests
-                 if urlsplit(url).scheme in ("http", "https", "ws", "wss")}
-        return hosts - {own}
-
-    def drop_file(self, selector: str, path: Path, name: str | None = None) -> None:
-        """Drop a file on an element, as dragging it from the desktop does."""
-        data = base64.b64encode(path.read_bytes()).decode()
-        transfer = self.page.evaluate_handle(
-            """([name, data]) => {
-                 const bytes = Uint8Array.from(atob(data), (c) => c.charCodeAt(0));
-                 const transfer = new DataTransfer();
-                 transfer.items.add(new File([bytes], name));
-                 return transfer;
-               }""", [name or path.name, data])
-        self.page.dispatch_event(selector, "dragover", {"dataTransfer": transfer})
-        self.page.dispatch_event(selector, "drop", {"dataTransfer": transfer})
 
 
 @pytest.fixture

@@ -10,9 +10,10 @@ from playwright.sync_api import expect
 
 from league.server.integrity import CSV_COLUMNS
 
-from ...server.conftest import upload, wait_for
+from ...server.api_calls import unique, upload, wait_for
+from ..servers import instructor_of_a_new_course
 from .axe import Audit
-from .conftest import instructor_of_a_new_course, require_browser, unique
+from .browsing import require_browser
 
 require_browser()
 

@@ -19,9 +19,10 @@ from playwright.sync_api import expect
 from league import render
 from league.evaluation import OUTCOME_TEXT
 
-from ...server.conftest import upload, wait_for, wait_settled
+from ...server.api_calls import unique, upload, wait_for, wait_settled
+from ..servers import instructor_of_a_new_course, student_token
+from .browsing import require_browser, viewer_step
 from .colours import DEFICIENCIES, delta_e, hex_rgb
-from .conftest import instructor_of_a_new_course, require_browser, student_token, unique, viewer_step
 
 require_browser()
 

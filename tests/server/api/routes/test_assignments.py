@@ -19,8 +19,9 @@ from league.server.db.models import DONE, PRIVATE, READY, Assignment, Evaluation
 from league.server.jobs.evaluate import EvaluationOutcome
 from league.server.results import settings_key
 
-from ...conftest import BACKENDS
-from ..conftest import in_process_league, unique
+from ...api_calls import unique
+from ...backends import BACKENDS
+from ..in_process import in_process_league
 
 T0 = datetime(2030, 3, 1, 9, 0, tzinfo=timezone.utc)  # opens
 T1 = datetime(2030, 3, 8, 23, 59, tzinfo=timezone.utc)  # due

@@ -10,8 +10,9 @@ from sqlalchemy import select
 
 from league.server.db.models import DONE, Job
 
-from ..conftest import in_process_league, unique
-from ...conftest import BACKENDS
+from ...api_calls import unique
+from ...backends import BACKENDS
+from ..in_process import in_process_league
 
 
 @pytest.mark.parametrize("kind", BACKENDS)

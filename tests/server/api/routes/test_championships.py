@@ -2,17 +2,12 @@
 for a student, and a whole season raced by a worker: tests/system/api/test_championships.py."""
 from __future__ import annotations
 
-import uuid
 
 import pytest
 
-from ...conftest import create_student
+from ...api_calls import create_student, unique
 
 DEFAULT_POINTS = [25, 18, 15, 12, 10, 8, 6, 4, 2, 1]
-
-
-def unique(name: str) -> str:
-    return f"{name}-{uuid.uuid4().hex[:6]}"
 
 
 def create(client, **body):

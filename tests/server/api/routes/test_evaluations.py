@@ -15,7 +15,7 @@ from league.server.jobs.leases import fairest_queued
 from league.server.results import SUPERSEDED
 from league.validation.report import ValidationReport
 
-from ..conftest import evaluation_outcome, in_process_league
+from ..in_process import evaluation_outcome, in_process_league
 
 
 @pytest.mark.parametrize("options, message", [
@@ -76,7 +76,7 @@ def test_a_settings_change_never_mixes_results_on_the_board_or_in_the_grades(kin
     """After a change the old results are stale, apart and unranked, at once (a long cache period);
     the re-evaluations wait at low priority behind a student's new upload; as they finish the board
     ranks them; the same settings again, or the old ones back, queue nothing for what has results."""
-    old = {"seed": 11, "episodes": 3, "env_options": {}}  # conftest.TEST_SETTINGS
+    old = {"seed": 11, "episodes": 3, "env_options": {}}  # backends.TEST_SETTINGS
     new = {"seed": 9, "episodes": 7, "env_options": {"obstacles": False}}
     with in_process_league(kind, tmp_path, bootstrap=False, public_cache_s=60, public_cache_max_age_s=60) as league:
         with league.sessions.begin() as session:
@@ -139,7 +139,7 @@ def test_a_settings_change_never_mixes_results_on_the_board_or_in_the_grades(kin
 def test_queued_evaluations_take_the_new_settings_or_are_superseded(kind, tmp_path):
     """An upload whose evaluation waits keeps its place and takes the new settings; a re-evaluation
     still queued when the old settings come back is superseded: its result of them counts again."""
-    old = {"seed": 11, "episodes": 3, "env_options": {}}  # conftest.TEST_SETTINGS
+    old = {"seed": 11, "episodes": 3, "env_options": {}}  # backends.TEST_SETTINGS
     new = {"seed": 4, "episodes": 5, "env_options": {}}
     with in_process_league(kind, tmp_path, bootstrap=False) as league:
         with league.sessions.begin() as session:

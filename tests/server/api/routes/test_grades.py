@@ -18,7 +18,8 @@ from league.server.db.models import (
 from league.server.results import settings_key
 from league.server.grades import CANVAS_STUDENT_COLUMNS, GENERIC_COLUMNS
 
-from ..conftest import evaluation_outcome, unique
+from ...api_calls import unique
+from ..in_process import evaluation_outcome
 
 # due times no other test's assignment has: close_due, which closes every assignment whose time has
 # passed, freezes only these

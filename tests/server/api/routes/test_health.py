@@ -13,8 +13,8 @@ from league.server.db import crud
 from league.server.db.models import Job, WorkerProcess, utcnow
 from league.server.jobs import registry
 
-from ...conftest import BACKENDS
-from ..conftest import in_process_league
+from ...backends import BACKENDS
+from ..in_process import in_process_league
 
 
 def test_health_says_how_sandboxes_are_isolated(app_league):

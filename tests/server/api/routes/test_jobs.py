@@ -1,7 +1,7 @@
 """Jobs for instructors, in process: their course's jobs only, and cancelling one."""
 from __future__ import annotations
 
-from ...conftest import upload
+from ...api_calls import upload
 
 
 def test_an_instructor_sees_and_cancels_the_jobs_of_their_course_only(app_league, models):

@@ -5,7 +5,6 @@ from __future__ import annotations
 
 import csv
 import io
-import uuid
 
 import pytest
 from sqlalchemy import select
@@ -13,10 +12,7 @@ from sqlalchemy import select
 from league.server.db.models import INSTRUCTOR, Submission
 
 from ....formulas import formula_cells
-
-
-def unique(name: str) -> str:
-    return f"{name}-{uuid.uuid4().hex[:6]}"
+from ...api_calls import unique
 
 
 def test_the_leaderboard_is_paginated(app_league):
@@ -109,7 +105,7 @@ def test_colliding_ids_and_a_long_cache_period_every_change_shows_on_the_next_re
     from league.server.db.models import BASELINE, READY, STUDENT, Job
     from league.server.results import queue_evaluation
 
-    from ..conftest import evaluation_outcome, in_process_league
+    from ..in_process import evaluation_outcome, in_process_league
 
     with in_process_league(kind, tmp_path, bootstrap=False, public_cache_s=60, public_cache_max_age_s=60) as league:
         with league.sessions.begin() as session:  # the instructor is user 1
@@ -182,7 +178,7 @@ def test_uploads_and_validations_keep_the_state_stamp_an_evaluation_changes_it(k
     from league.server.db.models import STUDENT, Evaluation, Job
     from league.validation.report import ValidationReport
 
-    from ..conftest import evaluation_outcome, in_process_league
+    from ..in_process import evaluation_outcome, in_process_league
 
     with in_process_league(kind, tmp_path, bootstrap=False, public_cache_s=60, public_cache_max_age_s=60) as league:
         def stamp() -> tuple:

@@ -7,7 +7,6 @@ from __future__ import annotations
 
 import gzip
 import json
-import uuid
 from dataclasses import dataclass
 
 import pytest
@@ -16,12 +15,9 @@ from league.server.db import crud
 from league.server.db.models import DONE, INSTRUCTOR, Championship, ChampionshipRound, Course, Race, RaceReplay
 from league.server.privacy import pseudonym
 
-from ...conftest import BACKENDS
-from ..conftest import in_process_league
-
-
-def unique(name: str) -> str:
-    return f"{name} {uuid.uuid4().hex[:6]}"
+from ...api_calls import unique
+from ...backends import BACKENDS
+from ..in_process import in_process_league
 
 
 @dataclass

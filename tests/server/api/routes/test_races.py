@@ -5,18 +5,13 @@ from __future__ import annotations
 
 import gzip
 import json
-import uuid
 from types import SimpleNamespace
 
 import pytest
 
 from league.server.api.routes.races import gunzipped
 
-from ...conftest import not_raceable, post_race
-
-
-def unique(name: str) -> str:
-    return f"{name}-{uuid.uuid4().hex[:6]}"
+from ...api_calls import not_raceable, post_race
 
 
 @pytest.fixture(scope="module")

@@ -4,7 +4,6 @@ runs (validation and evaluation in real sandboxes): tests/system/api/test_submis
 from __future__ import annotations
 
 import hashlib
-import uuid
 from datetime import datetime, timedelta
 
 import pytest
@@ -12,12 +11,9 @@ import pytest
 from league.server.api.deps import UNKNOWN_TOKEN
 from league.server.db.models import REJECTED
 
-from ...conftest import BACKENDS, create_student, submission, upload
-from ..conftest import evaluation_outcome, in_process_league
-
-
-def unique(name: str) -> str:
-    return f"{name}-{uuid.uuid4().hex[:6]}"
+from ...api_calls import create_student, submission, unique, upload
+from ...backends import BACKENDS
+from ..in_process import evaluation_outcome, in_process_league
 
 
 def test_empty_file_is_refused(app_league, tmp_path):

@@ -10,11 +10,7 @@ import pytest
 
 from league.server.db.models import REJECTED
 
-from ...conftest import create_student, upload
-
-
-def unique(name: str) -> str:
-    return f"{name}-{uuid.uuid4().hex[:6]}"
+from ...api_calls import create_student, unique, upload
 
 
 def test_cli_token_authenticates_the_instructor(app_league):
