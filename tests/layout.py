@@ -5,6 +5,7 @@ from __future__ import annotations
 import ast
 from pathlib import Path
 
+REPO = Path(__file__).resolve().parents[1]  # the checkout the tests run from
 SYSTEM = Path(__file__).parent / "system"
 SERVERS = "tests.system.servers"  # the module that starts leagues as processes
 

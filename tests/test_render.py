@@ -4,7 +4,6 @@ import os
 import shutil
 import subprocess
 import sys
-from pathlib import Path
 
 import numpy as np
 import pytest
@@ -14,7 +13,7 @@ import league
 from league import render
 from league.evaluation import race, save_replay
 
-REPO = Path(__file__).resolve().parents[1]
+from .layout import REPO
 
 
 @pytest.fixture(scope="module")

@@ -6,7 +6,8 @@ import subprocess
 import sys
 from pathlib import Path
 
-REPO = Path(__file__).resolve().parents[2]
+from ..layout import REPO
+
 
 
 def server_command(cwd: Path, *args: str, **env: str) -> subprocess.CompletedProcess:

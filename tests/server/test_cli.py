@@ -10,7 +10,8 @@ from pathlib import Path
 
 from league.cli import build_parser
 
-REPO = Path(__file__).resolve().parents[2]
+from ..layout import REPO
+
 
 
 def league(tmp_path: Path, *args: str) -> subprocess.CompletedProcess:

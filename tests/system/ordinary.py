@@ -25,7 +25,8 @@ from pathlib import Path
 import httpx
 import pytest
 
-REPO = Path(__file__).resolve().parents[2]
+from ..layout import REPO
+
 USER = "league-test"
 SYSTEM_PYTHON = Path("/usr/bin/python3")
 

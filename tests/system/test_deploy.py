@@ -27,11 +27,11 @@ from league.cli import build_parser
 from league.server.config import Settings
 from league.server.jobs.alive import alive_file, stale_reason
 
+from ..layout import REPO
 from ..server.api_calls import wait_for
 from ..server.backends import fresh_backend
 from .servers import free_port, make_server
 
-REPO = Path(__file__).resolve().parents[2]
 PINNED_IMAGE = re.compile(r"^[\w./-]+(:\d+(\.\d+)+[\w.-]*|@sha256:[0-9a-f]{64})$")  # a version with a dot, or a digest
 PLACEHOLDER = re.compile(r"\$\{(\w+)(:?[?-][^}]*)?\}")  # compose's ${VAR}, ${VAR:?message}, ${VAR:-default}
 SECRET_NAME = re.compile(r"PASSWORD|SECRET|TOKEN|KEY", re.I)

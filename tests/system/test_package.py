@@ -15,11 +15,11 @@ from pathlib import Path
 import httpx
 import pytest
 
+from ..layout import REPO
 from ..server.api_calls import wait_for
 from ..server.backends import TEST_SETTINGS
 from .servers import LeagueServer
 
-REPO = Path(__file__).resolve().parents[2]
 BUNDLED = sorted(p.stem for p in (REPO / "league" / "baselines" / "agents").glob("*.onnx"))
 
 

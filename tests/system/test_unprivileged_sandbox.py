@@ -11,14 +11,13 @@ from __future__ import annotations
 import os
 import shutil
 import subprocess
-from pathlib import Path
 
 import pytest
 
+from ..layout import REPO
 from .ordinary import USER, environment_for_others, ordinary_user, require_root_tools, shared_directory
 
 
-REPO = Path(__file__).resolve().parents[2]
 
 
 @pytest.fixture

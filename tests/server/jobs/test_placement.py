@@ -7,13 +7,13 @@ import signal
 import subprocess
 import sys
 import threading
-from pathlib import Path
 
 import pytest
 
 from league.server.jobs.placement import CpuSlots, Placement
 
-REPO = Path(__file__).resolve().parents[3]
+from ...layout import REPO
+
 CPUS = sorted(os.sched_getaffinity(0))
 needs_two_cpus = pytest.mark.skipif(len(CPUS) < 2, reason="placement splits CPUs: this process may use one")
 

@@ -11,6 +11,7 @@ from league.agents import load_agent
 from league.evaluation import metrics_run
 
 from ...server.api_calls import create_student, episodes, submission, upload, wait_for, wait_settled
+from ..servers import wait_for_the_baselines
 
 
 def test_a_settings_change_re_evaluates_the_submissions_with_the_new_settings(league_server, models):
@@ -45,6 +46,9 @@ def test_a_settings_change_re_evaluates_the_submissions_with_the_new_settings(le
 
 
 def test_rerun_all_queues_every_ready_submission_including_the_baselines(league_server):
+    # Jobs of an earlier test (a settings change re-evaluates the baselines too) must be done first:
+    # a submission being evaluated is not queued again.
+    wait_for_the_baselines(league_server)
     with league_server.client(league_server.instructor_token) as instructor:
         ready = {s["id"] for s in instructor.get("/api/submissions", params={"all": True}).json()
                  if s["status"] == "ready"}
