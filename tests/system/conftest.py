@@ -14,35 +14,23 @@ from pathlib import Path
 
 import pytest
 
-from ..server.backends import BACKENDS, fresh_backend
+from ..server.backends import BACKENDS
 from ..server.conftest import backend, models  # noqa: F401 - fixtures: a database of each backend, the model files
-from .servers import make_server
+from .servers import running_server
 
 
 @pytest.fixture(scope="package", params=BACKENDS)
 def league_server(request, tmp_path_factory):
     """A running `league serve` (API + its worker process) per backend, shared by the API tests."""
-    tmp_path = tmp_path_factory.mktemp(f"league-{request.param}")
-    with fresh_backend(request.param, tmp_path) as database_url:
-        server = make_server(tmp_path, database_url)
-        server.start_api()
-        try:
-            yield server
-        finally:
-            server.stop_all()
+    with running_server(tmp_path_factory.mktemp(f"league-{request.param}"), request.param) as server:
+        yield server
 
 
 @pytest.fixture(scope="module")
 def sqlite_server(tmp_path_factory):
     """A running `league serve` on SQLite, shared by a module's tests (the student's toolkit against it)."""
-    tmp = tmp_path_factory.mktemp("client")
-    with fresh_backend("sqlite", tmp) as database_url:
-        server = make_server(tmp, database_url)
-        server.start_api()
-        try:
-            yield server
-        finally:
-            server.stop_all()
+    with running_server(tmp_path_factory.mktemp("client"), "sqlite") as server:
+        yield server
 
 
 @pytest.fixture(scope="module")

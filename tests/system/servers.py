@@ -21,7 +21,7 @@ import httpx
 import pytest
 
 from ..server.api_calls import settled, unique, upload, wait_for, wait_settled
-from ..server.backends import TEST_SETTINGS
+from ..server.backends import TEST_SETTINGS, fresh_backend
 from ..server.commands import REPO
 
 
@@ -118,6 +118,18 @@ def make_server(tmp_path: Path, database_url: str, **settings: str) -> LeagueSer
     assert added.returncode == 0, added.stderr
     server.instructor_token = added.stdout.strip()
     return server
+
+
+@contextlib.contextmanager
+def running_server(directory: Path, backend: str):
+    """A `league serve` (API and its worker process) on a new database of `backend`, stopped after."""
+    with fresh_backend(backend, directory) as database_url:
+        server = make_server(directory, database_url)
+        server.start_api()
+        try:
+            yield server
+        finally:
+            server.stop_all()
 
 
 # --------------------------------------------------------------------------- what the tests do with them

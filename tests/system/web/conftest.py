@@ -13,27 +13,20 @@ from pathlib import Path
 import httpx
 import pytest
 
-from ...server.backends import fresh_backend
-from ..servers import make_server, wait_for_the_baselines
+from ..servers import running_server, wait_for_the_baselines
 from .browsing import ARTIFACTS, CHROMIUM, CHROMIUM_ARGS, RecordedPage
 
 
 @pytest.fixture(scope="package")
 def web_server(tmp_path_factory):
     """A running `league serve` with the web pages, an instructor and the baselines bootstrapped."""
-    tmp_path = tmp_path_factory.mktemp("league-web")
-    with fresh_backend("sqlite", tmp_path) as database_url:
-        server = make_server(tmp_path, database_url)
-        server.start_api()
-        try:
-            home = httpx.get(f"{server.url}/", timeout=10)
-            if home.status_code != 200 or "text/html" not in home.headers.get("content-type", ""):
-                pytest.fail("the web pages are not served: create_app must call "
-                            "league.server.pages.mount_web(app, settings)")
-            wait_for_the_baselines(server)
-            yield server
-        finally:
-            server.stop_all()
+    with running_server(tmp_path_factory.mktemp("league-web"), "sqlite") as server:
+        home = httpx.get(f"{server.url}/", timeout=10)
+        if home.status_code != 200 or "text/html" not in home.headers.get("content-type", ""):
+            pytest.fail("the web pages are not served: create_app must call "
+                        "league.server.pages.mount_web(app, settings)")
+        wait_for_the_baselines(server)
+        yield server
 
 
 @pytest.fixture(scope="package")
