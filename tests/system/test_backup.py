@@ -3,6 +3,7 @@ the other backend, and every answer of the restored league compared with the ori
 from __future__ import annotations
 
 import os
+import signal
 import sqlite3
 import stat
 import threading
@@ -15,7 +16,7 @@ from sqlalchemy import create_engine, text
 from league.server.backup import BackupError, backup, backup_revision, holds_league, restore
 from league.server.db.session import head_revision, make_engine, revision_of, upgrade
 
-from ..server.api_calls import upload
+from ..server.api_calls import upload, wait_for
 from ..server.backends import fresh_backend
 from .semester import collect, differences, drained, semester
 from .servers import LeagueServer, make_server
@@ -65,6 +66,26 @@ def jobs_waiting_in(backup_file: Path) -> int:
         return connection.execute("SELECT count(*) FROM jobs WHERE status IN ('queued', 'running')").fetchone()[0]
 
 
+def freeze_outside_a_write(worker, database_url: str) -> None:
+    """Stop the worker (as one busy with a long job) so that jobs are certainly waiting when the
+    snapshot is taken, whatever the machine's speed; never while it holds SQLite's write lock, which
+    would hold the uploads too (on PostgreSQL an upload and a worker write no common row)."""
+    while True:
+        worker.send_signal(signal.SIGSTOP)
+        if not database_url.startswith("sqlite"):
+            return
+        probe = sqlite3.connect(database_url.removeprefix("sqlite:///"), timeout=0, isolation_level=None)
+        try:
+            probe.execute("BEGIN IMMEDIATE")  # fails at once if the frozen worker is inside a write
+            probe.execute("ROLLBACK")
+            return
+        except sqlite3.OperationalError:
+            worker.send_signal(signal.SIGCONT)
+            time.sleep(0.05)
+        finally:
+            probe.close()
+
+
 def restored_server(tmp_path: Path, database_url: str, original: LeagueServer) -> LeagueServer:
     """A server of the other backend on a fresh data directory, its database still empty."""
     data_dir = tmp_path / "data"
@@ -82,12 +103,15 @@ def test_a_backup_taken_under_load_restores_every_answer(source, target, tmp_pat
             fresh_backend(target, tmp_path / "restored") as target_url:
         original = make_server(tmp_path / "original", source_url, LEAGUE_QUOTA_PER_DAY="20")
         restored = restored_server(tmp_path / "restored", target_url, original)
-        original.start_api()
+        original.start_api(embedded_worker=False)
+        worker = original.start_worker()
         try:
             tokens = semester(original, models)
             load = Uploads(original, tokens, models)
             load.start()
             assert load.started_three.wait(60)
+            freeze_outside_a_write(worker, source_url)
+            wait_for(lambda: len(load.done), lambda n: n > 3, timeout=60)  # one upload since: its job waits
             backup_file = tmp_path / "backups" / "league.bak"
             backup_file.parent.mkdir()
             acknowledged = {submission_id for submission_id, *_ in load.done}
@@ -96,6 +120,7 @@ def test_a_backup_taken_under_load_restores_every_answer(source, target, tmp_pat
                 taken = original.command("backup", str(backup_file))
             finally:
                 os.umask(umask)
+                worker.send_signal(signal.SIGCONT)
             load.join(120)
             assert taken.returncode == 0, taken.stderr
             assert stat.S_IMODE(backup_file.stat().st_mode) == 0o600
