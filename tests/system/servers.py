@@ -31,6 +31,24 @@ def free_port() -> int:
         return sock.getsockname()[1]
 
 
+def freeze(pid: int) -> None:
+    """SIGSTOP `pid` and return once every thread of it has stopped: kill() returns before then, and a
+    thread still running might, say, touch a file or take a lock just after the caller's next step."""
+    os.kill(pid, signal.SIGSTOP)
+    tasks = Path(f"/proc/{pid}/task")
+
+    def state(task: Path) -> str:  # the field after "(comm)", which may itself hold spaces
+        return (task / "stat").read_text().rpartition(")")[2].split()[0]
+    wait_for(lambda: {state(task) for task in tasks.iterdir()}, lambda states: states <= {"T", "t"},
+             timeout=10, interval=0.01)
+
+
+def embedded_worker(api: subprocess.Popen) -> int:
+    """The pid of the worker process a `league serve` started."""
+    children = Path(f"/proc/{api.pid}/task/{api.pid}/children").read_text().split()
+    return next(int(pid) for pid in children if b"worker" in Path(f"/proc/{pid}/cmdline").read_bytes().split(b"\0"))
+
+
 @dataclass
 class LeagueServer:
     """A league started by hand the way its users start it: `serve` and `worker` subprocesses."""

@@ -19,7 +19,7 @@ from league.server.db.session import head_revision, make_engine, revision_of, up
 from ..server.api_calls import upload, wait_for
 from ..server.backends import fresh_backend
 from .semester import collect, differences, drained, semester
-from .servers import LeagueServer, make_server
+from .servers import LeagueServer, freeze, make_server
 
 LOAD_UPLOADS = 9  # arriving while the backup is taken
 
@@ -71,7 +71,7 @@ def freeze_outside_a_write(worker, database_url: str) -> None:
     snapshot is taken, whatever the machine's speed; never while it holds SQLite's write lock, which
     would hold the uploads too (on PostgreSQL an upload and a worker write no common row)."""
     while True:
-        worker.send_signal(signal.SIGSTOP)
+        freeze(worker.pid)
         if not database_url.startswith("sqlite"):
             return
         probe = sqlite3.connect(database_url.removeprefix("sqlite:///"), timeout=0, isolation_level=None)

@@ -30,7 +30,7 @@ from league.server.jobs.alive import alive_file, stale_reason
 from ..layout import REPO
 from ..server.api_calls import wait_for
 from ..server.backends import fresh_backend
-from .servers import free_port, make_server
+from .servers import embedded_worker, free_port, freeze, make_server
 
 PINNED_IMAGE = re.compile(r"^[\w./-]+(:\d+(\.\d+)+[\w.-]*|@sha256:[0-9a-f]{64})$")  # a version with a dot, or a digest
 PLACEHOLDER = re.compile(r"\$\{(\w+)(:?[?-][^}]*)?\}")  # compose's ${VAR}, ${VAR:?message}, ${VAR:-default}
@@ -243,8 +243,8 @@ def test_the_worker_health_check_follows_the_workers_passes(league):
     server, before = league
     assert before.returncode == 1 and "no worker has reached the database from here yet" in before.stderr
     wait_for(lambda: server.command("worker", "--check").returncode, lambda code: code == 0, timeout=60)
-    worker = int(Path(f"/proc/{server.api.pid}/task/{server.api.pid}/children").read_text().split()[0])
-    os.kill(worker, signal.SIGSTOP)  # hung (a controllable clock: its last pass then set an hour back)
+    worker = embedded_worker(server.api)
+    freeze(worker)  # hung (a controllable clock: its last pass then set an hour back)
     try:
         alive = alive_file(server.data_dir)
         os.utime(alive, (time.time() - 3600, time.time() - 3600))
