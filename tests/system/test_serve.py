@@ -62,14 +62,11 @@ def test_serve_runs_its_worker_as_a_child_process_and_nothing_outlives_it(tmp_pa
             submission_id = upload(student, models["onnx"]).json()["id"]
             wait_for(lambda: (submission(student, submission_id)["evaluation"] or {}).get("status"),
                      lambda status: status == "running", timeout=60)
-            table = process_table()  # one snapshot: a short-lived child may end meanwhile
-            below = descendants(server.api.pid, table)
-            children = [pid for pid in below if table[pid][0] == server.api.pid]
-            workers = [pid for pid in children if cmdline(pid)[-2:] == ["league.server", "worker"]]
-            assert len(workers) == 1, [cmdline(pid) for pid in children]  # (the other: the isolation probe's)
-            below_worker = descendants(workers[0], table)  # fork servers, and the sandboxes they forked
-            sandboxes = [pid for pid in below_worker if table[pid][0] != workers[0]]
-            assert len(sandboxes) >= 1  # the worker's sandbox processes, evaluating
+            # A snapshot of the processes (a short-lived child may end meanwhile), taken again until the
+            # evaluation's sandbox shows (on a loaded machine it may not be forked yet).
+            below, workers, sandboxes = wait_for(lambda: processes_of(server.api.pid), lambda found: found[2],
+                                                 timeout=60, interval=0.2)
+            assert len(workers) == 1, [cmdline(pid) for pid in workers]
             # Jobs yield the CPU to the API: the worker's and its sandboxes' scheduling groups (a sandbox
             # shares its fork server's) at nice 10.
             assert autogroup_nice(workers[0]) == 10
@@ -83,6 +80,16 @@ def test_serve_runs_its_worker_as_a_child_process_and_nothing_outlives_it(tmp_pa
     assert left == []
     if signal_ == "SIGTERM":
         assert server.api.returncode == 0
+
+
+def processes_of(api: int) -> tuple[dict[int, str], list[int], list[int]]:
+    """What runs below serve, its worker children (the other child: the isolation probe's) and the
+    processes its worker's fork servers forked (the sandboxes)."""
+    table = process_table()
+    below = descendants(api, table)
+    workers = [pid for pid in below if table[pid][0] == api and cmdline(pid)[-2:] == ["league.server", "worker"]]
+    below_worker = descendants(workers[0], table) if workers else {}  # fork servers, and their sandboxes
+    return below, workers, [pid for pid in below_worker if table[pid][0] != workers[0]]
 
 
 def autogroup_nice(pid: int) -> int | None:
