@@ -24,6 +24,8 @@ import pytest
 
 from .layout import SERVERS, SYSTEM, imported_conftests, imported_test_modules, starts_servers
 
+pytest_plugins = ["tests.server.fixtures"]  # a database of each backend, the model files: server and system tests
+
 
 def pytest_collection_modifyitems(items):
     elsewhere = {item.path: getattr(item, "module", None) for item in items if SYSTEM not in item.path.parents}

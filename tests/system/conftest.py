@@ -3,8 +3,8 @@ upgraded, backed up), workers on other hosts (network namespaces), browsers, ins
 by ordinary users, the student guide run block by block, and the API's routes where they run jobs on
 a `league serve` and its worker (tests/system/api/). All of them are the slow tier (tests/conftest.py).
 
-The databases and settings (tests/server/backends.py), the model files (a fixture of
-tests/server/conftest.py) and the HTTP helpers (tests/server/api_calls.py) are the server tests';
+The databases and settings (tests/server/backends.py), the fixtures `backend` and `models`
+(tests/server/fixtures.py) and the HTTP helpers (tests/server/api_calls.py) are the server tests';
 the servers and what the tests do with them are in servers.py, championship rounds in rounds.py, the
 student's `league` command in students.py; the fixtures shared by several files of this folder are here.
 """
@@ -15,7 +15,6 @@ from pathlib import Path
 import pytest
 
 from ..server.backends import BACKENDS
-from ..server.conftest import backend, models  # noqa: F401 - fixtures: a database of each backend, the model files
 from .servers import running_server
 
 

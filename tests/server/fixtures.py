@@ -1,6 +1,8 @@
-"""Fixtures of the server tests: a database of each backend, and the model files the tests upload.
+"""Fixtures of the server and system tests: a database of each backend, and the model files the tests
+upload. A pytest plugin (tests/conftest.py names it in `pytest_plugins`), so that both folders get them
+by name from one definition: the model files are built once a session.
 
-What they and the system tests share that is not a fixture: the databases and the test settings in
+What the two folders share that is not a fixture: the databases and the test settings in
 backends.py, the source tree and `python -m league.server` in commands.py, what the tests do with a
 league over HTTP in api_calls.py.
 """
