@@ -15,12 +15,13 @@ import json
 import os
 import tempfile
 from collections.abc import Mapping
+from dataclasses import fields
 from pathlib import Path
 from typing import Any, Literal
 from urllib.parse import urlsplit
 
 from dotenv import dotenv_values
-from pydantic import Field, SecretStr, ValidationError
+from pydantic import Field, SecretStr, ValidationError, field_validator, model_validator
 from pydantic_settings import BaseSettings, SettingsConfigDict
 
 from league.validation.limits import MAX_UPLOAD_MB, SandboxLimits
@@ -42,6 +43,13 @@ REMOVED_VARIABLES = {
     "LEAGUE_QUEUE_NAME": "the database is the job queue now: one queue per database",
     "LEAGUE_REQUEUE_QUEUED_AFTER_S": "workers claim queued jobs straight from the database: nothing is re-sent",
 }
+
+
+# (shorter, longer, why): the second setting must be larger than the first
+CROSS_RULES = (
+    ("worker_heartbeat_s", "worker_silent_after_s", "a worker would be reported dead between two of its heartbeats"),
+    ("heartbeat_interval_s", "lease_timeout_s", "a running job's lease would run out between two renewals"),
+)
 
 
 class ConfigError(Exception):
@@ -68,34 +76,43 @@ class Settings(BaseSettings):
     bootstrap: bool = Field(True, description="register and evaluate the baselines on an empty database")
 
     # uploads and quotas
-    max_upload_mb: float = Field(MAX_UPLOAD_MB, description="largest model file accepted")
-    request_body_timeout_s: float = Field(30.0, gt=0, description="a request body that stops arriving this long, or "
-                                                                  "past it arrives slower than 8 KB/s, is refused "
-                                                                  "(408): slow clients cannot hold the API")
+    max_upload_mb: float = Field(MAX_UPLOAD_MB, gt=0, le=1024, description="largest model file accepted")
+    request_body_timeout_s: float = Field(30.0, gt=0, le=3600,
+                                          description="a request body that stops arriving this long, or "
+                                                      "past it arrives slower than 8 KB/s, is refused "
+                                                      "(408): slow clients cannot hold the API")
 
     # connections (league serve; league/server/api/connections.py)
-    max_connections: int = Field(1000, ge=1, description="connections the API holds at once; one more closes the "
-                                                         "one waiting longest for a request, else is refused (503); "
-                                                         "kept within the open-file limit, which serve raises")
-    max_connections_per_client: int = Field(200, ge=0, description="connections from one address (IPv6: one /64) "
-                                                                  "at once; more are refused (503). 0: no bound "
-                                                                  "(behind a reverse proxy, every client is the proxy)")
-    request_head_timeout_s: float = Field(10.0, gt=0, description="a connection that has not sent a whole request "
-                                                                  "line and headers this long after it opened or "
-                                                                  "after its last answer is closed")
-    quota_per_day: int = Field(10, description="submissions per student per rolling 24 h (rejected ones are free)")
-    max_jobs_in_flight: int = Field(3, ge=1, description="a student's uploads and races waiting or running at once; "
-                                                         "more are refused until one is done")
+    max_connections: int = Field(1000, ge=1, le=1_000_000,
+                                 description="connections the API holds at once; one more closes the "
+                                             "one waiting longest for a request, else is refused (503); "
+                                             "kept within the open-file limit, which serve raises")
+    max_connections_per_client: int = Field(200, ge=0, le=1_000_000,
+                                            description="connections from one address (IPv6: one /64) "
+                                                        "at once; more are refused (503). 0: no bound "
+                                                        "(behind a reverse proxy, every client is the proxy)")
+    request_head_timeout_s: float = Field(10.0, gt=0, le=3600,
+                                          description="a connection that has not sent a whole request "
+                                                      "line and headers this long after it opened or "
+                                                      "after its last answer is closed")
+    quota_per_day: int = Field(10, ge=1, le=10_000,
+                               description="submissions per student per rolling 24 h (rejected ones are free)")
+    max_jobs_in_flight: int = Field(3, ge=1, le=1000,
+                                    description="a student's uploads and races waiting or running at once; "
+                                                "more are refused until one is done")
 
     # races and championships
-    max_race_cars: int = Field(10, description="cars in one race or championship heat")
-    race_quota_per_day: int = Field(20, description="friendly races a student may start per rolling 24 h")
-    public_cache_s: float = Field(2.0, ge=0, description="seconds the leaderboard and standings are served from "
-                                                         "memory while the database's state stamp is unchanged "
-                                                         "(a finished evaluation or heat is shown at once)")
-    public_cache_max_age_s: float = Field(5.0, ge=0, description="the oldest leaderboard or standings answer ever "
-                                                                 "served: past public_cache_s one is served while "
-                                                                 "its successor is computed, up to this age")
+    max_race_cars: int = Field(10, ge=2, le=100, description="cars in one race or championship heat")
+    race_quota_per_day: int = Field(20, ge=0, le=10_000,
+                                    description="friendly races a student may start per rolling 24 h")
+    public_cache_s: float = Field(2.0, ge=0, le=3600,
+                                  description="seconds the leaderboard and standings are served from "
+                                              "memory while the database's state stamp is unchanged "
+                                              "(a finished evaluation or heat is shown at once)")
+    public_cache_max_age_s: float = Field(5.0, ge=0, le=3600,
+                                          description="the oldest leaderboard or standings answer ever "
+                                                      "served: past public_cache_s one is served while "
+                                                      "its successor is computed, up to this age")
     board_visibility: Literal["public", "members", "instructors"] = Field(
         "members", description="who sees a new course's boards (leaderboard, races, standings): public (anyone; "
                                "visitors who are not logged in see display names, never real names), members "
@@ -109,19 +126,24 @@ class Settings(BaseSettings):
                                                                      "different agents here: 0.8 to 2)")
 
     # sandbox limits
-    sandbox_memory_mb: int = Field(LIMITS.memory_mb, description="address space a model may use on top of its "
-                                                                 "runtime")
-    race_memory_mb: int = Field(2048, ge=64, description="what the cars of one race may use together, on top of "
-                                                          "their runtimes (each gets its share, at most "
-                                                          "sandbox_memory_mb)")
-    sandbox_cpu_seconds: int = Field(LIMITS.cpu_seconds, description="CPU time of one sandbox process")
-    step_deadline_ms: float = Field(LIMITS.step_deadline_s * 1000, description="CPU time of the model per "
-                                                                              "observation of a call")
-    first_call_allowance_ms: float = Field(LIMITS.first_call_allowance_s * 1000,
+    sandbox_memory_mb: int = Field(LIMITS.memory_mb, ge=64, le=1024 * 1024,
+                                   description="address space a model may use on top of its "
+                                               "runtime")
+    race_memory_mb: int = Field(2048, ge=64, le=1024 * 1024,
+                                description="what the cars of one race may use together, on top of "
+                                            "their runtimes (each gets its share, at most "
+                                            "sandbox_memory_mb)")
+    sandbox_cpu_seconds: int = Field(LIMITS.cpu_seconds, ge=1, le=86_400, description="CPU time of one sandbox process")
+    step_deadline_ms: float = Field(LIMITS.step_deadline_s * 1000, gt=0, le=60_000,
+                                    description="CPU time of the model per "
+                                                "observation of a call")
+    first_call_allowance_ms: float = Field(LIMITS.first_call_allowance_s * 1000, ge=0, le=600_000,
                                            description="banked extra CPU time for warm-up calls")
-    run_cpu_s: float = Field(LIMITS.run_cpu_s, description="CPU time of the model over one evaluation or race")
-    load_cpu_s: float = Field(LIMITS.load_cpu_s, description="CPU time to start the sandbox, load the model and "
-                                                             "dry-run it")
+    run_cpu_s: float = Field(LIMITS.run_cpu_s, gt=0, le=86_400,
+                             description="CPU time of the model over one evaluation or race")
+    load_cpu_s: float = Field(LIMITS.load_cpu_s, gt=0, le=3600,
+                              description="CPU time to start the sandbox, load the model and "
+                                          "dry-run it")
     sandbox_uid_base: int = Field(LIMITS.uid_base, ge=0, lt=2**31 - 2**22,
                                   description="a root worker runs each sandbox as user id sandbox_uid_base + its pid "
                                               "(no account needed); 0: as root without capabilities")
@@ -129,18 +151,18 @@ class Settings(BaseSettings):
                                             description="run no uploaded model unless sandboxes get Landlock "
                                                         "and seccomp (the start-up log and /api/health say "
                                                         "what they get)")
-    sandbox_max_restarts: int = Field(LIMITS.max_restarts, description="sandbox crashes tolerated in one "
+    sandbox_max_restarts: int = Field(LIMITS.max_restarts, ge=0, le=100, description="sandbox crashes tolerated in one "
                                                                        "evaluation")
-    log_limit_kb: int = Field(LIMITS.log_limit // 1024, description="sandbox output kept per run")
+    log_limit_kb: int = Field(LIMITS.log_limit // 1024, ge=1, le=100 * 1024, description="sandbox output kept per run")
 
     # evaluation defaults (of a new course; instructors change them through the API)
-    eval_seed: int = Field(0, description="seed of a new course's evaluation tracks")
-    eval_episodes: int = Field(100, description="episodes of a new course's evaluations")
+    eval_seed: int = Field(0, ge=0, lt=2**63, description="seed of a new course's evaluation tracks")
+    eval_episodes: int = Field(100, ge=1, le=1000, description="episodes of a new course's evaluations")
     eval_env_options: dict[str, Any] = Field(default_factory=dict, description="environment options of a new "
                                                                                "course's evaluations, as JSON")
 
     # jobs: leases as in fishtest, a job whose worker stops heart-beating is given to another
-    worker_threads: int = Field(1, description="jobs one worker process runs at once")
+    worker_threads: int = Field(1, ge=1, le=256, description="jobs one worker process runs at once")
     worker_cpus: str = Field("", description="CPUs a `league worker` and its sandboxes run on, as taskset "
                                              "lists them ('1', '0-3,6'); empty: all (a race then uses more "
                                              "than one CPU)")
@@ -153,19 +175,25 @@ class Settings(BaseSettings):
                                json_schema_extra={"shown_default": "$TMPDIR/league-cpu-slots"})
     job_nice: int = Field(10, ge=0, le=19, description="CPU priority (nice) of job threads and their sandboxes: "
                                                        "the API stays responsive while they race")
-    heartbeat_interval_s: float = Field(5.0, description="how often a running job's worker renews its lease")
-    lease_timeout_s: float = Field(60.0, description="a running job without heartbeat for this long is re-queued")
-    reaper_interval_s: float = Field(10.0, description="how often each worker looks for jobs whose worker stopped")
-    queue_poll_s: float | None = Field(None, gt=0, description="how often an idle worker looks for queued jobs in the "
-                                                               "database; default 0.5 on SQLite, 2 on PostgreSQL "
-                                                               "(where an enqueue also wakes workers at once: "
-                                                               "LISTEN/NOTIFY)")
-    worker_heartbeat_s: float = Field(5.0, gt=0, description="how often a worker process says it is alive (the "
-                                                             "workers table; /api/health)")
-    worker_silent_after_s: float = Field(30.0, gt=0, description="a worker not heard from this long is not counted "
-                                                                 "alive: /api/health answers 503 if jobs wait and "
-                                                                 "no worker is")
-    max_job_attempts: int = Field(3, description="a job whose worker dies this many times fails for good")
+    heartbeat_interval_s: float = Field(5.0, gt=0, le=3600,
+                                        description="how often a running job's worker renews its lease")
+    lease_timeout_s: float = Field(60.0, gt=0, le=86_400,
+                                   description="a running job without heartbeat for this long is re-queued")
+    reaper_interval_s: float = Field(10.0, gt=0, le=3600,
+                                     description="how often each worker looks for jobs whose worker stopped")
+    queue_poll_s: float | None = Field(None, gt=0, le=600,
+                                       description="how often an idle worker looks for queued jobs in the "
+                                                   "database; default 0.5 on SQLite, 2 on PostgreSQL "
+                                                   "(where an enqueue also wakes workers at once: "
+                                                   "LISTEN/NOTIFY)")
+    worker_heartbeat_s: float = Field(5.0, gt=0, le=3600,
+                                      description="how often a worker process says it is alive (the "
+                                                  "workers table; /api/health)")
+    worker_silent_after_s: float = Field(30.0, gt=0, le=86_400,
+                                         description="a worker not heard from this long is not counted "
+                                                     "alive: /api/health answers 503 if jobs wait and "
+                                                     "no worker is")
+    max_job_attempts: int = Field(3, ge=1, le=100, description="a job whose worker dies this many times fails for good")
 
     # monitoring (league/server/metrics.py, logs.py)
     metrics_token: SecretStr | None = Field(None, description="a bearer token that reads /metrics (Prometheus' "
@@ -176,6 +204,37 @@ class Settings(BaseSettings):
                                                                    "(one object a line)")
     log_level: Literal["debug", "info", "warning", "error"] = Field("info", description="the least severe log "
                                                                                         "lines written")
+
+    @field_validator("eval_env_options")
+    @classmethod
+    def _simulator_options(cls, options: dict[str, Any]) -> dict[str, Any]:
+        """The names and values the simulator takes (a typo such as "obstacle" would be stored in every
+        new course and refused by each of its evaluations)."""
+        from league.options import RaceOptions  # the simulator's options, checked as an env checks them
+
+        if "observation" in options:
+            raise ValueError("observation is not an evaluation setting: it follows each agent's input size")
+        known = [field.name for field in fields(RaceOptions) if field.name != "observation"]
+        for name in options:
+            if name not in known:
+                closest = difflib.get_close_matches(name, known, n=1)
+                hint = f"did you mean {closest[0]!r}? " if closest else ""
+                raise ValueError(f"{name!r} is not an option of the simulator: {hint}the options are "
+                                 f"{', '.join(known)}")
+        try:
+            RaceOptions(**options)
+        except (TypeError, ValueError) as error:
+            raise ValueError(str(error)) from None
+        return options
+
+    @model_validator(mode="after")
+    def _consistent(self) -> Settings:
+        """Rules between settings: each pair named with its values and what must hold."""
+        for shorter, longer, why in CROSS_RULES:
+            if getattr(self, longer) <= getattr(self, shorter):
+                raise ValueError(f"{variable(longer)}={getattr(self, longer)} must be more than "
+                                 f"{variable(shorter)}={getattr(self, shorter)}: {why}")
+        return self
 
     def sandbox_limits(self) -> SandboxLimits:
         """What each sandbox may use, in the toolkit's units."""
@@ -219,9 +278,37 @@ def load_settings(**overrides: Any) -> Settings:
     try:
         return Settings(**given)
     except ValidationError as error:
-        problems = [f"{variable(str(item['loc'][0]))}={item.get('input')!r}: {item['msg']}" if item["loc"] else
-                    item["msg"] for item in error.errors()]
+        problems = [problem(item) for item in error.errors()]
         raise ConfigError("; ".join(problems)) from None
+
+
+def problem(item: Mapping[str, Any]) -> str:
+    """One refused value: its variable, the value and why ("LEAGUE_QUOTA_PER_DAY='-5': Input should be
+    greater than or equal to 1 (range: [1, 10000])"); a rule between settings names its own."""
+    message = item["msg"].removeprefix("Value error, ")
+    if not item["loc"]:
+        return message
+    name = str(item["loc"][0])
+    return f"{variable(name)}={item.get('input')!r}: {message}{allowed_range(name)}"
+
+
+def allowed_range(name: str) -> str:
+    """" (range: 1 to 10000)" for a bounded numeric setting, else ""."""
+    field = Settings.model_fields.get(name)
+    if field is None:
+        return ""
+    low = high = None
+    for bound in field.metadata:
+        for attribute, side in (("ge", "["), ("gt", "("), ("le", "]"), ("lt", ")")):
+            value = getattr(bound, attribute, None)
+            if value is not None:
+                if attribute in ("ge", "gt"):
+                    low = f"{side}{value}"
+                else:
+                    high = f"{value}{side}"
+    if low is None and high is None:
+        return ""
+    return f" (range: {low or '(-inf'}, {high or 'inf)'})"  # [a, b] includes its ends, (a, b) does not
 
 
 def env_file_values(path: Path = Path(ENV_FILE)) -> dict[str, str]:
@@ -336,11 +423,13 @@ def _source_note(settings: Settings, name: str, source: str) -> str:
 
 def settings_markdown() -> str:
     """docs/SETTINGS.md: every setting in one table (`league config --markdown` prints it)."""
-    rows = ["| Variable | Default | What it sets |", "|---|---|---|"]
+    rows = ["| Variable | Default | Range | What it sets |", "|---|---|---|---|"]
     for name, field in Settings.model_fields.items():
         extra = field.json_schema_extra if isinstance(field.json_schema_extra, dict) else {}
         default = extra.get("shown_default", shown_value(field.get_default(call_default_factory=True)))
-        rows.append(f"| `{variable(name)}` | {f'`{default}`' if default != '' else ''} | {field.description} |")
+        bounds = allowed_range(name).removeprefix(" (range: ").removesuffix(")")
+        rows.append(f"| `{variable(name)}` | {f'`{default}`' if default != '' else ''} | {bounds} | "
+                    f"{field.description} |")
     others = ["| Variable | What it sets |", "|---|---|"]
     others += [f"| `{name}` | {what} |" for name, what in OTHER_VARIABLES.items()]
     return "\n".join([
@@ -351,6 +440,12 @@ def settings_markdown() -> str:
         "file in the directory it starts in (the environment wins). `league config` prints the values in "
         "effect and where each came from; a `LEAGUE_*` variable that is no setting is warned about at "
         "start, with the closest name. Dicts are JSON: `LEAGUE_EVAL_ENV_OPTIONS='{\"obstacles\": false}'`.",
+        "", "A value outside its range (`[a, b]` includes its ends, `(a, b)` does not) is refused when a "
+        "command starts, naming the variable, the value and the range; so is a pair that breaks one of these "
+        "rules:", "", *[f"- `{variable(longer)}` more than `{variable(shorter)}`: else {why}."
+                      for shorter, longer, why in CROSS_RULES],
+        "- `LEAGUE_EVAL_ENV_OPTIONS`: the simulator's option names and values (`league.RaceOptions`), "
+        "without `observation`.",
         "", *rows, "",
         "Other parts of the package read these:", "", *others, "",
     ])

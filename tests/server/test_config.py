@@ -53,6 +53,46 @@ def test_a_value_that_cannot_be_read_names_its_variable(monkeypatch):
         load_settings()
 
 
+@pytest.mark.parametrize("name, value, said", [
+    ("LEAGUE_QUOTA_PER_DAY", "-5", "LEAGUE_QUOTA_PER_DAY='-5': Input should be greater than or equal to 1 "
+                                   "(range: [1, 10000])"),
+    ("LEAGUE_MAX_UPLOAD_MB", "-1", "LEAGUE_MAX_UPLOAD_MB='-1': Input should be greater than 0 (range: (0, 1024])"),
+    ("LEAGUE_LEASE_TIMEOUT_S", "0", "LEAGUE_LEASE_TIMEOUT_S='0': Input should be greater than 0 (range: (0, 86400])"),
+    ("LEAGUE_WORKER_SILENT_AFTER_S", "1", "LEAGUE_WORKER_SILENT_AFTER_S=1.0 must be more than "
+                                          "LEAGUE_WORKER_HEARTBEAT_S=5.0: a worker would be reported dead between "
+                                          "two of its heartbeats"),
+    ("LEAGUE_LEASE_TIMEOUT_S", "4", "LEAGUE_LEASE_TIMEOUT_S=4.0 must be more than LEAGUE_HEARTBEAT_INTERVAL_S=5.0: "
+                                    "a running job's lease would run out between two renewals"),
+    ("LEAGUE_EVAL_ENV_OPTIONS", '{"obstacle": false}', "LEAGUE_EVAL_ENV_OPTIONS={'obstacle': False}: 'obstacle' is "
+                                                       "not an option of the simulator: did you mean 'obstacles'?"),
+    ("LEAGUE_EVAL_ENV_OPTIONS", '{"curves": 1000}', "LEAGUE_EVAL_ENV_OPTIONS={'curves': 1000}: curves must be an "
+                                                    "integer in [5, 60], got 1000"),
+    ("LEAGUE_EVAL_ENV_OPTIONS", '{"observation": "lidar"}', "LEAGUE_EVAL_ENV_OPTIONS={'observation': 'lidar'}: "
+                                                            "observation is not an evaluation setting"),
+])
+def test_nonsense_values_are_refused_with_the_variable_the_value_and_the_range(monkeypatch, name, value, said):
+    monkeypatch.setenv(name, value)
+    with pytest.raises(ConfigError) as refused:
+        load_settings()
+    assert str(refused.value).startswith(said)
+
+
+def test_every_numeric_setting_has_a_range():
+    """A new number without bounds would take -5 or 0 silently: each has both ends (or a lower one and a
+    reason to have no upper: none today)."""
+    unbounded = [name for name, field in Settings.model_fields.items()
+                 if field.annotation in (int, float, float | None)
+                 and not any(getattr(m, side, None) is not None for m in field.metadata for side in ("le", "lt"))]
+    assert unbounded == []
+
+
+def test_init_refuses_an_unknown_env_option_and_stores_nothing(tmp_path):
+    refused = server_command(tmp_path, "init", "--instructor", "prof", LEAGUE_EVAL_ENV_OPTIONS='{"obstacle": false}')
+    assert refused.returncode != 0
+    assert "LEAGUE_EVAL_ENV_OPTIONS" in refused.stderr and "did you mean 'obstacles'?" in refused.stderr
+    assert not (tmp_path / "agents_submissions" / "league.db").exists()
+
+
 def test_secrets_are_masked():
     assert shown_value("postgresql+psycopg://league:hunter2@db-host:5432/league") == \
         "postgresql+psycopg://league:***@db-host:5432/league"
