@@ -31,10 +31,16 @@ from starlette.routing import Mount
 from league.server.api.deps import SessionsDep, SettingsDep
 from league.server.config import Settings
 from league.server.db import crud
-from league.server.db.models import DONE, INSTRUCTOR, EpisodeResult, Job, Submission, WorkerProcess
+from league.server.db.models import (
+    DONE, FAILED, INSTRUCTOR, QUEUED, EpisodeResult, Job, Submission, WorkerProcess, utcnow,
+)
+from league.server.jobs.leases import queue_depth
 
 # job durations (seconds): a validation takes seconds, an evaluation of 100 episodes minutes, a race about one
 JOB_BUCKETS = (1, 2, 5, 10, 20, 30, 60, 120, 300, 600, 1200, 1800, 3600)
+# time in the queue (seconds): under a second when a worker is free, minutes in a deadline rush
+WAIT_BUCKETS = (0.5, 1, 2, 5, 10, 30, 60, 120, 300, 600, 1800, 3600)
+UNRECORDED = "unrecorded"  # the failure label of jobs that failed before jobs.failure was kept
 REQUEST_BUCKETS = (0.005, 0.01, 0.025, 0.05, 0.1, 0.25, 0.5, 1, 2.5, 5, 10, 30)
 UNMATCHED = "unmatched"  # the route label of a path no route serves (bounded: not the raw path)
 # the validation of an upload, by the submission's status: what its sandbox made of it
@@ -59,7 +65,11 @@ class DatabaseCollector(Collector):
     def collect(self) -> Iterator:
         with self.sessions() as session:
             yield from jobs_by_state(session)
+            yield oldest_queued_job(session)
             yield job_durations(session)
+            yield job_waits(session)
+            yield job_failures(session)
+            yield job_retries(session)
             yield validation_outcomes(session)
             yield episode_outcomes(session)
             yield worker_heartbeats(session)
@@ -73,18 +83,58 @@ def jobs_by_state(session: Session) -> Iterator:
     yield jobs
 
 
+def oldest_queued_job(session: Session) -> GaugeMetricFamily:
+    """How long the oldest queued job has waited (0: none waits): the first sign of a queue that is behind
+    or of workers that are gone, whatever the queue's length."""
+    _, oldest = queue_depth(session, utcnow())
+    return GaugeMetricFamily("league_queue_oldest_job_age_seconds", "Age of the oldest queued job (0: none)",
+                             value=oldest or 0.0)
+
+
 def job_durations(session: Session) -> HistogramMetricFamily:
     """Finished jobs' last attempt, claim to completion, by kind (evaluate, race, validate)."""
-    seconds = seconds_between(Job.started_at, Job.finished_at, session.get_bind().dialect.name)
-    buckets = [func.sum(case((seconds <= bound, 1), else_=0)) for bound in JOB_BUCKETS]
+    return _histogram(session, "league_job_duration_seconds", "Duration of finished jobs, by kind",
+                      Job.started_at, Job.finished_at, JOB_BUCKETS, Job.status == DONE)
+
+
+def job_waits(session: Session) -> HistogramMetricFamily:
+    """Started jobs' last wait in the queue, from being queued (or re-queued) to being claimed, by kind."""
+    return _histogram(session, "league_job_wait_seconds", "Time jobs waited in the queue before a worker claimed "
+                      "them, by kind", Job.enqueued_at, Job.started_at, WAIT_BUCKETS, Job.status != QUEUED)
+
+
+def _histogram(session: Session, name: str, documentation: str, start, end, bounds: tuple[float, ...],
+               *where) -> HistogramMetricFamily:
+    """A histogram by job kind of end - start, counted in SQL."""
+    seconds = seconds_between(start, end, session.get_bind().dialect.name)
+    buckets = [func.sum(case((seconds <= bound, 1), else_=0)) for bound in bounds]
     rows = session.execute(select(Job.kind, func.count(), func.sum(cast(seconds, Float)), *buckets)
-                           .where(Job.status == DONE, Job.started_at.is_not(None)).group_by(Job.kind))
-    durations = HistogramMetricFamily("league_job_duration_seconds", "Duration of finished jobs, by kind",
-                                      labels=["kind"])
+                           .where(*where, start.is_not(None), end.is_not(None)).group_by(Job.kind))
+    histogram = HistogramMetricFamily(name, documentation, labels=["kind"])
     for kind, count, total, *cumulative in rows:
-        durations.add_metric([kind], [(str(float(b)), int(c or 0)) for b, c in zip(JOB_BUCKETS, cumulative)]
+        histogram.add_metric([kind], [(str(float(b)), int(c or 0)) for b, c in zip(bounds, cumulative)]
                              + [("+Inf", count)], float(total or 0.0))
-    return durations
+    return histogram
+
+
+def job_failures(session: Session) -> CounterMetricFamily:
+    """Jobs failed for good, by kind and why (models.FAILURES): an alert on their rate sees a broken worker
+    (error, worker_lost) apart from cancellations."""
+    failures = CounterMetricFamily("league_job_failures", "Jobs failed for good, by kind and reason",
+                                   labels=["kind", "reason"])
+    for kind, reason, count in session.execute(select(Job.kind, Job.failure, func.count())
+                                               .where(Job.status == FAILED).group_by(Job.kind, Job.failure)):
+        failures.add_metric([kind, reason or UNRECORDED], count)
+    return failures
+
+
+def job_retries(session: Session) -> CounterMetricFamily:
+    """Attempts after the first, by kind: a job retried after an error, or after its worker died."""
+    retries = CounterMetricFamily("league_job_retries", "Job attempts after the first, by kind", labels=["kind"])
+    for kind, count in session.execute(select(Job.kind, func.sum(Job.attempts - 1)).where(Job.attempts > 1)
+                                       .group_by(Job.kind)):
+        retries.add_metric([kind], int(count or 0))
+    return retries
 
 
 def validation_outcomes(session: Session) -> CounterMetricFamily:

@@ -101,3 +101,55 @@ def test_only_the_metrics_token_and_instructors_scrape(tmp_path):
                        instructor.get("/metrics")]
     assert [a.status_code for a in answers] == [401, 401, 403, 200]
     assert answers[0].headers["www-authenticate"] == "Bearer"
+
+
+@pytest.mark.parametrize("kind", BACKENDS)
+def test_queue_waits_failures_by_reason_and_retries_equal_the_database(kind, tmp_path):
+    """What an administrator asks first: how old is the oldest queued job, how long do jobs wait, what
+    failed and why, how often a job was tried again; each through the leases' own paths."""
+    from league.server.jobs.leases import cancel, fail, reap, retry_or_fail
+
+    with in_process_league(kind, tmp_path, bootstrap=False, metrics_token="scrape-me") as league:
+        student, _ = league.student("mo")
+        jobs = []
+        for _ in range(5):
+            submission = league.submission(student, status="pending")
+            with league.sessions() as session:
+                jobs.append(session.scalar(select(Job.id).where(Job.submission_id == submission.id)))
+        error, impossible, cancelled, lost, waiting = jobs
+        with league.sessions.begin() as session:  # one attempt each at most, so a failed attempt is the last
+            for job in session.scalars(select(Job).where(Job.id.in_(jobs))):
+                job.max_attempts = 2
+            session.get(Job, waiting).enqueued_at -= timedelta(seconds=90)
+        for attempt in ("a1", "a2"):  # an error, retried once, then failed for good
+            claim(league.sessions, HANDLERS, job_id=error, attempt_id=attempt)
+            retry_or_fail(league.sessions, HANDLERS, job_id=error, attempt_id=attempt, reason="OSError: disk full")
+        claim(league.sessions, HANDLERS, job_id=impossible, attempt_id="b1")
+        fail(league.sessions, HANDLERS, job_id=impossible, attempt_id="b1", reason="the model file is gone")
+        cancel(league.sessions, HANDLERS, job_id=cancelled, reason="cancelled by the instructor")
+        for attempt in ("c1", "c2"):  # its worker dies twice
+            claim(league.sessions, HANDLERS, job_id=lost, attempt_id=attempt)
+            with league.sessions.begin() as session:
+                session.get(Job, lost).heartbeat_at -= timedelta(seconds=600)
+            reap(league.sessions, HANDLERS, lease_timeout_s=60)
+        with league.client("scrape-me") as prometheus:
+            samples = scrape(prometheus)
+        with league.sessions() as session:
+            failures = session.execute(select(Job.id, Job.failure).where(Job.status == "failed")).all()
+            retried = session.scalar(select(func.sum(Job.attempts - 1)).where(Job.attempts > 1))
+            started = session.scalar(select(func.count()).where(Job.started_at.is_not(None), Job.status != "queued"))
+
+    assert dict(failures) == {error: "error", impossible: "cannot_succeed", cancelled: "cancelled",
+                              lost: "worker_lost"}
+    assert samples["league_job_failures_total"] == {
+        (("kind", "validate"), ("reason", reason)): 1 for reason in ("error", "cannot_succeed", "cancelled",
+                                                                      "worker_lost")}
+    assert retried == 2 and samples["league_job_retries_total"] == {(("kind", "validate"),): 2}
+    assert samples["league_queue_oldest_job_age_seconds"][()] >= 90
+    assert samples["league_job_wait_seconds_count"][(("kind", "validate"),)] == started
+
+
+def test_the_oldest_queued_job_is_zero_when_none_waits(tmp_path):
+    with in_process_league("sqlite", tmp_path, bootstrap=False, metrics_token="scrape-me") as league:
+        with league.client("scrape-me") as prometheus:
+            assert scrape(prometheus)["league_queue_oldest_job_age_seconds"] == {(): 0.0}

@@ -24,6 +24,12 @@ PENDING, VALIDATING, READY, REJECTED, FAILED = "pending", "validating", "ready",
 # evaluation and job statuses
 QUEUED, RUNNING, DONE = "queued", "running", "done"
 
+# why a job failed (jobs.failure): it cannot succeed (the handler said so), an error on every attempt, its worker
+# stopped heart-beating on every attempt, no worker of this version knows its kind, an instructor cancelled it
+CANNOT_SUCCEED, ERROR, WORKER_LOST, UNKNOWN_KIND, CANCELLED = (
+    "cannot_succeed", "error", "worker_lost", "unknown_kind", "cancelled")
+FAILURES = (CANNOT_SUCCEED, ERROR, WORKER_LOST, UNKNOWN_KIND, CANCELLED)
+
 # job kinds
 VALIDATE, EVALUATE, RACE, PROBE = "validate", "evaluate", "race", "probe"
 
@@ -296,6 +302,7 @@ class Job(Base):
     max_attempts: Mapped[int] = mapped_column(Integer, default=3)
     worker_id: Mapped[str | None] = mapped_column(String(100), default=None)
     error: Mapped[str | None] = mapped_column(Text, default=None)
+    failure: Mapped[str | None] = mapped_column(String(20), default=None)  # one of FAILURES once failed
     created_at: Mapped[datetime] = mapped_column(default=utcnow)
     enqueued_at: Mapped[datetime] = mapped_column(default=utcnow)
     started_at: Mapped[datetime | None] = mapped_column(default=None)

@@ -26,7 +26,10 @@ from typing import Any
 from sqlalchemy import case, func, select, update
 from sqlalchemy.orm import Session, sessionmaker
 
-from league.server.db.models import DONE, EVALUATE, FAILED, QUEUED, RUNNING, VALIDATE, Job, utcnow
+from league.server.db.models import (
+    CANCELLED, CANNOT_SUCCEED, DONE, ERROR, EVALUATE, FAILED, QUEUED, RUNNING, UNKNOWN_KIND, VALIDATE, WORKER_LOST, Job,
+    utcnow,
+)
 
 log = logging.getLogger("league.server.jobs")
 CANDIDATES = 8  # fairest queued jobs tried per claim (others' workers may take the first ones)
@@ -75,7 +78,7 @@ def claim(sessions: sessionmaker[Session], handlers: Mapping[str, Any], *, job_i
             return None
         job = session.get(Job, job_id, populate_existing=True)
         if job.kind not in handlers:  # a row another version wrote: failed with the reason, not left waiting
-            job.status, job.finished_at, job.worker_id = FAILED, now, None
+            job.status, job.finished_at, job.worker_id, job.failure = FAILED, now, None, UNKNOWN_KIND
             job.error = (f"no worker of this version runs jobs of kind {job.kind!r} (knows "
                          f"{', '.join(sorted(handlers))}): queued by another version of microracer-league")
             log.error("job %s failed: %s", job_id, job.error)
@@ -118,7 +121,7 @@ def retry_or_fail(sessions: sessionmaker[Session], handlers: Mapping[str, Any], 
     with sessions.begin() as session:
         job = session.get(Job, job_id, populate_existing=True)
         if job.attempts >= job.max_attempts:
-            if take_lease_for(session, job_id, attempt_id, FAILED, error=reason):
+            if take_lease_for(session, job_id, attempt_id, FAILED, error=reason, failure=ERROR):
                 handlers[job.kind].give_up(session, job, reason)
             return False
         return take_lease_for(session, job_id, attempt_id, QUEUED, error=reason, worker_id=None, enqueued_at=utcnow())
@@ -128,7 +131,7 @@ def fail(sessions: sessionmaker[Session], handlers: Mapping[str, Any], *, job_id
          reason: str) -> None:
     """Fail this attempt's job for good, at once (it cannot succeed: retrying would only repeat it)."""
     with sessions.begin() as session:
-        if take_lease_for(session, job_id, attempt_id, FAILED, error=reason):
+        if take_lease_for(session, job_id, attempt_id, FAILED, error=reason, failure=CANNOT_SUCCEED):
             handlers[session.get(Job, job_id).kind].give_up(session, session.get(Job, job_id), reason)
 
 
@@ -137,7 +140,7 @@ def cancel(sessions: sessionmaker[Session], handlers: Mapping[str, Any], *, job_
     False if the job was already over."""
     with sessions.begin() as session:
         cancelled = session.execute(update(Job).where(Job.id == job_id, Job.status.in_((QUEUED, RUNNING))).values(
-            status=FAILED, error=reason, worker_id=None, finished_at=utcnow())).rowcount
+            status=FAILED, error=reason, failure=CANCELLED, worker_id=None, finished_at=utcnow())).rowcount
         if cancelled:
             job = session.get(Job, job_id, populate_existing=True)
             handlers[job.kind].give_up(session, job, reason)
@@ -187,7 +190,8 @@ def _release_stale(sessions: sessionmaker[Session], handlers: Mapping[str, Any],
         reason = f"its worker ({job.worker_id}) stopped heart-beating"
         if job.attempts >= job.max_attempts:
             failed = session.execute(update(Job).where(*still_stale).values(
-                status=FAILED, error=f"gave up after {job.attempts} attempts: {reason}", finished_at=now)).rowcount
+                status=FAILED, error=f"gave up after {job.attempts} attempts: {reason}", failure=WORKER_LOST,
+                finished_at=now)).rowcount
             if failed:
                 handlers[job.kind].give_up(session, job, f"gave up after {job.attempts} attempts: {reason}")
             return False
