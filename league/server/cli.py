@@ -199,7 +199,7 @@ def run_serve(args: argparse.Namespace) -> int:
     from league.server.app import create_app
     from league.server.services import open_league
     from league.server.db.session import migrate
-    from league.server.logs import log_config
+    from league.server.logs import settings_log_config
 
     settings, sources = _logged_setup(args)
     protocols = uvicorn_protocols(connection_limits(settings))
@@ -208,12 +208,12 @@ def run_serve(args: argparse.Namespace) -> int:
     if before != after:
         log.info("database migrated from revision %s to %s", before, after)
     league_ = open_league(settings, engine)
-    worker = None if args.no_worker else start_child_worker(args.threads, args.data_dir)
+    worker = None if args.no_worker else start_child_worker(args.threads, args.data_dir, settings.log_file)
     # uvicorn raises the SIGTERM or SIGINT it stopped on again once it is done: end here, not die there
     signal.signal(signal.SIGTERM, _exit_on_signal)
     try:
         uvicorn.run(create_app(settings, league_), host=args.host, port=args.port, log_level=settings.log_level,
-                    log_config=log_config(settings.log_format, settings.log_level), **protocols)
+                    log_config=settings_log_config(settings), access_log=False, **protocols)
     except KeyboardInterrupt:
         pass
     finally:
@@ -226,10 +226,13 @@ def _exit_on_signal(signum, frame) -> None:
     raise SystemExit(0)
 
 
-def start_child_worker(threads: int | None, data_dir: Path | None = None) -> subprocess.Popen:
+def start_child_worker(threads: int | None, data_dir: Path | None = None,
+                       log_file: Path | None = None) -> subprocess.Popen:
     """`league worker` as a child process: jobs never share the API's GIL. It gets SIGTERM (hands its
     jobs back, stops its sandboxes) when we stop, and also if we die (PR_SET_PDEATHSIG); in a session
     of its own, so a Ctrl-C reaches only us and we stop it at once instead of waiting for its jobs."""
+    from league.server.logs import worker_log_file
+
     prctl, parent = ctypes.CDLL(None, use_errno=True).prctl, os.getpid()  # resolved before the fork
 
     def die_with_parent() -> None:
@@ -239,7 +242,8 @@ def start_child_worker(threads: int | None, data_dir: Path | None = None) -> sub
 
     command = [sys.executable, "-m", "league.server", "worker", *(["--threads", str(threads)] if threads else []),
                *(["--data-dir", str(data_dir)] if data_dir else [])]
-    worker = subprocess.Popen(command, preexec_fn=die_with_parent, start_new_session=True)
+    env = None if log_file is None else {**os.environ, "LEAGUE_LOG_FILE": str(worker_log_file(log_file))}
+    worker = subprocess.Popen(command, preexec_fn=die_with_parent, start_new_session=True, env=env)
     log.info("serve: worker process %d started", worker.pid)
     return worker
 

@@ -204,6 +204,13 @@ class Settings(BaseSettings):
                                                                    "(one object a line)")
     log_level: Literal["debug", "info", "warning", "error"] = Field("info", description="the least severe log "
                                                                                         "lines written")
+    log_file: Path | None = Field(None, description="write the log lines to this file instead of stderr, rotated "
+                                                    "at log_file_max_mb (league serve's worker writes NAME-worker"
+                                                    ".EXT beside it: one writer per file)")
+    log_file_max_mb: float = Field(100.0, gt=0, le=100_000, description="a log file this large is renamed to "
+                                                                        "NAME.1 (NAME.1 to NAME.2, ...) and a "
+                                                                        "new one started")
+    log_file_backups: int = Field(5, ge=0, le=1000, description="rotated log files kept (the oldest is deleted)")
 
     @field_validator("eval_env_options")
     @classmethod

@@ -3,8 +3,12 @@
 `log_format = text`: "2026-11-25T19:30:01.123+00:00 INFO league.server.jobs: job 12 (evaluate) done ...";
 `json`: one object a line, {"at", "level", "logger", "message"} and the line's fields (`extra=`):
 job lines carry job_id, kind, submission_id, race_id, user_id, outcome, duration_s; a refused upload
-user_id, reason, size. Nothing logs a token: accounts are named by id, and uvicorn's access lines
-hold the request line only (tokens travel in the Authorization header).
+user_id, reason, size; each answer of the API one access line (`AccessLog`: method, path, status,
+duration_ms, user_id, client). Nothing logs a token: accounts are named by id, and the access lines
+hold no query string and no header (tokens travel in the Authorization header).
+
+`log_file`: the lines go to that file, rotated by size (the standard library's RotatingFileHandler);
+one process writes each file, so `league serve`'s worker writes its own (`worker_log_file`).
 """
 from __future__ import annotations
 
@@ -13,12 +17,14 @@ import logging
 import logging.config
 import time
 from datetime import datetime, timezone
+from pathlib import Path
 from typing import Any
 
 TEXT_FORMAT = "%(asctime)s %(levelname)s %(name)s: %(message)s"
 # what every LogRecord has: the rest of its attributes are the line's fields (logging's `extra=`)
 RECORD_ATTRIBUTES = set(vars(logging.makeLogRecord({}))) | {"message", "asctime", "color_message"}
 job_log = logging.getLogger("league.server.jobs")
+access_log = logging.getLogger("league.server.access")
 upload_log = logging.getLogger("league.server.uploads")
 
 
@@ -46,23 +52,75 @@ def iso_time(created: float) -> str:
     return datetime.fromtimestamp(created, timezone.utc).isoformat(timespec="milliseconds")
 
 
-def log_config(log_format: str, level: str) -> dict[str, Any]:
-    """A logging.config dict for the root logger and uvicorn's (uvicorn's `log_config`), one format."""
+def log_config(log_format: str, level: str, log_file: Path | None = None, max_bytes: int = 0,
+               backups: int = 0) -> dict[str, Any]:
+    """A logging.config dict for the root logger and uvicorn's (uvicorn's `log_config`), one format, on
+    stderr or in a rotated file. uvicorn's own access lines are left out: `AccessLog` writes richer ones."""
     formatter = {"()": JsonFormatter if log_format == "json" else TextFormatter}
     handler = {"class": "logging.StreamHandler", "formatter": "league", "stream": "ext://sys.stderr"}
+    if log_file is not None:
+        handler = {"class": "logging.handlers.RotatingFileHandler", "formatter": "league", "filename": str(log_file),
+                   "maxBytes": max_bytes, "backupCount": backups, "encoding": "utf-8"}
     uvicorn = {"handlers": ["default"], "level": level.upper(), "propagate": False}
     return {"version": 1, "disable_existing_loggers": False, "formatters": {"league": formatter},
             "handlers": {"default": handler},
             "loggers": {"uvicorn": uvicorn, "uvicorn.error": {"level": level.upper()},
-                        "uvicorn.access": uvicorn},
+                        "uvicorn.access": {**uvicorn, "level": "CRITICAL"}},
             "root": {"handlers": ["default"], "level": level.upper()}}
 
 
+def settings_log_config(settings) -> dict[str, Any]:
+    return log_config(settings.log_format, settings.log_level, settings.log_file,
+                      int(settings.log_file_max_mb * 1024 * 1024), settings.log_file_backups)
+
+
 def configure(settings) -> dict[str, Any]:
-    """Log as the settings say (log_format, log_level); returns the config, for uvicorn."""
-    config = log_config(settings.log_format, settings.log_level)
+    """Log as the settings say (log_format, log_level, log_file); returns the config, for uvicorn."""
+    if settings.log_file is not None:
+        settings.log_file.parent.mkdir(parents=True, exist_ok=True)
+    config = settings_log_config(settings)
     logging.config.dictConfig(config)
     return config
+
+
+def worker_log_file(log_file: Path) -> Path:
+    """Where `league serve`'s worker writes when the API writes `log_file`: api.log -> api-worker.log."""
+    return log_file.with_name(f"{log_file.stem}-worker{log_file.suffix}")
+
+
+class AccessLog:
+    """ASGI middleware: one line per answer with its latency, status and user (the id the token's
+    dependency left in the request's state; none for a visitor), never the query string or a header."""
+
+    def __init__(self, app):
+        self.app = app
+
+    async def __call__(self, scope, receive, send):
+        if scope["type"] != "http":
+            return await self.app(scope, receive, send)
+        started, answered = time.perf_counter(), {"status": 500}
+
+        async def sending(message):
+            if message["type"] == "http.response.start":
+                answered["status"] = message["status"]
+            await send(message)
+
+        try:
+            await self.app(scope, receive, sending)
+        finally:
+            log_access(scope, answered["status"], time.perf_counter() - started)
+
+
+def log_access(scope, status: int, seconds: float) -> None:
+    if not access_log.isEnabledFor(logging.INFO):
+        return
+    user_id = scope.get("state", {}).get("user_id")
+    client = scope.get("client")
+    fields = {"method": scope["method"], "path": scope["path"][:300], "status": status,
+              "duration_ms": round(seconds * 1000, 2), "user_id": user_id, "client": client[0] if client else None}
+    access_log.info("%s %s %s %.1f ms user %s client %s", fields["method"], fields["path"], status,
+                    fields["duration_ms"], user_id if user_id is not None else "-", fields["client"] or "-",
+                    extra=fields)
 
 
 def job_outcome(outcome: Any) -> str:

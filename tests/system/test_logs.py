@@ -1,7 +1,8 @@
-"""Log lines (league/server/logs.py): with log_format=json every line the server and its worker write
-is one JSON object with a timestamp, uvicorn's included; job lines carry the job, submission, user,
-outcome and duration; a refused upload is logged with the user, the reason and the size; no token.
-The same run's /metrics hold what its worker left in the database."""
+"""Log lines (league/server/logs.py): with log_format=json and a log_file every line the server and its
+worker write is one JSON object with a timestamp, uvicorn's included, the API's in the file and the
+worker's in its own beside it; each answer has an access line with its status, latency and user; job
+lines carry the job, submission, user, outcome and duration; a refused upload is logged with the user,
+the reason and the size; no token. The same run's /metrics hold what its worker left in the database."""
 from __future__ import annotations
 
 import json
@@ -21,7 +22,9 @@ from .servers import make_server
 
 def test_json_lines_from_the_api_uvicorn_and_the_worker(tmp_path):
     with fresh_backend("sqlite", tmp_path) as database_url:
-        server = make_server(tmp_path, database_url, LEAGUE_LOG_FORMAT="json", LEAGUE_BOOTSTRAP="false",
+        log_file = tmp_path / "logs" / "league.log"
+        server = make_server(tmp_path, database_url, LEAGUE_LOG_FORMAT="json", LEAGUE_LOG_FILE=str(log_file),
+                             LEAGUE_BOOTSTRAP="false",
                              LEAGUE_EVAL_EPISODES="1", LEAGUE_EVAL_ENV_OPTIONS='{"max_episode_steps": 50}')
         server.start_api()
         try:
@@ -40,12 +43,22 @@ def test_json_lines_from_the_api_uvicorn_and_the_worker(tmp_path):
             engine.dispose()
         finally:
             server.stop_all()
-        text = (server.data_dir / "api.log").read_text()
+        api_text, worker_text = log_file.read_text(), (tmp_path / "logs" / "league-worker.log").read_text()
+        text = api_text + worker_text
     assert refused.status_code == 415 and settled["status"] == "ready"
-    lines = [json.loads(line) for line in text.splitlines() if line.strip()]  # each one JSON, or this fails
+    api_lines = [json.loads(line) for line in api_text.splitlines() if line.strip()]  # each one JSON, or this fails
+    worker_lines = [json.loads(line) for line in worker_text.splitlines() if line.strip()]
+    lines = api_lines + worker_lines
     assert all({"at", "level", "logger", "message"} <= set(line) for line in lines)
-    assert any(line["logger"] == "uvicorn.access" for line in lines)
-    assert any(line["logger"] == "uvicorn.error" for line in lines)  # "Uvicorn running on ..."
+    assert any(line["logger"] == "uvicorn.error" for line in api_lines)  # "Uvicorn running on ..."
+    assert not any(line["logger"] == "uvicorn.access" for line in lines)  # ours say more
+    accesses = [line for line in api_lines if line["logger"] == "league.server.access"]
+    assert {(a["method"], a["path"], a["status"], a["user_id"]) for a in accesses} >= {
+        ("POST", "/api/submissions", 415, user_id), ("POST", "/api/submissions", 201, user_id),
+        ("GET", "/api/users/me", 200, user_id), ("GET", "/api/health", 200, None)}
+    assert all(a["duration_ms"] > 0 and a["client"] == "127.0.0.1" for a in accesses)
+    assert {line["logger"] for line in worker_lines} >= {"league.server.jobs"}
+    assert not any(line["logger"].startswith("uvicorn") for line in worker_lines)
     jobs = {line["kind"]: line for line in lines if line.get("job_id") and line.get("submission_id") == settled["id"]}
     assert set(jobs) == {"validate", "evaluate"}
     for kind, outcome in (("validate", "ok"), ("evaluate", "done")):

@@ -85,7 +85,7 @@ def unauthorized(detail: str) -> HTTPException:
     return HTTPException(status.HTTP_401_UNAUTHORIZED, detail, headers={"WWW-Authenticate": "Bearer"})
 
 
-def get_current_user(session: SessionDep,
+def get_current_user(request: Request, session: SessionDep,
                      credentials: Annotated[HTTPAuthorizationCredentials | None, Depends(bearer)]) -> User:
     if credentials is None:
         raise unauthorized("missing token: send the header Authorization: Bearer TOKEN")
@@ -94,6 +94,7 @@ def get_current_user(session: SessionDep,
         raise unauthorized(UNKNOWN_TOKEN)
     if not user.active:
         raise unauthorized("this account was revoked")
+    request.state.user_id = user.id  # for the access log (league.server.logs.AccessLog)
     # End the lookup's transaction: its connection goes back to the pool. A route that opens a
     # session of its own (an upload) would otherwise hold two at once, and a burst of such requests
     # can take the whole pool and wait on itself until the pool's timeout.
@@ -104,10 +105,10 @@ def get_current_user(session: SessionDep,
 CurrentUser = Annotated[User, Depends(get_current_user)]
 
 
-def get_optional_user(session: SessionDep,
+def get_optional_user(request: Request, session: SessionDep,
                       credentials: Annotated[HTTPAuthorizationCredentials | None, Depends(bearer)]) -> User | None:
     """The user of the token, or None without one (a token sent is checked: a refused one is a 401)."""
-    return None if credentials is None else get_current_user(session, credentials)
+    return None if credentials is None else get_current_user(request, session, credentials)
 
 
 OptionalUser = Annotated[User | None, Depends(get_optional_user)]
