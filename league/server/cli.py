@@ -12,6 +12,7 @@ import os
 import signal
 import subprocess
 import sys
+from datetime import datetime, timezone
 from collections.abc import Callable
 from pathlib import Path
 
@@ -79,7 +80,10 @@ def add_commands(subparsers) -> None:
                                    description="Write the league's whole state (its database: accounts, model "
                                                "files, results, replays) to FILE, an SQLite file readable by you "
                                                "only, while the server runs.")
-    backup.add_argument("file", type=Path, metavar="FILE", help="where to write it (replaced if it exists)")
+    backup.add_argument("file", type=Path, metavar="FILE", help="where to write it (replaced if it exists); a "
+                                                                 "directory: a new file league-DATE-TIME.db in it")
+    backup.add_argument("--keep", type=int, metavar="N", help="with a directory: then delete all but its N newest "
+                                                              "backups (a nightly cron job's rotation)")
     backup.set_defaults(run=run_backup)
 
     restore = subparsers.add_parser("restore", parents=[where], help="restore a backup into a new database",
@@ -323,10 +327,17 @@ def run_migrate(args: argparse.Namespace) -> int:
 def run_backup(args: argparse.Namespace) -> int:
     from league.server.backup import backup
 
+    if args.keep is not None and (args.keep < 1 or not args.file.is_dir()):
+        raise ValueError("--keep takes a number of backups, at least 1, and a directory as FILE")
     settings, sources = _setup(args)
     engine, revision = _open(settings, sources)
-    report = backup(engine, revision, args.file)
-    _say(f"backed up to {args.file}: {report.summary()}")
+    target = args.file / f"league-{datetime.now(timezone.utc):%Y%m%d-%H%M%S}.db" if args.file.is_dir() else args.file
+    report = backup(engine, revision, target)
+    _say(f"backed up to {target}: {report.summary()}")
+    if args.keep is not None:
+        for old in sorted(args.file.glob("league-*.db"), reverse=True)[args.keep:]:  # the names sort by time
+            old.unlink()
+            _say(f"deleted the older backup {old}")
     return 0
 
 

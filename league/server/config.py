@@ -21,7 +21,7 @@ from typing import Any, Literal
 from urllib.parse import urlsplit
 
 from dotenv import dotenv_values
-from pydantic import Field, SecretStr, ValidationError, field_validator, model_validator
+from pydantic import Field, PrivateAttr, SecretStr, ValidationError, field_validator, model_validator
 from pydantic_settings import BaseSettings, SettingsConfigDict
 
 from league.validation.limits import MAX_UPLOAD_MB, SandboxLimits
@@ -61,6 +61,7 @@ class Settings(BaseSettings):
     e.g. LEAGUE_DATABASE_URL; dicts are JSON (LEAGUE_EVAL_ENV_OPTIONS='{"obstacles": false}')."""
 
     model_config = SettingsConfigDict(env_prefix=ENV_PREFIX, env_file=ENV_FILE, extra="ignore")
+    _database_password: str | None = PrivateAttr(None)  # read from database_password_file
 
     # where things live
     data_dir: Path = Field(Path("agents_submissions"), description="the server's folder, relative to the current "
@@ -69,6 +70,9 @@ class Settings(BaseSettings):
     database_url: str | None = Field(None, description="the database, as an SQLAlchemy URL "
                                                        "(postgresql+psycopg://user:password@host/league); "
                                                        "default: sqlite:///DATA_DIR/league.db")
+    database_password_file: Path | None = Field(None, description="a file holding the database's password, put "
+                                                                  "into database_url (a Docker secret: the "
+                                                                  "password then appears in no environment)")
     baselines_dir: Path | None = Field(None, description="agents registered under the `baselines` account on an "
                                                          "empty database; default: the ones bundled with the "
                                                          "package (league/baselines/agents); an empty "
@@ -235,6 +239,23 @@ class Settings(BaseSettings):
         return options
 
     @model_validator(mode="after")
+    def _read_password_file(self) -> Settings:
+        if self.database_password_file is None:
+            return self
+        if not self.database_url:
+            raise ValueError("LEAGUE_DATABASE_PASSWORD_FILE needs LEAGUE_DATABASE_URL (the database without its "
+                             "password: postgresql+psycopg://league@db-host/league)")
+        try:
+            password = self.database_password_file.read_text(encoding="utf-8").strip()
+        except OSError as error:
+            raise ValueError(f"LEAGUE_DATABASE_PASSWORD_FILE={self.database_password_file}: cannot read it: "
+                             f"{error.strerror}") from None
+        if not password:
+            raise ValueError(f"LEAGUE_DATABASE_PASSWORD_FILE={self.database_password_file} is empty")
+        self._database_password = password
+        return self
+
+    @model_validator(mode="after")
     def _consistent(self) -> Settings:
         """Rules between settings: each pair named with its values and what must hold."""
         for shorter, longer, why in CROSS_RULES:
@@ -258,6 +279,11 @@ class Settings(BaseSettings):
 
     @property
     def resolved_database_url(self) -> str:
+        if self._database_password is not None:
+            from sqlalchemy.engine import make_url
+
+            return make_url(self.database_url).set(password=self._database_password) \
+                .render_as_string(hide_password=False)
         return self.database_url or f"sqlite:///{self.data_dir.resolve() / 'league.db'}"
 
     @property

@@ -85,3 +85,27 @@ def test_a_worker_refuses_cpus_it_cannot_have(tmp_path):
     backwards = league(tmp_path, "worker", "--cpus", "3-1")
     assert backwards.returncode == 2
     assert "'3-1' is not a CPU number or range such as 2 or 0-3" in backwards.stderr
+
+
+def test_nightly_backups_into_a_directory_keep_the_newest(tmp_path):
+    """The compose file's backup service, as the host's cron runs it: `league backup --keep N DIR` writes a
+    new dated file each time and deletes all but the N newest; each one restores."""
+    assert league(tmp_path, "init").returncode == 0
+    nightly = tmp_path / "nightly"
+    nightly.mkdir()
+    written = []
+    for night in range(3):
+        done = league(tmp_path, "backup", "--keep", "2", str(nightly))
+        assert done.returncode == 0, done.stderr
+        written.append(next(line.split()[4].rstrip(":") for line in done.stderr.splitlines() if "backed up to" in line))
+        if night < 2:  # as if written on earlier nights (names are to the second)
+            Path(written[-1]).rename(nightly / f"league-2026010{night}-030000.db")
+    kept = sorted(path.name for path in nightly.iterdir())
+    assert kept == ["league-20260101-030000.db", Path(written[-1]).name]
+    restored = tmp_path / "restored"
+    done = subprocess.run([sys.executable, "-m", "league.cli", "restore", str(nightly / kept[-1]), "--data-dir",
+                           str(restored)], env={**os.environ, "PYTHONPATH": str(REPO)}, cwd=tmp_path,
+                          capture_output=True, text=True, timeout=120)
+    assert done.returncode == 0, done.stderr
+    refused = league(tmp_path, "backup", "--keep", "0", str(nightly))
+    assert refused.returncode != 0 and "--keep takes a number of backups, at least 1" in refused.stderr

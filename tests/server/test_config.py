@@ -146,3 +146,20 @@ def test_the_settings_table_of_the_docs_is_generated_from_settings():
         assert field.description, f"{name}: every setting says what it sets (docs/SETTINGS.md is made from it)"
     assert (REPO / "docs" / "SETTINGS.md").read_text() == settings_markdown(), \
         "docs/SETTINGS.md is stale: regenerate it with `league config --markdown > docs/SETTINGS.md`"
+
+
+def test_the_database_password_comes_from_its_file_and_no_variable_holds_it(tmp_path, monkeypatch):
+    secret = tmp_path / "db_password"
+    secret.write_text("p@ss/word\n")
+    monkeypatch.setenv("LEAGUE_DATABASE_URL", "postgresql+psycopg://league@db:5432/league")
+    monkeypatch.setenv("LEAGUE_DATABASE_PASSWORD_FILE", str(secret))
+    from sqlalchemy.engine import make_url
+
+    url = make_url(load_settings().resolved_database_url)
+    assert (url.username, url.password, url.host, url.database) == ("league", "p@ss/word", "db", "league")
+    secret.write_text("\n")
+    with pytest.raises(ConfigError, match=f"LEAGUE_DATABASE_PASSWORD_FILE={secret} is empty"):
+        load_settings()
+    monkeypatch.setenv("LEAGUE_DATABASE_PASSWORD_FILE", str(tmp_path / "missing"))
+    with pytest.raises(ConfigError, match="cannot read it: No such file or directory"):
+        load_settings()

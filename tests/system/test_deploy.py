@@ -50,10 +50,15 @@ def interpolated(value: str) -> str:
     return PLACEHOLDER.sub(lambda match: "0123abcd" if SECRET_NAME.search(match[1]) else match[1].lower(), value)
 
 
-def league_settings(service: dict) -> Settings:
-    """The settings a service's container starts with (its LEAGUE_* variables, nothing else)."""
+def league_settings(service: dict, secrets: Path | None = None) -> Settings:
+    """The settings a service's container starts with (its LEAGUE_* variables, nothing else; its secret
+    files, /run/secrets/NAME, read from `secrets`/NAME)."""
     environment = {key: interpolated(str(value)) for key, value in service["environment"].items()
                    if key.startswith("LEAGUE_")}
+    for key, value in environment.items():
+        if value.startswith("/run/secrets/"):
+            assert secrets is not None, f"{key} reads a secret: give the test its directory"
+            environment[key] = str(secrets / value.removeprefix("/run/secrets/"))
     unknown = [key for key in environment if key.removeprefix("LEAGUE_").lower() not in Settings.model_fields]
     assert not unknown, f"variables no setting reads (misspelt?): {unknown}"
     return Settings(_env_file=None, **{key.removeprefix("LEAGUE_").lower(): value
@@ -78,13 +83,15 @@ def league_commands() -> list[list[str]]:
 # --------------------------------------------------------------------------- the compose file
 
 
-def test_the_api_and_scalable_workers_share_the_database_of_a_compose_service():
+def test_the_api_and_scalable_workers_share_the_database_of_a_compose_service(tmp_path):
     """What a deployment needs: every LEAGUE_ variable is a real setting, the API and the workers
-    use one PostgreSQL database (also the queue), served by a service they wait for, and the worker
-    can be scaled (no fixed port or name)."""
-    api, worker = league_settings(services()["api"]), league_settings(services()["worker"])
+    use one PostgreSQL database (also the queue) with the password of the secret file, served by a
+    service they wait for, and the worker can be scaled (no fixed port or name)."""
+    (tmp_path / "db_password").write_text("0123abcd\n")
+    api, worker = (league_settings(services()[name], tmp_path) for name in ("api", "worker"))
     assert api.resolved_database_url == worker.resolved_database_url
     database = make_url(api.resolved_database_url)
+    assert database.password == "0123abcd" and database.username == services()["db"]["environment"]["POSTGRES_USER"]
     assert database.get_backend_name() == "postgresql" and database.host in services()
     for name in ("api", "worker"):
         assert services()[name]["depends_on"][database.host]["condition"] == "service_healthy", name
@@ -126,6 +133,9 @@ def test_every_image_is_pinned():
 
 def test_every_service_restarts_and_has_a_health_check():
     for name, service in services().items():
+        if service.get("profiles"):  # a one-shot that cron runs (the backup): it exits when done
+            assert service["restart"] == "no", name
+            continue
         assert service.get("restart") in {"always", "unless-stopped", "on-failure"}, name
         test = service.get("healthcheck", {}).get("test")
         assert test and test[0] in {"CMD", "CMD-SHELL"} and len(test) > 1, name
@@ -138,24 +148,68 @@ def test_what_must_persist_is_on_named_volumes():
               for name, service in services().items()}
     assert mounts["db"]["/var/lib/postgresql/data"] in declared  # the league's whole state
     assert mounts["worker"]["/run/league-cpu-slots"] in declared  # every replica on the host mounts the same one
+    assert mounts["backup"]["/backups"] in declared
+    assert services()["backup"]["command"][:2] == ["league", "backup"] and services()["backup"]["command"][-1] == \
+        "/backups"
     assert services()["worker"]["environment"]["LEAGUE_CPU_SLOTS_DIR"] == "/run/league-cpu-slots"
 
 
-def test_no_password_is_written_in_the_compose_file():
+def test_the_database_password_is_a_secret_file_in_no_environment():
+    """The password reaches PostgreSQL and the league as a file (a compose secret), never as a variable:
+    it is in no container's environment, the sandboxed worker's included, nor in .env or a committed file."""
     text = (REPO / "docker-compose.yml").read_text()
+    assert compose()["secrets"]["db_password"]["file"] == "./deploy/secrets/db_password"
     for name, service in services().items():
-        for key, value in service.get("environment", {}).items():
-            value = str(value)
+        environment = {key: str(value) for key, value in service.get("environment", {}).items()}
+        for key, value in environment.items():
             if SECRET_NAME.search(key):
-                assert PLACEHOLDER.fullmatch(value), f"{name}: {key} is written in the file"
-            credentials = re.search(r"://[^/@:]+:([^@]+)@", value)
-            if credentials:
-                assert PLACEHOLDER.fullmatch(credentials[1]), f"{name}: {key} holds a password"
-    assert "POSTGRES_PASSWORD" in text and "env_file" in text
-    example = dict(re.findall(r"^(\w+)=(.*)$", (REPO / ".env.example").read_text(), re.M))
-    assert example["POSTGRES_PASSWORD"] == ""  # the example holds no secret; the real .env is never committed
+                assert key.endswith("_FILE") and value == "/run/secrets/db_password", f"{name}: {key}={value}"
+            assert not re.search(r"://[^/@:]+:[^@]+@", value), f"{name}: {key} holds a password"
+        if name != "proxy":
+            assert "db_password" in service["secrets"], name
+    assert "POSTGRES_PASSWORD=" not in (REPO / ".env.example").read_text() and "${POSTGRES_PASSWORD" not in text
     for ignore in (".gitignore", ".dockerignore"):
-        assert ".env" in (REPO / ignore).read_text().split(), ignore
+        ignored = (REPO / ignore).read_text().split()
+        assert ".env" in ignored and "deploy/secrets/" in ignored, ignore
+
+
+def test_every_container_is_bounded_and_its_logs_rotated():
+    """Memory, CPU and process limits on every service (a runaway model or a fork bomb in a worker
+    takes its container, not the host), and docker's logs rotated by size."""
+    for name, service in services().items():
+        limits = service["deploy"]["resources"]["limits"]
+        assert float(limits["cpus"]) > 0 and re.fullmatch(r"\d+[mg]", str(limits["memory"])), name
+        assert 0 < int(limits["pids"]) <= 5000, name
+        logging = service["logging"]
+        assert logging["driver"] == "json-file" and re.fullmatch(r"\d+m", logging["options"]["max-size"]), name
+        assert int(logging["options"]["max-file"]) >= 1, name
+
+
+@pytest.mark.parametrize("status, healthy", [(200, True), (503, False), (500, False)])
+def test_the_api_health_check_fails_on_503(tmp_path, status, healthy):
+    """The compose health check's own command, run against a server answering `status` (on a free port
+    in place of 8000): a league that answers 503 (no worker alive) is unhealthy."""
+    import http.server
+    import threading
+
+    class Answer(http.server.BaseHTTPRequestHandler):
+        def do_GET(self):
+            self.send_response(status)
+            self.end_headers()
+
+        def log_message(self, *args):
+            pass
+
+    server = http.server.HTTPServer(("127.0.0.1", 0), Answer)
+    threading.Thread(target=server.serve_forever, daemon=True).start()
+    try:
+        test = services()["api"]["healthcheck"]["test"]
+        assert test[:2] == ["CMD", "python"]
+        command = [sys.executable, *[part.replace("8000", str(server.server_port)) for part in test[2:]]]
+        done = subprocess.run(command, capture_output=True, timeout=30)
+    finally:
+        server.shutdown()
+    assert (done.returncode == 0) == healthy, done.stderr
 
 
 def test_the_worker_keeps_only_the_capabilities_its_sandboxes_need():
