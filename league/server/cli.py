@@ -389,8 +389,8 @@ def _add_user(sessions: sessionmaker[Session], name: str, role: str, course_name
         audit.record(session, actor=None, action=audit.CREATE_USER, target_kind="user", target_id=user.id,
                      course_id=user.course_id)
         print(token)
-    _say(f"created {role} {user.name!r} (id {user.id}) in the course {user.course.name!r}; the token above is "
-         f"shown once")
+        created = f"created {role} {user.name!r} (id {user.id}) in the course {user.course.name!r}"
+    _say(f"{created}; the token above is shown once")
     return 0
 
 
