@@ -402,6 +402,7 @@ def run_users_add(args: argparse.Namespace) -> int:
 def run_courses_add(args: argparse.Namespace) -> int:
     from league.server import audit
     from league.server.courses import CourseRefused, add_course
+    from league.server.jobs.queue import JobQueue
 
     sessions = _sessions(args)
     with sessions.begin() as session:
@@ -412,8 +413,11 @@ def run_courses_add(args: argparse.Namespace) -> int:
             return 1
         audit.record(session, actor=None, action=audit.CREATE_COURSE, target_kind="course", target_id=course.id,
                      course_id=course.id, name=course.name)
-        name, course_id = course.name, course.id
-    _say(f"created the course {name!r} (id {course_id}); {_count(len(jobs), 'baseline evaluation')} queued for "
+        name, course_id, job_ids = course.name, course.id, [job.id for job in jobs]
+    queue = JobQueue(sessions.kw["bind"])  # wakes the workers (PostgreSQL); else their next poll finds the jobs
+    for job_id in job_ids:
+        queue.enqueue(job_id)
+    _say(f"created the course {name!r} (id {course_id}); {_count(len(job_ids), 'baseline evaluation')} queued for "
          f"its default assignment")
     return _add_user(sessions, args.instructor, INSTRUCTOR, name) if args.instructor else 0
 
@@ -430,6 +434,7 @@ def run_courses_list(args: argparse.Namespace) -> int:
 
 def run_users_import(args: argparse.Namespace) -> int:
     from league.server import audit
+    from league.server.courses import CourseRefused, existing_course
     from league.server.roster import MAX_ROSTER_BYTES, RosterError, import_roster, read_roster
     from league.spreadsheet import csv_text
 
@@ -439,8 +444,6 @@ def run_users_import(args: argparse.Namespace) -> int:
     except (OSError, RosterError) as error:
         print(f"league: error: {args.file}: {error}", file=sys.stderr)
         return 1
-    from league.server.courses import CourseRefused, existing_course
-
     with _sessions(args).begin() as session:
         try:
             course = existing_course(session, args.course)
