@@ -329,6 +329,16 @@ def test_another_courses_instructor_and_student_neither_read_nor_act_on_a_course
         cancelled = instructor2.post(f"/api/jobs/{rerun_job}/cancel")
         assert cancelled.status_code == 200, cancelled.text  # course 2's own baseline job: its to cancel
 
+    # the boards: course 2's result of the baseline (the same settings as course 1's default assignment)
+    # ranks on course 2's board only; course 1 has not evaluated it on its default assignment yet
+    def baseline_rows(token: str) -> list[tuple]:
+        with league.client(token) as client:
+            rows = client.get("/api/leaderboard", params={"size": 100}).json()["items"]
+        return [(row["submission_id"], row["completed"]) for row in rows if row["submission_id"] == courses.baseline]
+
+    assert (baseline_rows(league.instructor_token), baseline_rows(courses.instructor2)) == (
+        [], [(courses.baseline, 2)])
+
     # the rule itself: course 1's private test shows to its own instructors, to others once published
     with league.sessions() as session:
         hw = session.get(Assignment, courses.hw["id"])
