@@ -21,7 +21,8 @@ from sqlalchemy.orm import Session
 from league.server import results
 from league.server.db import crud
 from league.server.db.models import (
-    DONE, FAILED, PRIVATE, READY, STUDENT, Assignment, Course, Evaluation, StudentAssignment, Submission, User,
+    DONE, FAILED, INSTRUCTOR, PRIVATE, READY, STUDENT, Assignment, Course, Evaluation, StudentAssignment, Submission,
+    User,
 )
 
 log = logging.getLogger("league.server.assignments")
@@ -236,6 +237,7 @@ def publish(session: Session, *, assignment: Assignment, now: datetime) -> None:
 
 
 def private_visible(assignment: Assignment | None, user: User) -> bool:
-    """Whether the user may see the assignment's private seed, tracks and figures: instructors always,
-    everyone else once it is published."""
-    return assignment is not None and (user.role != STUDENT or assignment.published_at is not None)
+    """Whether the user may see the assignment's private seed, tracks and figures: its own course's
+    instructors always, everyone else (another course's instructors too) once it is published."""
+    return assignment is not None and (assignment.published_at is not None
+                                       or (user.role == INSTRUCTOR and user.course_id == assignment.course_id))

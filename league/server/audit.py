@@ -1,6 +1,6 @@
 """The audit log: who revoked, replaced a token, cancelled, re-ran, changed settings, created,
 imported or deleted accounts, created or raced championship rounds, had submissions probed, changed
-who sees the boards.
+who sees the boards, created courses.
 
 `record` adds the event to the caller's session, so it is committed with the change it records
 (or not at all). Details hold ids and figures, never tokens; a deleted student's name is personal
@@ -25,6 +25,7 @@ CREATE_USER, IMPORT_ROSTER, DELETE_USER = "user.create", "user.import", "user.de
 CREATE_CHAMPIONSHIP, RUN_ROUND, RETRY_ROUND = "championship.create", "round.run", "round.retry"
 PROBE = "integrity.probe"
 PRIVACY = "settings.privacy"
+CREATE_COURSE = "course.create"
 
 
 def record(session: Session, *, actor: User | None, action: str, target_kind: str, target_id: int | None = None,

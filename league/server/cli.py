@@ -1,4 +1,5 @@
-"""The server's commands of the `league` CLI: serve, worker, init, migrate, backup, restore, config, users.
+"""The server's commands of the `league` CLI: serve, worker, init, migrate, backup, restore, config, courses,
+users.
 
 league/cli.py calls `add_commands(subparsers)`; each command is run as `args.run(args)` and
 returns the exit status. `python -m league.server ...` runs the same commands.
@@ -103,16 +104,37 @@ def add_commands(subparsers) -> None:
     config.add_argument("--markdown", action="store_true", help="print the table of every setting (docs/SETTINGS.md)")
     config.set_defaults(run=run_config)
 
+    courses = subparsers.add_parser("courses", help="manage the courses of the server",
+                                    description="Several courses on one server: each has its own instructors, "
+                                                "students, assignments, boards and results (the baselines are "
+                                                "evaluated in each). An instructor manages their course only.")
+    course_commands = courses.add_subparsers(dest="courses_command", required=True, metavar="{add,list}")
+    course_add = course_commands.add_parser(
+        "add", parents=[where], help="create a course (its default assignment, its baselines' evaluations)",
+        description="Create a course with its default assignment at the server's default evaluation settings "
+                    "and board visibility; the baselines are evaluated on it once a worker runs. Give it "
+                    "instructors with --instructor, or later with `league users add NAME --course COURSE "
+                    "--role instructor`.")
+    course_add.add_argument("name", help="the course's name, unique on the server")
+    course_add.add_argument("--instructor", metavar="LOGIN", help="also add this instructor and print their token")
+    course_add.set_defaults(run=run_courses_add)
+    course_list = course_commands.add_parser("list", parents=[where], help="list the courses")
+    course_list.set_defaults(run=run_courses_list)
+    in_course = argparse.ArgumentParser(add_help=False)
+    in_course.add_argument("--course", metavar="NAME",
+                           help="the course (`league courses list`); default: the first one")
+
     users = subparsers.add_parser("users", help="manage accounts")
     commands = users.add_subparsers(dest="users_command", required=True, metavar="{add,import,list,revoke,delete}")
-    add = commands.add_parser("add", parents=[where], help="add an account and print its API token")
+    add = commands.add_parser("add", parents=[where, in_course], help="add an account and print its API token")
     add.add_argument("name")
     add.add_argument("--role", choices=[INSTRUCTOR, STUDENT], default=STUDENT, help="default: student")
     add.add_argument("--email", help="the student's email address (optional)")
     add.add_argument("--student-id", help="the school's id of the student, unique in the course (optional)")
     add.set_defaults(run=run_users_add)
     roster = commands.add_parser(
-        "import", parents=[where], help="create the students of a roster (CSV) and print their tokens as CSV",
+        "import", parents=[where, in_course],
+        help="create the students of a roster (CSV) and print their tokens as CSV",
         description="Create the students of a roster as spreadsheets export it: comma-, semicolon- or "
                     "tab-separated, with a header naming the columns (name, or first name and last name; email; "
                     "student id; in common spellings) or one name a line. Students enrolled already are skipped "
@@ -366,31 +388,68 @@ def run_config(args: argparse.Namespace) -> int:
     return 0
 
 
-def _add_user(sessions: sessionmaker[Session], name: str, role: str, **identity: str | None) -> int:
+def _add_user(sessions: sessionmaker[Session], name: str, role: str, course_name: str | None = None,
+              **identity: str | None) -> int:
     from league.server import audit
+    from league.server.courses import CourseRefused, existing_course
     from league.server.db import crud
 
     with sessions.begin() as session:
         try:
-            user, token = crud.create_user(session, name=name, role=role, course=crud.first_course(session),
-                                           **identity)
-        except crud.InvalidAccount as error:
+            user, token = crud.create_user(session, name=name, role=role,
+                                           course=existing_course(session, course_name), **identity)
+        except (crud.InvalidAccount, CourseRefused) as error:
             print(f"league: error: {error}", file=sys.stderr)
             return 1
         audit.record(session, actor=None, action=audit.CREATE_USER, target_kind="user", target_id=user.id,
                      course_id=user.course_id)
         print(token)
-    _say(f"created {role} {user.name!r} (id {user.id}); the token above is shown once")
+        created = f"created {role} {user.name!r} (id {user.id}) in the course {user.course.name!r}"
+    _say(f"{created}; the token above is shown once")
     return 0
 
 
 def run_users_add(args: argparse.Namespace) -> int:
-    return _add_user(_sessions(args), args.name, args.role, email=args.email, student_id=args.student_id)
+    return _add_user(_sessions(args), args.name, args.role, args.course, email=args.email,
+                     student_id=args.student_id)
+
+
+def run_courses_add(args: argparse.Namespace) -> int:
+    from league.server import audit
+    from league.server.courses import CourseRefused, add_course
+    from league.server.jobs.queue import JobQueue
+
+    sessions = _sessions(args)
+    with sessions.begin() as session:
+        try:
+            course, jobs = add_course(session, name=args.name, settings=load_settings(data_dir=args.data_dir))
+        except CourseRefused as error:
+            print(f"league: error: {error}", file=sys.stderr)
+            return 1
+        audit.record(session, actor=None, action=audit.CREATE_COURSE, target_kind="course", target_id=course.id,
+                     course_id=course.id, name=course.name)
+        name, course_id, job_ids = course.name, course.id, [job.id for job in jobs]
+    queue = JobQueue(sessions.kw["bind"])  # wakes the workers (PostgreSQL); else their next poll finds the jobs
+    for job_id in job_ids:
+        queue.enqueue(job_id)
+    _say(f"created the course {name!r} (id {course_id}); {_count(len(job_ids), 'baseline evaluation')} queued for "
+         f"its default assignment")
+    return _add_user(sessions, args.instructor, INSTRUCTOR, name) if args.instructor else 0
+
+
+def run_courses_list(args: argparse.Namespace) -> int:
+    from league.server.courses import course_counts
+
+    with _sessions(args)() as session:
+        for course, instructors, students in course_counts(session):
+            print(f"{course.id:>5}  {course.name:<30} {_count(instructors, 'instructor'):<15} "
+                  f"{_count(students, 'student'):<14} boards: {course.board_visibility}")
+    return 0
 
 
 def run_users_import(args: argparse.Namespace) -> int:
     from league.server import audit
-    from league.server.db import crud
+    from league.server.courses import CourseRefused, existing_course
     from league.server.roster import MAX_ROSTER_BYTES, RosterError, import_roster, read_roster
     from league.spreadsheet import csv_text
 
@@ -401,7 +460,11 @@ def run_users_import(args: argparse.Namespace) -> int:
         print(f"league: error: {args.file}: {error}", file=sys.stderr)
         return 1
     with _sessions(args).begin() as session:
-        course = crud.first_course(session)
+        try:
+            course = existing_course(session, args.course)
+        except CourseRefused as error:
+            print(f"league: error: {error}", file=sys.stderr)
+            return 1
         report = import_roster(session, course=course, created_by=None, roster=roster)
         audit.record(session, actor=None, action=audit.IMPORT_ROSTER, target_kind="roster", course_id=course.id,
                      created=[user.id for user, _ in report.created], skipped=len(report.skipped),
@@ -430,7 +493,7 @@ def run_users_list(args: argparse.Namespace) -> int:
     with _sessions(args)() as session:
         for user in session.scalars(select(User).order_by(User.id)):
             state = "active" if user.active else "revoked"
-            print(f"{user.id:>5}  {user.name:<30} {user.role:<10} {state}")
+            print(f"{user.id:>5}  {user.name:<30} {user.role:<10} {state:<8} {user.course.name if user.course else ''}")
     return 0
 
 

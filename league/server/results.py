@@ -20,7 +20,7 @@ from sqlalchemy.orm import Session
 
 from league.evaluation import result_key
 from league.server.db import crud
-from league.server.db.models import LOW, NORMAL, PUBLIC, READY, Assignment, Job, Submission
+from league.server.db.models import BASELINE, LOW, NORMAL, PUBLIC, READY, Assignment, Job, Submission
 
 log = logging.getLogger("league.server.results")
 SUPERSEDED = ("superseded: the evaluation settings changed before it ran, "
@@ -42,12 +42,18 @@ def current_key(assignment: Assignment | None) -> str | None:
     return None if assignment is None else settings_key(assignment.evaluation_settings())
 
 
-def submissions_current_keys(session: Session, submissions: list[Submission]) -> dict[int, str | None]:
-    """Each submission's current key, by submission id: that of its assignment."""
+def submissions_current_keys(session: Session, submissions: list[Submission],
+                             course_id: int | None = None) -> dict[int, str | None]:
+    """Each submission's current key, by submission id: that of its assignment; a baseline's (each course
+    evaluates the baselines for itself), with `course_id`, that of the course's default assignment."""
     keys: dict[int | None, str | None] = {}
     for assignment_id in {s.assignment_id for s in submissions}:
         keys[assignment_id] = current_key(session.get(Assignment, assignment_id) if assignment_id else None)
-    return {s.id: keys[s.assignment_id] for s in submissions}
+    shown = {s.id: keys[s.assignment_id] for s in submissions}
+    if course_id is not None and any(s.owner.role == BASELINE for s in submissions):
+        baseline_key = current_key(crud.default_assignment(session, course_id=course_id))
+        shown.update({s.id: baseline_key for s in submissions if s.owner.role == BASELINE})
+    return shown
 
 
 def queue_evaluation(session: Session, *, submission: Submission, max_attempts: int,
@@ -92,7 +98,7 @@ def change_settings(session: Session, *, assignment: Assignment, settings: dict[
     change = SettingsChange()
     if key == unchanged:
         return change
-    covered = crud.submissions_with_results(session, result_key=key)
+    covered = crud.submissions_with_results(session, result_key=key, course_id=assignment.course_id)
     for evaluation_id, submission_id, job_id in crud.queued_evaluations(session, assignment_id=assignment.id,
                                                                          other_than=key):
         if submission_id in covered:

@@ -109,3 +109,32 @@ def test_nightly_backups_into_a_directory_keep_the_newest(tmp_path):
     assert done.returncode == 0, done.stderr
     refused = league(tmp_path, "backup", "--keep", "0", str(nightly))
     assert refused.returncode != 0 and "--keep takes a number of backups, at least 1" in refused.stderr
+
+
+def test_courses_are_added_listed_and_given_their_instructors_and_students(tmp_path):
+    """`league courses add|list`, `league users add|import --course`: each account lands in its course,
+    and the new course's default assignment has its own evaluations of the baselines queued."""
+    assert league(tmp_path, "init", "--instructor", "prof").returncode == 0
+    added = league(tmp_path, "courses", "add", "RL 2027", "--instructor", "kim")
+    assert added.returncode == 0, added.stderr
+    assert added.stdout.strip().startswith("lg_")  # kim's token
+    assert "created the course 'RL 2027'" in added.stderr and "created instructor 'kim'" in added.stderr
+    again = league(tmp_path, "courses", "add", "RL 2027")
+    assert (again.returncode, again.stderr.splitlines()[-1]) == (1, "league: error: a course named 'RL 2027' exists "
+                                                                    "already")
+    assert league(tmp_path, "users", "add", "ann", "--course", "RL 2027").returncode == 0
+    assert league(tmp_path, "users", "add", "lee", "--course", "RL 2027", "--role", "instructor").returncode == 0
+    assert league(tmp_path, "users", "add", "bo").returncode == 0  # the first course by default
+    roster = tmp_path / "roster.csv"
+    roster.write_text("name\nZoë Müller\n")
+    assert league(tmp_path, "users", "import", str(roster), "--course", "RL 2027").returncode == 0
+    unknown = league(tmp_path, "users", "add", "cy", "--course", "nope")
+    assert unknown.returncode == 1 and "no course 'nope' (courses: default, RL 2027;" in unknown.stderr
+
+    courses = [line.split(None, 1)[1] for line in league(tmp_path, "courses", "list").stdout.splitlines()]
+    assert [line.split("  ")[0] for line in courses] == ["default", "RL 2027"]
+    assert "1 instructor" in courses[0] and "1 student " in courses[0]
+    assert "2 instructors" in courses[1] and "2 students " in courses[1]
+    listing = {line.split()[1]: line.split()[2:] for line in league(tmp_path, "users", "list").stdout.splitlines()}
+    assert listing["kim"] == ["instructor", "active", "RL", "2027"] and listing["ann"][-2:] == ["RL", "2027"]
+    assert listing["bo"] == ["student", "active", "default"]

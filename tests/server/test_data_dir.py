@@ -51,7 +51,7 @@ def test_commands_run_from_the_wrong_directory_create_nothing_and_say_where_they
     assert listed.returncode == 0, listed.stderr
     assert listed.stderr == (f"league: database sqlite:///{tmp_path / 'course' / 'league.db'} (the data directory "
                              f"LEAGUE_DATA_DIR, from the environment)\n")
-    assert listed.stdout.split() == ["1", "prof", "instructor", "active"]
+    assert listed.stdout.split() == ["1", "prof", "instructor", "active", "default"]  # its course last
     again = server_command(tmp_path, "init", "--data-dir", "course")
     assert again.returncode == 0 and "already holds a league" in again.stderr
 

@@ -181,16 +181,19 @@ def course_users(session: Session, *, course_id: int | None) -> list[User]:
 
 
 def set_display_name(session: Session, *, user: User, display_name: str | None) -> User:
-    """Give the user a display name (privacy.clean_display_name), unless it is any account's name or
-    another display name of the course; None removes it. One message for both: it names nobody."""
+    """Give the user a display name (privacy.clean_display_name), unless it is the name or the display
+    name of another account of the course, or of an account of no course (the baselines', shown on every
+    board); None removes it. Other courses' accounts are never looked at: their boards are theirs, and
+    "taken" must not tell a student who is enrolled elsewhere. One message for both: it names nobody."""
     try:
         display_name = clean_display_name(display_name)
     except ValueError as error:
         raise InvalidAccount(str(error).replace("the name", "the display name", 1)) from None
     if display_name is not None:
         folded = func.lower(display_name)  # the database's lower() on both sides: exact matches on any backend
-        taken = session.scalar(select(User.id).where(User.id != user.id, (func.lower(User.name) == folded) | (
-            (User.course_id == user.course_id) & (func.lower(User.display_name) == folded))).limit(1))
+        neighbours = (User.course_id == user.course_id) | User.course_id.is_(None)
+        taken = session.scalar(select(User.id).where(User.id != user.id, neighbours, (
+            func.lower(User.name) == folded) | (func.lower(User.display_name) == folded)).limit(1))
         if taken is not None:
             raise AccountTaken(f"the display name {display_name!r} is taken: choose another")
     user.display_name = display_name
@@ -325,11 +328,14 @@ def create_evaluation(session: Session, *, submission: Submission, assignment: A
     return evaluation, job
 
 
-def latest_evaluation(session: Session, *, submission_id: int, result_key: str | None) -> Evaluation | None:
-    """The submission's newest public evaluation of `result_key` if it has one, else its newest public one."""
-    return session.scalar(select(Evaluation).where(Evaluation.submission_id == submission_id,
-                                                   Evaluation.track == PUBLIC)
-                          .order_by((Evaluation.result_key == result_key).desc(), Evaluation.id.desc()).limit(1))
+def latest_evaluation(session: Session, *, submission_id: int, result_key: str | None,
+                      course_id: int | None = None) -> Evaluation | None:
+    """The submission's newest public evaluation of `result_key` if it has one, else its newest public one
+    (of `course_id`'s assignments only, when given: a baseline's, which each course evaluates for itself)."""
+    query = select(Evaluation).where(Evaluation.submission_id == submission_id, Evaluation.track == PUBLIC)
+    if course_id is not None:
+        query = query.where(Evaluation.course_id == course_id)
+    return session.scalar(query.order_by((Evaluation.result_key == result_key).desc(), Evaluation.id.desc()).limit(1))
 
 
 def episode_page(session: Session, *, evaluation_id: int, offset: int, limit: int) -> tuple[list[EpisodeResult], int]:
@@ -341,15 +347,17 @@ def episode_page(session: Session, *, evaluation_id: int, offset: int, limit: in
     return list(rows), total or 0
 
 
-def latest_evaluations(session: Session, *, submission_ids: list[int],
-                       result_keys: dict[int, str | None]) -> dict[int, Evaluation]:
+def latest_evaluations(session: Session, *, submission_ids: list[int], result_keys: dict[int, str | None],
+                       course_id: int | None = None) -> dict[int, Evaluation]:
     """Each submission's newest public evaluation of its key in `result_keys` (submission id -> key) if it
-    has one, else its newest public one."""
+    has one, else its newest public one (of `course_id`'s assignments only, when given)."""
     if not submission_ids:
         return {}
-    newest = (select(func.max(Evaluation.id)).where(Evaluation.submission_id.in_(submission_ids),
-                                                    Evaluation.track == PUBLIC)
-              .group_by(Evaluation.submission_id, Evaluation.result_key))
+    newest = select(func.max(Evaluation.id)).where(Evaluation.submission_id.in_(submission_ids),
+                                                   Evaluation.track == PUBLIC)
+    if course_id is not None:
+        newest = newest.where(Evaluation.course_id == course_id)
+    newest = newest.group_by(Evaluation.submission_id, Evaluation.result_key)
     shown: dict[int, Evaluation] = {}
     for evaluation in session.scalars(select(Evaluation).where(Evaluation.id.in_(newest)).order_by(Evaluation.id)):
         kept = shown.get(evaluation.submission_id)
@@ -358,10 +366,11 @@ def latest_evaluations(session: Session, *, submission_ids: list[int],
     return shown
 
 
-def submissions_with_results(session: Session, *, result_key: str) -> set[int]:
-    """Submissions with a public evaluation of `result_key` done, running or queued."""
+def submissions_with_results(session: Session, *, result_key: str, course_id: int) -> set[int]:
+    """Submissions with a public evaluation of `result_key` done, running or queued, in the course (each
+    course's results are its own: a baseline evaluated in another course is not in this one)."""
     return set(session.scalars(select(Evaluation.submission_id).distinct().where(
-        Evaluation.result_key == result_key, Evaluation.track == PUBLIC,
+        Evaluation.result_key == result_key, Evaluation.track == PUBLIC, Evaluation.course_id == course_id,
         Evaluation.status.in_((DONE, RUNNING, QUEUED)))))
 
 
@@ -432,6 +441,13 @@ def ready_baseline_submissions(session: Session) -> list[Submission]:
         User.role == BASELINE, Submission.status == READY)))
 
 
+def registered_baselines(session: Session, *, course_id: int) -> set[int]:
+    """Ids of the baselines' submissions registered in the course (bootstrap: the first course)."""
+    return set(session.scalars(select(Submission.id).join(User, Submission.owner_id == User.id)
+                               .join(Assignment, Submission.assignment_id == Assignment.id)
+                               .where(User.role == BASELINE, Assignment.course_id == course_id)))
+
+
 def submissions_by_id(session: Session, *, ids: list[int]) -> dict[int, Submission]:
     if not ids:
         return {}
@@ -456,7 +472,7 @@ def leaderboard_entries(session: Session, *, assignment: Assignment, result_key:
     # joined to a derived table of the newest ids, of the key and of any, from one pass over the
     # finished evaluations (not `id IN (subquery)`, which SQLite's planner ran 50x slower: 111 ms
     # against 2 ms for 600 evaluations)
-    evaluations = Evaluation.track == track
+    evaluations = (Evaluation.track == track) & (Evaluation.course_id == assignment.course_id)  # the course's own
     if track != PUBLIC:
         evaluations &= Evaluation.id.in_(select(StudentAssignment.final_evaluation_id).where(
             StudentAssignment.assignment_id == assignment.id))
@@ -534,16 +550,25 @@ def championship_round(session: Session, *, championship_id: int, number: int) -
 
 
 def course_jobs(session: Session, *, course_id: int | None, status: str | None, limit: int) -> list[Job]:
-    """The latest jobs of a course's people (and of the baselines, which every course evaluates)."""
-    query = select(Job).where(Job.owner_id.in_(_course_people(course_id))).order_by(Job.id.desc()).limit(limit)
+    """The course's latest jobs (_of_course), newest first."""
+    query = select(Job).where(_of_course(course_id)).order_by(Job.id.desc()).limit(limit)
     if status:
         query = query.where(Job.status == status)
     return list(session.scalars(query))
 
 
 def course_job(session: Session, *, course_id: int | None, job_id: int) -> Job | None:
-    return session.scalar(select(Job).where(Job.id == job_id, Job.owner_id.in_(_course_people(course_id))))
+    return session.scalar(select(Job).where(Job.id == job_id, _of_course(course_id)))
 
 
-def _course_people(course_id: int | None):
-    return select(User.id).where((User.course_id == course_id) | (User.role == BASELINE))
+def _of_course(course_id: int | None):
+    """Whether a job is the course's: its people's jobs, and the baselines' jobs made for it (their
+    evaluations on its assignments; their validations and probes, in the course that registered them).
+    Another course's evaluations of the baselines are that course's: never listed nor cancelled here."""
+    people = select(User.id).where(User.course_id == course_id, User.role != BASELINE)
+    baselines = select(User.id).where(User.role == BASELINE)
+    evaluations = select(Evaluation.id).where(Evaluation.course_id == course_id)
+    registered = select(Submission.id).join(Assignment, Submission.assignment_id == Assignment.id).where(
+        Assignment.course_id == course_id)
+    return Job.owner_id.in_(people) | (Job.owner_id.in_(baselines) & (
+        Job.evaluation_id.in_(evaluations) | (Job.evaluation_id.is_(None) & Job.submission_id.in_(registered))))

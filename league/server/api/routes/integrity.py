@@ -13,6 +13,7 @@ from league.server.api.deps import (
 )
 from league.server.config import BUNDLED_BASELINES, Settings
 from league.server.db.models import User
+from league.server.db import crud
 from league.server.integrity import (
     CSV_COLUMNS, Candidate, Report, bundled_digests, candidates, integrity_report, queue_probes, report_rows,
     unprobed_submissions,
@@ -63,7 +64,10 @@ def probe_submissions(settings: SettingsDep, queue: QueueDep, session: SessionDe
     """Record the probe set's actions of the ready submissions that have none on the current probe
     set (validated before they were recorded, or on another simulator), as low-priority jobs."""
     course = user_course(session, instructor)
-    ids = unprobed_submissions(session, candidates(session, course_id=course.id, assignment_id=assignment))
+    # a baseline's probe is a job of the course that registered it (crud.course_jobs): queued from there only
+    registered = crud.registered_baselines(session, course_id=course.id)
+    ids = unprobed_submissions(session, [c for c in candidates(session, course_id=course.id, assignment_id=assignment)
+                                         if not c.baseline or c.id in registered])
     job_ids = queue_probes(session, submission_ids=ids, max_attempts=settings.max_job_attempts)
     if ids:
         audit.record(session, actor=instructor, action=audit.PROBE, target_kind="course", target_id=course.id,

@@ -16,7 +16,9 @@ from league.server.api.deps import (
 from league.server.assignments import UploadRefused, check_upload, private_visible, upload_assignment
 from league.server.db import crud
 from league.server.logs import log_refused_upload
-from league.server.db.models import INSTRUCTOR, PUBLIC, READY, STUDENT, Assignment, Evaluation, Submission, User
+from league.server.db.models import (
+    BASELINE, INSTRUCTOR, PUBLIC, READY, STUDENT, Assignment, Evaluation, Submission, User,
+)
 from league.server.results import submissions_current_keys
 from league.server.rounds import active_submission_ids
 from league.server.services import League
@@ -117,8 +119,13 @@ def read_submissions(user: CurrentUser, session: SessionDep, all: bool = False) 
     else:
         submissions = crud.submissions_of(session, owner_ids=[user.id])
     owners = list({s.owner_id: s.owner for s in submissions}.values())
-    keys = submissions_current_keys(session, submissions)
-    evaluations = crud.latest_evaluations(session, submission_ids=[s.id for s in submissions], result_keys=keys)
+    course_id = user_course(session, user).id
+    keys = submissions_current_keys(session, submissions, course_id)
+    evaluations = crud.latest_evaluations(session, submission_ids=[s.id for s in submissions
+                                                                   if s.owner.role != BASELINE], result_keys=keys)
+    evaluations.update(crud.latest_evaluations(session, submission_ids=[s.id for s in submissions
+                                                                        if s.owner.role == BASELINE],
+                                               result_keys=keys, course_id=course_id))
     active = active_submission_ids(session, owners=owners)
     return [submission_out(s, evaluations.get(s.id), keys[s.id], s.id in active) for s in submissions]
 
@@ -132,8 +139,9 @@ def read_submission(submission_id: Id, request: Request, user: CurrentUser, sess
     settings, else the newest) with what produced it, and a link to that evaluation's episodes. Poll
     it with the ETag it sent (If-None-Match): 304 while nothing changed."""
     submission = readable_submission(session, user, submission_id)
-    key = submissions_current_keys(session, [submission])[submission.id]
-    evaluation = crud.latest_evaluation(session, submission_id=submission.id, result_key=key)
+    course_id = evaluations_course(session, user, submission)
+    key = submissions_current_keys(session, [submission], course_id)[submission.id]
+    evaluation = crud.latest_evaluation(session, submission_id=submission.id, result_key=key, course_id=course_id)
     detail = SubmissionDetail(**submission_fields(submission), log=submission.log,
                               evaluation=evaluation_out(evaluation, key, EvaluationSummary),
                               links=SubmissionLinks(episodes=episodes_link(submission.id, evaluation)),
@@ -150,10 +158,12 @@ def read_episodes(submission_id: Id, request: Request, user: CurrentUser, sessio
     """The episodes of the submission's evaluation (the one its status shows, or `evaluation_id`: a
     private test's once its assignment is published), in order, paged."""
     submission = readable_submission(session, user, submission_id)
-    key = submissions_current_keys(session, [submission])[submission.id]
-    evaluation = (crud.latest_evaluation(session, submission_id=submission.id, result_key=key)
+    course_id = evaluations_course(session, user, submission)
+    key = submissions_current_keys(session, [submission], course_id)[submission.id]
+    evaluation = (crud.latest_evaluation(session, submission_id=submission.id, result_key=key, course_id=course_id)
                   if evaluation_id is None else session.get(Evaluation, evaluation_id))
     if evaluation is None or evaluation.submission_id != submission.id or (
+            course_id is not None and evaluation.course_id != course_id) or (
             evaluation.track != PUBLIC
             and not private_visible(session.get(Assignment, evaluation.assignment_id), user)):
         raise HTTPException(status.HTTP_404_NOT_FOUND, "no such evaluation of this submission")
@@ -167,6 +177,13 @@ def readable_submission(session: SessionDep, user: User, submission_id: int) -> 
     if submission is None or not may_read(user, submission):
         raise HTTPException(status.HTTP_404_NOT_FOUND, "no such submission")
     return submission
+
+
+def evaluations_course(session: SessionDep, user: User, submission: Submission) -> int | None:
+    """The course whose evaluations of the submission `user` is shown: for a baseline (which each course
+    evaluates on its own assignments), the user's own, never another course's results or private tests;
+    None (any) for a student's, whose evaluations are all of their course."""
+    return user_course(session, user).id if submission.owner.role == BASELINE else None
 
 
 def episodes_link(submission_id: int, evaluation: Evaluation | None) -> str | None:
@@ -191,7 +208,7 @@ def update_submission(submission_id: Id, body: SubmissionUpdate, user: CurrentUs
         submission.public = body.public
     session.commit()
     key = submissions_current_keys(session, [submission])[submission.id]
-    evaluation = crud.latest_evaluation(session, submission_id=submission.id, result_key=key)
+    evaluation = crud.latest_evaluation(session, submission_id=submission.id, result_key=key)  # their own
     return submission_out(submission, evaluation, key,
                           submission.id in active_submission_ids(session, owners=[user]))
 
