@@ -1,8 +1,10 @@
 """Deleting a student: their data erased, not hidden (`league users delete`, DELETE /api/users/{id}).
 
-Erased: the account and its token, its submissions, their evaluations, episodes and jobs, the
-model files no other submission uses, the friendly races no other student's car took part in, and
-the friendly races with the student's car still to run.
+Erased: the account and its token, its submissions, their evaluations (public and private), episodes
+and jobs, its own state in each assignment (extension, selection, frozen final: its grade goes with
+it), the model files no other submission uses, the friendly races no other student's car took part
+in, and the friendly races with the student's car still to run. Rows that only name the student as
+their creator (races kept, championships, accounts) lose the name (NULL).
 Kept: the races and championship heats other students took part in, with the student's cars
 shown as DELETED (entrant, classification and replay; the race log loses the car's output) and
 their submission ids replaced by the negated id, which no row ever gets: standings keep every
@@ -20,8 +22,8 @@ from sqlalchemy import delete, or_, select, update
 from sqlalchemy.orm import Session
 
 from league.server.db.models import (
-    DELETED, DONE, FAILED, STUDENT, Blob, ChampionshipRound, EpisodeResult, Evaluation, Job, Race, RaceReplay,
-    Submission, User, utcnow,
+    DELETED, DONE, FAILED, STUDENT, Blob, Championship, ChampionshipRound, EpisodeResult, Evaluation, Job, Race,
+    RaceReplay, StudentAssignment, Submission, User, utcnow,
 )
 from league.server.jobs.race import car_name
 
@@ -56,6 +58,8 @@ def delete_student(session: Session, *, user: User) -> Erased:
     _erase_races(session, user, ids, erased)
     evaluation_ids = list(session.scalars(select(Evaluation.id).where(Evaluation.submission_id.in_(ids))))
     erased.evaluations = len(evaluation_ids)
+    # the student's finals, selections and extensions (they name their submissions and private evaluations)
+    session.execute(delete(StudentAssignment).where(StudentAssignment.user_id == user.id))
     # deleting a running job's row is its cancellation: its worker's heartbeat and completion find no lease
     session.execute(delete(Job).where(or_(Job.submission_id.in_(ids), Job.evaluation_id.in_(evaluation_ids))))
     session.execute(update(Job).where(Job.owner_id == user.id).values(owner_id=None))  # kept races' jobs
@@ -66,7 +70,8 @@ def delete_student(session: Session, *, user: User) -> Erased:
     used = set(session.scalars(select(Submission.sha256).where(Submission.sha256.in_(digests))))
     erased.blobs = sorted(digests - used)
     session.execute(delete(Blob).where(Blob.sha256.in_(erased.blobs)))
-    session.execute(update(Race).where(Race.created_by_id == user.id).values(created_by_id=None))
+    for model in (Race, Championship, User):  # kept rows that name the student as their creator
+        session.execute(update(model).where(model.created_by_id == user.id).values(created_by_id=None))
     if user.course is not None:  # the public state stamp: boards and standings drop the student at once
         user.course.updated_at = utcnow()
     session.delete(user)
