@@ -322,6 +322,8 @@ def run_backup(args: argparse.Namespace) -> int:
     settings, sources = _setup(args)
     engine, revision = _open(settings, sources)
     report = backup(engine, revision, args.file)
+    _record_admin(engine, "backup", file=str(Path(args.file).resolve()), revision=report.revision,
+                  rows=report.counts, size=report.size)
     _say(f"backed up to {args.file}: {report.summary()}")
     return 0
 
@@ -337,9 +339,27 @@ def run_restore(args: argparse.Namespace) -> int:
     else:  # it must exist and answer; an SQLite file is written whole
         _open(settings, sources, create=True)[0].dispose()
     report = restore(args.file, url, replace=args.replace)
+    from league.server.db.session import make_engine
+
+    restored = make_engine(url)
+    try:  # in the restored database's log, after the backup's own events
+        _record_admin(restored, "restore", file=str(Path(args.file).resolve()), revision=report.revision,
+                      rows=report.counts, replaced=bool(args.replace), migrated_to=head_revision())
+    finally:
+        restored.dispose()
     _say(f"restored {args.file}: {report.summary()}, migrated to {head_revision()}. Jobs queued or running at "
          f"the backup run as soon as a worker starts")
     return 0
+
+
+def _record_admin(engine, command: str, **details) -> None:
+    """An admin command's event in the audit log (backups and restores: they can change every grade)."""
+    from league.server import audit
+    from league.server.db.session import make_sessionmaker
+
+    action = {"backup": audit.BACKUP, "restore": audit.RESTORE}[command]
+    with make_sessionmaker(engine).begin() as session:
+        audit.record(session, actor=None, action=action, target_kind="league", **details)
 
 
 def run_config(args: argparse.Namespace) -> int:
