@@ -12,6 +12,7 @@ data and is not kept (the event names them by id).
 from __future__ import annotations
 
 import copy
+import json
 from datetime import datetime
 from typing import Any
 
@@ -74,6 +75,7 @@ def events_page(session: Session, *, course_id: int | None, offset: int, limit: 
 
 
 def csv_row(event: AuditEvent) -> list:
-    details = "; ".join(f"{key}={value}" for key, value in sorted(event.details.items()))
+    details = "; ".join(f"{key}={json.dumps(value, sort_keys=True) if isinstance(value, (dict, list)) else value}"
+                        for key, value in sorted(event.details.items()))  # before/after: JSON, as the API shows
     return [event.at.isoformat(timespec="seconds"), event.actor_id, event.actor_name, event.action,
             event.target_kind, event.target_id, details]

@@ -128,6 +128,7 @@ def test_every_change_of_a_grade_or_a_deadline_is_recorded_with_the_values_befor
         assert main(["backup", str(tmp_path / "league.backup"), "--data-dir", str(league.settings.data_dir)]) == 0
         with league.client(league.instructor_token) as instructor:
             log = list(reversed(instructor.get("/api/audit", params={"size": 100}).json()["items"]))
+            spreadsheet = list(csv.DictReader(io.StringIO(instructor.get("/api/audit.csv").text)))
     events = {e["action"]: e for e in log}  # the last of each
     edits = [e for e in log if e["action"] == "assignment.edit"]
     extensions = [e["details"] for e in log if e["action"] == "assignment.extension"]
@@ -160,6 +161,8 @@ def test_every_change_of_a_grade_or_a_deadline_is_recorded_with_the_values_befor
         (hw["id"], {"extension_due_at": iso(T2)}, {"extension_due_at": None})]
     assert events["assignment.extension"]["target_id"] == student.id
     assert student.name not in str(extensions)
+    csv_edit = next(row["details"] for row in spreadsheet if row["action"] == "assignment.edit")
+    assert f'before={{"due_at": "{iso(T1)}", "late_penalty": 0.5}}' in csv_edit
     rubric = events["assignment.rubric"]["details"]
     assert rubric["before"] == {"rubric": None} and rubric["after"]["rubric"]["max_points"] == 10
     rerun_event = events["evaluation.rerun"]["details"]
