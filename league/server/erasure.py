@@ -4,7 +4,8 @@ Erased: the account and its token, its submissions, their evaluations (public an
 and jobs, its own state in each assignment (extension, selection, frozen final: its grade goes with
 it), the model files no other submission uses, the friendly races no other student's car took part
 in, and the friendly races with the student's car still to run. Rows that only name the student as
-their creator (races kept, championships, accounts) lose the name (NULL).
+their creator (races kept, championships, accounts) lose the name (NULL): every foreign key to the
+account is followed (`_forget`), so a table added later is erased too.
 Kept: the races and championship heats other students took part in, with the student's cars
 shown as DELETED (entrant, classification and replay; the race log loses the car's output) and
 their submission ids replaced by the negated id, which no row ever gets: standings keep every
@@ -22,10 +23,12 @@ from sqlalchemy import delete, or_, select, update
 from sqlalchemy.orm import Session
 
 from league.server.db.models import (
-    DELETED, DONE, FAILED, STUDENT, Blob, Championship, ChampionshipRound, EpisodeResult, Evaluation, Job, Race,
-    RaceReplay, StudentAssignment, Submission, User, utcnow,
+    DELETED, DONE, FAILED, STUDENT, Base, Blob, ChampionshipRound, EpisodeResult, Evaluation, Job, Race, RaceReplay,
+    Submission, User, utcnow,
 )
 from league.server.jobs.race import car_name
+
+ERASED_IN_STEPS = {Submission.__table__, Evaluation.__table__, EpisodeResult.__table__, Job.__table__}
 
 
 class DeletionRefused(Exception):
@@ -58,8 +61,7 @@ def delete_student(session: Session, *, user: User) -> Erased:
     _erase_races(session, user, ids, erased)
     evaluation_ids = list(session.scalars(select(Evaluation.id).where(Evaluation.submission_id.in_(ids))))
     erased.evaluations = len(evaluation_ids)
-    # the student's finals, selections and extensions (they name their submissions and private evaluations)
-    session.execute(delete(StudentAssignment).where(StudentAssignment.user_id == user.id))
+    _forget(session, user, ids, evaluation_ids)
     # deleting a running job's row is its cancellation: its worker's heartbeat and completion find no lease
     session.execute(delete(Job).where(or_(Job.submission_id.in_(ids), Job.evaluation_id.in_(evaluation_ids))))
     session.execute(update(Job).where(Job.owner_id == user.id).values(owner_id=None))  # kept races' jobs
@@ -70,13 +72,33 @@ def delete_student(session: Session, *, user: User) -> Erased:
     used = set(session.scalars(select(Submission.sha256).where(Submission.sha256.in_(digests))))
     erased.blobs = sorted(digests - used)
     session.execute(delete(Blob).where(Blob.sha256.in_(erased.blobs)))
-    for model in (Race, Championship, User):  # kept rows that name the student as their creator
-        session.execute(update(model).where(model.created_by_id == user.id).values(created_by_id=None))
     if user.course is not None:  # the public state stamp: boards and standings drop the student at once
         user.course.updated_at = utcnow()
     session.delete(user)
     session.flush()
     return erased
+
+
+def _forget(session: Session, user: User, submission_ids: set[int], evaluation_ids: list[int]) -> None:
+    """Every other row that names the student, found from the models' foreign keys to the account,
+    their submissions and their evaluations (a table added later included): a row that cannot be
+    without it (NOT NULL: their own state in an assignment, their extension, selection and frozen
+    final, and so their grade) goes; any other (a race, championship or account they created) loses
+    the reference. The tables erased above, with what refers to them, are left to their own steps."""
+    named = {User.__table__: [user.id], Submission.__table__: sorted(submission_ids),
+             Evaluation.__table__: evaluation_ids}
+    for table in Base.metadata.sorted_tables:
+        if table in ERASED_IN_STEPS:
+            continue
+        for key in table.foreign_keys:
+            ids = named.get(key.column.table)
+            if not ids:
+                continue
+            rows = key.parent.in_(ids)
+            if key.parent.nullable:
+                session.execute(update(table).where(rows).values({key.parent.name: None}))
+            else:
+                session.execute(delete(table).where(rows))
 
 
 def _erase_races(session: Session, user: User, ids: set[int], erased: Erased) -> None:
