@@ -458,7 +458,7 @@ def run_users_revoke(args: argparse.Namespace) -> int:
 def run_users_delete(args: argparse.Namespace) -> int:
     from league.server import audit
     from league.server.db import crud
-    from league.server.erasure import DeletionRefused, delete_student
+    from league.server.erasure import DeletionRefused, delete_student, write_out
     from league.server.storage import BlobStore
 
     sessions = _sessions(args)
@@ -478,6 +478,8 @@ def run_users_delete(args: argparse.Namespace) -> int:
             return 1
         audit.record(session, actor=None, action=audit.DELETE_USER, target_kind="user", target_id=user_id,
                      course_id=course_id, note="student and their data deleted", **erased.summary())
+    if not write_out(sessions.kw["bind"]):
+        _say("the database's write-ahead log was in use: SQLite empties it at a later checkpoint")
     store = BlobStore(load_settings(data_dir=args.data_dir).data_dir)
     for sha256 in erased.blobs:
         store.remove(sha256)

@@ -19,7 +19,7 @@ import gzip
 import json
 from dataclasses import dataclass, field
 
-from sqlalchemy import delete, or_, select, update
+from sqlalchemy import Engine, delete, or_, select, update
 from sqlalchemy.orm import Session
 
 from league.server.db.models import (
@@ -77,6 +77,18 @@ def delete_student(session: Session, *, user: User) -> Erased:
     session.delete(user)
     session.flush()
     return erased
+
+
+def write_out(engine: Engine) -> bool:
+    """After the deletion's commit, on SQLite: copy the pages it zeroed (secure_delete) into the database
+    file and empty the write-ahead log, whose older frames still hold the rows as they were. False if
+    readers kept the log from being emptied (then SQLite's later checkpoints overwrite it). PostgreSQL
+    keeps deleted rows on disk until its (auto)vacuum reuses the space: nothing to do from here."""
+    if engine.dialect.name != "sqlite":
+        return True
+    with engine.connect() as connection:
+        busy, _, _ = connection.exec_driver_sql("PRAGMA wal_checkpoint(TRUNCATE)").one()
+    return not busy
 
 
 def _forget(session: Session, user: User, submission_ids: set[int], evaluation_ids: list[int]) -> None:

@@ -6,7 +6,8 @@ Which rows name a student is read from the models themselves: every foreign key 
 transitively to the rows reached so (submissions, evaluations, races, ...). The fixture must give
 the student a row through each of them (a table added later fails this test until the fixture, and
 the erasure, cover it); after the deletion none is left, no column of any table holds their name,
-address or file names, the data directory holds no file of theirs, and no answer names them.
+address or file names, the data directory holds no file of theirs (nor, on SQLite, do the database's
+files hold any of their bytes), and no answer names them.
 """
 from __future__ import annotations
 
@@ -18,7 +19,7 @@ from datetime import datetime, timedelta, timezone
 from pathlib import Path
 
 import pytest
-from sqlalchemy import LargeBinary, select, update
+from sqlalchemy import LargeBinary, make_url, select, update
 
 from league.server.app import catch_up
 from league.server.db import crud
@@ -240,6 +241,12 @@ def test_a_student_with_a_row_of_every_kind_is_erased_after_due_times_publicatio
             assert session.get(Race, course["races"]["alone"]) is None
         assert left == {}
         assert named == []
+        if backend == "sqlite":  # nor in the file: the rows were overwritten, the write-ahead log emptied
+            database = Path(make_url(league.settings.database_url).database)
+            for path in database.parent.glob(f"{database.name}*"):
+                content = path.read_bytes()
+                assert course["own_data"] not in content, path
+                assert [s for s in course["secrets"] if s.encode() in content] == [], path
         assert [e["submission_id"] for e in kept.entrants] == [-ids["dora"][0], ids["ann"]]
 
         # the data directory: her own model file is gone, the one Ann uploaded too stays
