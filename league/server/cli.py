@@ -321,9 +321,12 @@ def run_backup(args: argparse.Namespace) -> int:
 
     settings, sources = _setup(args)
     engine, revision = _open(settings, sources)
+    from league.server.db.session import head_revision
+
     report = backup(engine, revision, args.file)
-    _record_admin(engine, "backup", file=str(Path(args.file).resolve()), revision=report.revision,
-                  rows=report.counts, size=report.size)
+    if revision == head_revision():  # (a backup before an upgrade: the older schema's log is not written to)
+        _record_admin(engine, "backup", file=str(Path(args.file).resolve()), revision=report.revision,
+                      rows=report.counts, size=report.size)
     _say(f"backed up to {args.file}: {report.summary()}")
     return 0
 

@@ -382,3 +382,23 @@ def test_existing_users_get_random_pseudonyms_distinct_in_their_course_and_lose_
         assert connection.execute(text("SELECT count(*) FROM users")).scalar_one() == 5
     migrate(engine)
     engine.dispose()
+
+
+def test_a_backup_before_an_upgrade_is_taken_without_writing_to_the_older_schemas_audit_log(backend, tmp_path,
+                                                                                            monkeypatch):
+    """`league backup` records itself in the audit log at this version's schema only: on a database still
+    at an older release's (the backup an administrator takes before upgrading) it writes nothing there."""
+    from league.server.cli import main
+
+    _, database_url = backend
+    engine = engine_at(database_url, "0008")  # before the audit log existed (0015)
+    monkeypatch.setenv("LEAGUE_DATABASE_URL", database_url)
+    assert main(["backup", str(tmp_path / "before-upgrade.bak"), "--data-dir", str(tmp_path / "data")]) == 0
+    with engine.connect() as connection:
+        assert "audit_events" not in inspect(connection).get_table_names()
+    migrate(engine)
+    assert main(["backup", str(tmp_path / "after.bak"), "--data-dir", str(tmp_path / "data")]) == 0
+    with engine.connect() as connection:
+        assert connection.execute(text("SELECT action, actor_name FROM audit_events")).all() == [
+            ("league.backup", "league CLI")]
+    engine.dispose()
