@@ -18,7 +18,7 @@ from datetime import datetime, timedelta
 from sqlalchemy import select, update
 from sqlalchemy.orm import Session
 
-from league.server import results
+from league.server import audit, results
 from league.server.db import crud
 from league.server.db.models import (
     DONE, FAILED, INSTRUCTOR, PRIVATE, READY, STUDENT, Assignment, Course, Evaluation, StudentAssignment, Submission,
@@ -185,6 +185,10 @@ def close_due(session: Session, *, now: datetime, max_attempts: int) -> list[int
                      len(waiting), len(jobs))
         if assignment.auto_publish and _all_finals_evaluated(session, assignment, students, closing, now):
             assignment.published_at = now
+            audit.record(session, actor=None, actor_name=audit.SERVER_ACTOR, action=audit.PUBLISH,
+                         target_kind="assignment", target_id=assignment.id, course_id=assignment.course_id,
+                         before={"published_at": None}, after=audit.snapshot(assignment, ["published_at"]),
+                         note="auto_publish: every final evaluated")
             log.info("assignment %s published (every final evaluated)", assignment.name)
     session.flush()
     return jobs

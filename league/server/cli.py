@@ -353,8 +353,13 @@ def run_backup(args: argparse.Namespace) -> int:
         raise ValueError("--keep takes a number of backups, at least 1, and a directory as FILE")
     settings, sources = _setup(args)
     engine, revision = _open(settings, sources)
+    from league.server.db.session import head_revision
+
     target = args.file / f"league-{datetime.now(timezone.utc):%Y%m%d-%H%M%S}.db" if args.file.is_dir() else args.file
     report = backup(engine, revision, target)
+    if revision == head_revision():  # (a backup before an upgrade: the older schema's log is not written to)
+        _record_admin(engine, "backup", file=str(Path(target).resolve()), revision=report.revision,
+                      rows=report.counts, size=report.size)
     _say(f"backed up to {target}: {report.summary()}")
     if args.keep is not None:
         for old in sorted(args.file.glob("league-*.db"), reverse=True)[args.keep:]:  # the names sort by time
@@ -374,9 +379,27 @@ def run_restore(args: argparse.Namespace) -> int:
     else:  # it must exist and answer; an SQLite file is written whole
         _open(settings, sources, create=True)[0].dispose()
     report = restore(args.file, url, replace=args.replace)
+    from league.server.db.session import make_engine
+
+    restored = make_engine(url)
+    try:  # in the restored database's log, after the backup's own events
+        _record_admin(restored, "restore", file=str(Path(args.file).resolve()), revision=report.revision,
+                      rows=report.counts, replaced=bool(args.replace), migrated_to=head_revision())
+    finally:
+        restored.dispose()
     _say(f"restored {args.file}: {report.summary()}, migrated to {head_revision()}. Jobs queued or running at "
          f"the backup run as soon as a worker starts")
     return 0
+
+
+def _record_admin(engine, command: str, **details) -> None:
+    """An admin command's event in the audit log (backups and restores: they can change every grade)."""
+    from league.server import audit
+    from league.server.db.session import make_sessionmaker
+
+    action = {"backup": audit.BACKUP, "restore": audit.RESTORE}[command]
+    with make_sessionmaker(engine).begin() as session:
+        audit.record(session, actor=None, action=action, target_kind="league", **details)
 
 
 def run_config(args: argparse.Namespace) -> int:
@@ -516,7 +539,7 @@ def run_users_revoke(args: argparse.Namespace) -> int:
 def run_users_delete(args: argparse.Namespace) -> int:
     from league.server import audit
     from league.server.db import crud
-    from league.server.erasure import DeletionRefused, delete_student
+    from league.server.erasure import DeletionRefused, delete_student, write_out
     from league.server.storage import BlobStore
 
     sessions = _sessions(args)
@@ -536,6 +559,8 @@ def run_users_delete(args: argparse.Namespace) -> int:
             return 1
         audit.record(session, actor=None, action=audit.DELETE_USER, target_kind="user", target_id=user_id,
                      course_id=course_id, note="student and their data deleted", **erased.summary())
+    if not write_out(sessions.kw["bind"]):
+        _say("the database's write-ahead log was in use: SQLite empties it at a later checkpoint")
     store = BlobStore(load_settings(data_dir=args.data_dir).data_dir)
     for sha256 in erased.blobs:
         store.remove(sha256)

@@ -1,8 +1,11 @@
 """Deleting a student: their data erased, not hidden (`league users delete`, DELETE /api/users/{id}).
 
-Erased: the account and its token, its submissions, their evaluations, episodes and jobs, the
-model files no other submission uses, the friendly races no other student's car took part in, and
-the friendly races with the student's car still to run.
+Erased: the account and its token, its submissions, their evaluations (public and private), episodes
+and jobs, its own state in each assignment (extension, selection, frozen final: its grade goes with
+it), the model files no other submission uses, the friendly races no other student's car took part
+in, and the friendly races with the student's car still to run. Rows that only name the student as
+their creator (races kept, championships, accounts) lose the name (NULL): every foreign key to the
+account is followed (`_forget`), so a table added later is erased too.
 Kept: the races and championship heats other students took part in, with the student's cars
 shown as DELETED (entrant, classification and replay; the race log loses the car's output) and
 their submission ids replaced by the negated id, which no row ever gets: standings keep every
@@ -16,14 +19,16 @@ import gzip
 import json
 from dataclasses import dataclass, field
 
-from sqlalchemy import delete, or_, select, update
+from sqlalchemy import Engine, delete, or_, select, update
 from sqlalchemy.orm import Session
 
 from league.server.db.models import (
-    DELETED, DONE, FAILED, STUDENT, Blob, ChampionshipRound, EpisodeResult, Evaluation, Job, Race, RaceReplay,
+    DELETED, DONE, FAILED, STUDENT, Base, Blob, ChampionshipRound, EpisodeResult, Evaluation, Job, Race, RaceReplay,
     Submission, User, utcnow,
 )
 from league.server.jobs.race import car_name
+
+ERASED_IN_STEPS = {Submission.__table__, Evaluation.__table__, EpisodeResult.__table__, Job.__table__}
 
 
 class DeletionRefused(Exception):
@@ -56,6 +61,7 @@ def delete_student(session: Session, *, user: User) -> Erased:
     _erase_races(session, user, ids, erased)
     evaluation_ids = list(session.scalars(select(Evaluation.id).where(Evaluation.submission_id.in_(ids))))
     erased.evaluations = len(evaluation_ids)
+    _forget(session, user, ids, evaluation_ids)
     # deleting a running job's row is its cancellation: its worker's heartbeat and completion find no lease
     session.execute(delete(Job).where(or_(Job.submission_id.in_(ids), Job.evaluation_id.in_(evaluation_ids))))
     session.execute(update(Job).where(Job.owner_id == user.id).values(owner_id=None))  # kept races' jobs
@@ -66,12 +72,45 @@ def delete_student(session: Session, *, user: User) -> Erased:
     used = set(session.scalars(select(Submission.sha256).where(Submission.sha256.in_(digests))))
     erased.blobs = sorted(digests - used)
     session.execute(delete(Blob).where(Blob.sha256.in_(erased.blobs)))
-    session.execute(update(Race).where(Race.created_by_id == user.id).values(created_by_id=None))
     if user.course is not None:  # the public state stamp: boards and standings drop the student at once
         user.course.updated_at = utcnow()
     session.delete(user)
     session.flush()
     return erased
+
+
+def write_out(engine: Engine) -> bool:
+    """After the deletion's commit, on SQLite: copy the pages it zeroed (secure_delete) into the database
+    file and empty the write-ahead log, whose older frames still hold the rows as they were. False if
+    readers kept the log from being emptied (then SQLite's later checkpoints overwrite it). PostgreSQL
+    keeps deleted rows on disk until its (auto)vacuum reuses the space: nothing to do from here."""
+    if engine.dialect.name != "sqlite":
+        return True
+    with engine.connect() as connection:
+        busy, _, _ = connection.exec_driver_sql("PRAGMA wal_checkpoint(TRUNCATE)").one()
+    return not busy
+
+
+def _forget(session: Session, user: User, submission_ids: set[int], evaluation_ids: list[int]) -> None:
+    """Every other row that names the student, found from the models' foreign keys to the account,
+    their submissions and their evaluations (a table added later included): a row that cannot be
+    without it (NOT NULL: their own state in an assignment, their extension, selection and frozen
+    final, and so their grade) goes; any other (a race, championship or account they created) loses
+    the reference. The tables erased above, with what refers to them, are left to their own steps."""
+    named = {User.__table__: [user.id], Submission.__table__: sorted(submission_ids),
+             Evaluation.__table__: evaluation_ids}
+    for table in Base.metadata.sorted_tables:
+        if table in ERASED_IN_STEPS:
+            continue
+        for key in table.foreign_keys:
+            ids = named.get(key.column.table)
+            if not ids:
+                continue
+            rows = key.parent.in_(ids)
+            if key.parent.nullable:
+                session.execute(update(table).where(rows).values({key.parent.name: None}))
+            else:
+                session.execute(delete(table).where(rows))
 
 
 def _erase_races(session: Session, user: User, ids: set[int], erased: Erased) -> None:

@@ -7,14 +7,18 @@ instructors) or `instructors`. Members who may see a board see real names; anyon
 them) sees each student as their display name, else as a "Student N" pseudonym; baselines keep
 their names. The check itself is `league.server.api.deps.board_names`, the one every board route calls.
 
-Pseudonyms are a keyed permutation of user ids (the course's random `pseudonym_key`): distinct, stable
-for the course's life, and in no relation to the roster's order, which is often alphabetical.
+Pseudonyms are numbers drawn at random (`secrets`) for each account of a course when it is made
+(users.pseudonym, unique in the course): stable for the course's life and no function of the id, so
+that one board, or several, tells nothing of the others' ids nor of the roster's order, which is
+often alphabetical.
 """
 from __future__ import annotations
 
 import gzip
 import json
 import re
+import secrets
+from collections.abc import Callable
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -23,15 +27,21 @@ from league.server.db.models import BASELINE, INSTRUCTORS, MEMBERS, PUBLIC
 
 AUDIENCE = {PUBLIC: "anyone", MEMBERS: "the course's students and instructors, logged in",
             INSTRUCTORS: "the course's instructors only"}
-PSEUDONYM_MODULUS = 999_983  # a prime: user ids below it get distinct pseudonyms
+PSEUDONYMS = 999_999  # "Student 1" to "Student 999999": a course of 1,000 leaves 99.9 % of them free
 PSEUDONYM = re.compile(r"student\s*\d+", re.IGNORECASE)
+UNKNOWN = "(unknown)"  # an owner whose account is gone, or has no pseudonym in the course
 
 
-def pseudonym(key: int, user_id: int) -> str:
-    """"Student N" of the user in a course of `key` (N = a * id + b mod a prime, a and b from the key)."""
-    a = 1 + key % (PSEUDONYM_MODULUS - 1)
-    b = key // PSEUDONYM_MODULUS % PSEUDONYM_MODULUS
-    return f"Student {1 + (a * user_id + b) % PSEUDONYM_MODULUS}"
+def draw_pseudonym(taken: Callable[[int], bool]) -> int:
+    """A random pseudonym number that `taken` says is free in the course."""
+    while True:
+        number = 1 + secrets.randbelow(PSEUDONYMS)
+        if not taken(number):
+            return number
+
+
+def pseudonym(number: int) -> str:
+    return f"Student {number}"
 
 
 def clean_display_name(text: str | None) -> str | None:
@@ -51,14 +61,16 @@ class Names:
     names, else pseudonyms) for everyone but the baselines and the viewer."""
 
     real: bool
-    key: int = 0  # the course's pseudonym key
     viewer_id: int | None = None
     display_names: dict[int, str] = field(default_factory=dict)  # user id -> display name (public view)
+    pseudonyms: dict[int, int] = field(default_factory=dict)  # user id -> their number in the course
 
     def owner(self, owner_id: int | None, name: str, role: str | None) -> str:
         if self.real or role == BASELINE or owner_id is None or owner_id == self.viewer_id:
             return name
-        return self.display_names.get(owner_id) or pseudonym(self.key, owner_id)
+        if owner_id in self.display_names:
+            return self.display_names[owner_id]
+        return pseudonym(self.pseudonyms[owner_id]) if owner_id in self.pseudonyms else UNKNOWN
 
     def rows(self, rows: list[dict]) -> list[dict]:
         """Board rows (with "owner", "owner_id", "owner_role") with their owners renamed."""
@@ -88,5 +100,5 @@ class Names:
     def _entrant_owner(self, row: dict, owners: dict[int, Any]) -> str:
         owner = owners.get(row["submission_id"])
         if owner is None:  # the submission is gone: its owner is not named
-            return "(unknown)"
+            return UNKNOWN
         return self.owner(owner.id, owner.name, owner.role)

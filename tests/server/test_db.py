@@ -347,3 +347,58 @@ def test_championships_keep_their_rows_belong_to_no_assignment_and_lose_the_colu
         assert connection.execute(text("SELECT name, seed FROM championships")).one() == ("cup", 9)
     migrate(engine)
     engine.dispose()
+
+
+# --------------------------------------------------------------------------- 0020: random pseudonyms
+
+
+def test_existing_users_get_random_pseudonyms_distinct_in_their_course_and_lose_them_on_downgrade(backend):
+    """0020 on a 0017 database with two courses: each user of a course gets a pseudonym, distinct in
+    the course (the unique index refuses a second one), none for a user of no course; rows kept."""
+    _, database_url = backend
+    engine = engine_at(database_url, "0017")
+    created = datetime(2026, 11, 1)
+    people = [(1, "prof", "instructor", 1), (2, "Ada", "student", 1), (3, "Bea", "student", 1),
+              (4, "Cy", "student", 2), (5, "baselines", "baseline", None)]
+    with engine.begin() as connection:
+        connection.execute(text("INSERT INTO courses (id, name, created_at, updated_at) "
+                                "VALUES (:id, :name, :now, :now)"),
+                           [{"id": 1, "name": "default", "now": created}, {"id": 2, "name": "other", "now": created}])
+        connection.execute(text("INSERT INTO users (id, name, role, course_id, created_at) "
+                                "VALUES (:id, :name, :role, :course, :now)"),
+                           [{"id": i, "name": n, "role": r, "course": c, "now": created} for i, n, r, c in people])
+    migrate(engine)
+    with engine.connect() as connection:
+        rows = connection.execute(text("SELECT id, name, course_id, pseudonym FROM users ORDER BY id")).all()
+    numbers = {row[0]: row[3] for row in rows}
+    assert [(row[0], row[1], row[2]) for row in rows] == [(i, n, c) for i, n, _, c in people]
+    assert numbers[5] is None and all(1 <= numbers[i] <= 999_999 for i in (1, 2, 3, 4))
+    assert len({numbers[1], numbers[2], numbers[3]}) == 3
+    with pytest.raises(IntegrityError), engine.begin() as connection:
+        connection.execute(text("UPDATE users SET pseudonym = :n WHERE id = 3"), {"n": numbers[2]})
+    alembic(engine, "downgrade", "0017")
+    with engine.connect() as connection:
+        assert "pseudonym" not in {c["name"] for c in inspect(connection).get_columns("users")}
+        assert connection.execute(text("SELECT count(*) FROM users")).scalar_one() == 5
+    migrate(engine)
+    engine.dispose()
+
+
+def test_a_backup_before_an_upgrade_is_taken_without_writing_to_the_older_schemas_audit_log(backend, tmp_path,
+                                                                                            monkeypatch):
+    """`league backup` records itself in the audit log at this version's schema only: on a database still
+    at an older release's (the backup an administrator takes before upgrading) it writes nothing there."""
+    from league.server.cli import main
+
+    _, database_url = backend
+    engine = engine_at(database_url, "0008")  # before the audit log existed (0015)
+    monkeypatch.setenv("LEAGUE_DATABASE_URL", database_url)
+    assert main(["backup", str(tmp_path / "before-upgrade.bak"), "--data-dir", str(tmp_path / "data")]) == 0
+    with engine.connect() as connection:
+        assert "audit_events" not in inspect(connection).get_table_names()
+    migrate(engine)
+    assert main(["backup", str(tmp_path / "after.bak"), "--data-dir", str(tmp_path / "data")]) == 0
+    with engine.connect() as connection:
+        assert connection.execute(text("SELECT action, actor_name FROM audit_events")).all() == [
+            ("league.backup", "league CLI")]
+    engine.dispose()

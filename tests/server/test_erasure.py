@@ -11,39 +11,19 @@ from pathlib import Path
 import pytest
 from sqlalchemy import func, select
 
-from league.evaluation import league_versions
 from league.server.db import crud
 from league.server.db.models import (
     DELETED, DONE, READY, STUDENT, Assignment, AuditEvent, Blob, Evaluation, Job, Race, RaceReplay, Submission, User,
 )
-from league.server.jobs.race import RaceOutcome, car_name
+from league.server.jobs.race import car_name
 from league.server.rounds import create_race
 
 from .api.in_process import every_get, in_process_league
 from .api_calls import unique
 from .backends import BACKENDS
+from .race_outcomes import finish_race
 
 CONTRACT = Path(__file__).resolve().parents[2] / "docs" / "CONTRACT.md"
-
-
-def outcome(race: Race, order: list[int]) -> RaceOutcome:
-    """A race job's outcome, cars finishing in `order` (submission ids); the replay and log name every car."""
-    by_id = {e["submission_id"]: (i, e) for i, e in enumerate(race.entrants)}
-    rows = [{"position": p, "car": f"car_{by_id[i][0]}", **by_id[i][1], "outcome": "finished", "time": 10.0 + p,
-             "distance": 100.0, "reason": None} for p, i in enumerate(order, start=1)]
-    names = [car_name(e) for e in race.entrants]
-    replay = {"names": names, "classification": [{**r, "name": car_name(r)} for r in rows],
-              "versions": league_versions()}
-    log = "".join(f"== {name} ==\nhello from {name}\n" for name in names)
-    return RaceOutcome(rows, replay, None, log)
-
-
-def finish_race(league, race_id: int, order: list[int]) -> None:
-    with league.sessions() as session:
-        race = session.get(Race, race_id)
-        job_id = session.scalar(select(Job.id).where(Job.race_id == race_id))
-        result = outcome(race, order)
-    league.finish_job(job_id, result)
 
 
 def ready_submission(session, owner: User, sha256: str, public: bool = False) -> Submission:

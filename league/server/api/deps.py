@@ -160,8 +160,9 @@ def board_names(session: Session, viewer: User | None, course: Course, *, owns: 
     if member and (viewer.role == INSTRUCTOR or visibility != INSTRUCTORS):
         return Names(real=True)
     if visibility == PUBLIC or owns:
-        return Names(real=False, key=course.pseudonym_key or 0, viewer_id=viewer.id if viewer else None,
-                     display_names=crud.display_names(session, course_id=course.id))
+        return Names(real=False, viewer_id=viewer.id if viewer else None,
+                     display_names=crud.display_names(session, course_id=course.id),
+                     pseudonyms=crud.pseudonyms(session, course_id=course.id))
     audience = f"the boards of course {course.name!r} are shown to {AUDIENCE[visibility]}"
     if viewer is None:
         raise unauthorized(f"log in to see this: {audience} (your token is from your instructor)")

@@ -15,9 +15,9 @@ from league.server.accounts import clean_email, clean_name, clean_student_id
 from league.server.db.models import (
     BASELINE, DONE, EVALUATE, FAILED, MEMBERS, NORMAL, PUBLIC, QUEUED, RACE, READY, REJECTED, RUNNING, STUDENT,
     VALIDATE, Assignment, Blob, Championship, ChampionshipRound, Course, EpisodeResult, Evaluation, Job, Race,
-    StudentAssignment, Submission, User, utcnow,
+    StudentAssignment, Submission, User, private_test, utcnow,
 )
-from league.server.privacy import clean_display_name
+from league.server.privacy import clean_display_name, draw_pseudonym
 from league.server.security import hash_token, new_token
 
 DEFAULT_COURSE = "default"
@@ -160,12 +160,30 @@ def create_user(session: Session, *, name: str, role: str, course: Course | None
 def add_user(session: Session, *, name: str, role: str, course: Course | None, created_by: User | None,
              with_token: bool, email: str | None, student_id: str | None) -> tuple[User, str | None]:
     """Add a user whose values the caller has cleaned and found free (a roster checks them all at once);
-    no flush: a roster adds its students in one round trip."""
+    no flush: a roster adds its students in one round trip. A course's user gets its pseudonym."""
     token = new_token() if with_token else None
     user = User(name=name, role=role, course_id=course.id if course else None, email=email, student_id=student_id,
-                token_hash=hash_token(token) if token else None, created_by_id=created_by.id if created_by else None)
+                token_hash=hash_token(token) if token else None, created_by_id=created_by.id if created_by else None,
+                pseudonym=new_pseudonym(session, course_id=course.id) if course else None)
     session.add(user)
     return user, token
+
+
+def new_pseudonym(session: Session, *, course_id: int) -> int:
+    """A random pseudonym number no user of the course has, the ones not flushed yet (a roster's) included."""
+    pending = {user.pseudonym for user in session.new if isinstance(user, User) and user.course_id == course_id}
+
+    def taken(number: int) -> bool:
+        with session.no_autoflush:
+            return number in pending or session.scalar(
+                select(User.id).where(User.course_id == course_id, User.pseudonym == number).limit(1)) is not None
+    return draw_pseudonym(taken)
+
+
+def pseudonyms(session: Session, *, course_id: int) -> dict[int, int]:
+    """user id -> pseudonym number, of the course's users."""
+    return dict(session.execute(select(User.id, User.pseudonym).where(User.course_id == course_id,
+                                                                      User.pseudonym.is_not(None))).all())
 
 
 def user_by_token(session: Session, *, token: str) -> User | None:
@@ -243,9 +261,12 @@ def lock_user(session: Session, *, user_id: int) -> bool:
 
 
 def jobs_in_flight(session: Session, *, owner_id: int) -> int:
-    """The owner's jobs waiting or running (but re-evaluations the league queued at low priority)."""
-    return session.scalar(select(func.count(Job.id)).where(Job.owner_id == owner_id, Job.priority == NORMAL,
-                                                          Job.status.in_((QUEUED, RUNNING)))) or 0
+    """The owner's jobs waiting or running, but the league's own: re-evaluations it queued at low priority,
+    and the private tests of their finals (how many and how long is none of the student's business)."""
+    return session.scalar(
+        select(func.count(Job.id)).outerjoin(Evaluation, Job.evaluation_id == Evaluation.id)
+        .where(Job.owner_id == owner_id, Job.priority == NORMAL, Job.status.in_((QUEUED, RUNNING)),
+               ~private_test())) or 0
 
 
 def quota_usage(session: Session, *, owner: User, limit: int, now: datetime | None = None) -> QuotaUsage:

@@ -9,7 +9,8 @@ from datetime import datetime, timezone
 from typing import Any
 
 from sqlalchemy import (
-    JSON, BigInteger, DateTime, Float, ForeignKey, Index, Integer, LargeBinary, String, Text, UniqueConstraint, text,
+    JSON, BigInteger, ColumnElement, DateTime, Float, ForeignKey, Index, Integer, LargeBinary, String, Text,
+    UniqueConstraint, func, text,
 )
 from sqlalchemy.orm import DeclarativeBase, Mapped, mapped_column, relationship
 from sqlalchemy.types import TypeDecorator
@@ -77,8 +78,8 @@ class Course(Base):
     name: Mapped[str] = mapped_column(String(100), unique=True)
     # who sees its boards; the server default is what courses older than the setting were (migration 0012)
     board_visibility: Mapped[str] = mapped_column(String(20), default=MEMBERS, server_default=PUBLIC)
-    # keys the "Student N" pseudonyms of its public boards (league.server.privacy.pseudonym); every row has
-    # one (migration 0012 draws them): nullable in the schema only, as SQLite adds no NOT NULL column without a default
+    # keyed the "Student N" pseudonyms until migration 0020 gave each user a random one (users.pseudonym);
+    # unused since, kept as dropping a column referred to by foreign keys copies the table on SQLite
     pseudonym_key: Mapped[int] = mapped_column(BigInteger, nullable=True, default=lambda: secrets.randbits(62))
     created_at: Mapped[datetime] = mapped_column(default=utcnow)
     updated_at: Mapped[datetime] = mapped_column(default=utcnow, onupdate=utcnow)
@@ -150,7 +151,8 @@ class User(Base):
     __tablename__ = "users"
     # NULLs differ on both backends: many students without an id, none sharing one
     __table_args__ = (Index("uq_users_course_student_id", "course_id", "student_id", unique=True),
-                      Index("uq_users_course_display_name", "course_id", "display_name", unique=True))
+                      Index("uq_users_course_display_name", "course_id", "display_name", unique=True),
+                      Index("uq_users_course_pseudonym", "course_id", "pseudonym", unique=True))
 
     id: Mapped[int] = mapped_column(primary_key=True)
     name: Mapped[str] = mapped_column(String(100), unique=True)
@@ -161,6 +163,9 @@ class User(Base):
     student_id: Mapped[str | None] = mapped_column(String(64), default=None)
     # what public boards show instead of the name (league.server.privacy); unique in the course
     display_name: Mapped[str | None] = mapped_column(String(100), default=None)
+    # "Student N" on public boards (league.server.privacy): drawn at random when the account is made
+    # (crud.add_user; migration 0020 for older ones), unique in the course; None: no course
+    pseudonym: Mapped[int | None] = mapped_column(Integer, default=None)
     token_hash: Mapped[str | None] = mapped_column(String(64), unique=True)  # sha256 hex of the bearer token
     created_at: Mapped[datetime] = mapped_column(default=utcnow)
     created_by_id: Mapped[int | None] = mapped_column(ForeignKey("users.id"))
@@ -257,6 +262,12 @@ class Evaluation(Base):
 
     # loaded only when read: status answers and listings carry no episodes (crud.episode_page pages them)
     episodes: Mapped[list[EpisodeResult]] = relationship(order_by="EpisodeResult.index", lazy="select")
+
+
+def private_test() -> ColumnElement[bool]:
+    """Whether a job (outer-joined to its evaluation) is the private test of a final: the league's own
+    job, not its owner's (no in-flight limit, no turn among their jobs; league.server.assignments)."""
+    return func.coalesce(Evaluation.track, "") == PRIVATE
 
 
 class EpisodeResult(Base):

@@ -27,8 +27,8 @@ from sqlalchemy import case, func, select, update
 from sqlalchemy.orm import Session, sessionmaker
 
 from league.server.db.models import (
-    CANCELLED, CANNOT_SUCCEED, DONE, ERROR, EVALUATE, FAILED, QUEUED, RUNNING, UNKNOWN_KIND, VALIDATE, WORKER_LOST, Job,
-    utcnow,
+    CANCELLED, CANNOT_SUCCEED, DONE, ERROR, EVALUATE, FAILED, QUEUED, RUNNING, UNKNOWN_KIND, VALIDATE, WORKER_LOST,
+    Evaluation, Job, private_test, utcnow,
 )
 
 log = logging.getLogger("league.server.jobs")
@@ -38,7 +38,8 @@ CANDIDATES = 8  # fairest queued jobs tried per claim (others' workers may take 
 def claim_next(sessions: sessionmaker[Session], handlers: Mapping[str, Any], *, attempt_id: str) -> Job | None:
     """Claim the fairest queued job: normal priority before low (the re-evaluations of a settings
     change never delay a student's upload); within a priority owners take turns (a job's rank counts
-    its owner's jobs of that priority running or queued before it), so one student's backlog delays
+    its owner's jobs of that priority running or queued before it; a final's private test is no
+    student's: it waits for no job of theirs and delays none), so one student's backlog delays
     another's first job by one job at most; at equal rank validations go first, then evaluations,
     then races, then the oldest."""
     while candidates := fairest_queued(sessions):
@@ -52,11 +53,13 @@ def claim_next(sessions: sessionmaker[Session], handlers: Mapping[str, Any], *, 
 
 def fairest_queued(sessions: sessionmaker[Session], limit: int = CANDIDATES) -> list[int]:
     active = Job.status.in_((QUEUED, RUNNING))
-    rank = func.row_number().over(partition_by=(Job.priority, func.coalesce(Job.owner_id, -1)),
+    # a final's private test takes no turn of its owner's: alone in its partition (ids from -2 down)
+    turn_of = case((private_test(), -1 - Job.id), else_=func.coalesce(Job.owner_id, -1))
+    rank = func.row_number().over(partition_by=(Job.priority, turn_of),
                                   order_by=(case((Job.status == RUNNING, 0), else_=1), Job.id))
     kind_order = case((Job.kind == VALIDATE, 0), (Job.kind == EVALUATE, 1), else_=2)
-    ranked = select(Job.id, Job.status, Job.priority, rank.label("rank"),
-                    kind_order.label("kind_order")).where(active).subquery()
+    ranked = select(Job.id, Job.status, Job.priority, rank.label("rank"), kind_order.label("kind_order")).outerjoin(
+        Evaluation, Job.evaluation_id == Evaluation.id).where(active).subquery()
     with sessions() as session:
         return list(session.scalars(select(ranked.c.id).where(ranked.c.status == QUEUED).order_by(
             ranked.c.priority, ranked.c.rank, ranked.c.kind_order, ranked.c.id).limit(limit)))

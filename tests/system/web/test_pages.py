@@ -122,7 +122,10 @@ def test_revoked_token_sends_the_user_back_to_login_with_a_message(web, web_serv
     ("/leaderboard?page=2", "/leaderboard?page=2"),
     ("//evil.example/x", "/submissions"), ("/%5Cevil.example/x", "/submissions"),
     ("/%5C%5Cevil.example", "/submissions"), ("https://evil.example/", "/submissions"),
-    ("javascript:alert(1)", "/submissions")])
+    ("javascript:alert(1)", "/submissions"), ("/.//evil.example/x", "/submissions"),
+    ("/%2E//evil.example/x", "/submissions"), ("/%09/evil.example/x", "/submissions"),
+    ("/\\evil.example/x", "/submissions"), ("/login?next=//evil.example", "/submissions"),
+    ("/leaderboard?from=a//b", "/leaderboard?from=a//b")])
 def test_login_goes_back_only_to_a_page_of_this_site(web, web_server, next_page, landing):
     web.goto(f"/login?next={next_page}")
     web.page.fill("#token", student_token(web_server, unique("back")))

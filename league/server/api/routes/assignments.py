@@ -7,6 +7,7 @@ from fastapi import APIRouter, HTTPException, Query, Request, Response, status
 from fastapi.concurrency import run_in_threadpool
 from pydantic import ValidationError
 
+from league.server import audit
 from league.server.api.cache import PRIVATE as PRIVATE_CACHE, PUBLIC as PUBLIC_CACHE, cached_json
 from league.server.api.deps import (
     CacheDep, ClockDep, CurrentUser, Id, InstructorUser, OptionalUser, PageNumber, PageSize, QueueDep, SessionDep,
@@ -28,6 +29,7 @@ router = APIRouter(prefix="/assignments", tags=["assignments"])
 Board = Annotated[Literal["public", "private"], Query(description="private: once the assignment is published")]
 SETTINGS = ("seed", "episodes", "env_options")
 TIMES = tuple(AssignmentTimes.model_fields)
+AUDITED = ("name", *SETTINGS, *TIMES)  # what the audit log keeps of an assignment's creation and edits
 
 
 def refused(error: UploadRefused) -> HTTPException:
@@ -80,6 +82,9 @@ def create_assignment(body: AssignmentCreate, clock: ClockDep, instructor: Instr
                                         **body.model_dump(include=set(SETTINGS) | set(TIMES)))
     change = change_settings(session, assignment=assignment, settings=assignment.evaluation_settings(),
                              max_attempts=settings.max_job_attempts, unchanged="")
+    session.flush()
+    audit.record(session, actor=instructor, action=audit.CREATE_ASSIGNMENT, target_kind="assignment",
+                 target_id=assignment.id, before={}, after=audit.snapshot(assignment, AUDITED))
     session.commit()
     for job in change.queued:
         queue.enqueue(job.id)
@@ -104,6 +109,7 @@ def update_assignment(assignment_id: Id, body: AssignmentUpdate, clock: ClockDep
     """Edit an assignment (only the fields sent). New public settings make its results of others stale
     and re-evaluate its submissions after the students' jobs; finals already frozen stay."""
     assignment = course_assignment(session, instructor, assignment_id)
+    before = audit.snapshot(assignment, AUDITED)
     sent = body.model_dump(exclude_unset=True)
     times = {name: sent.get(name, getattr(assignment, name)) for name in TIMES}
     try:
@@ -118,6 +124,10 @@ def update_assignment(assignment_id: Id, body: AssignmentUpdate, clock: ClockDep
     wanted = {**assignment.evaluation_settings(), **{k: v for k, v in sent.items() if k in SETTINGS and v is not None}}
     check_env_options(wanted["env_options"])
     change = change_settings(session, assignment=assignment, settings=wanted, max_attempts=settings.max_job_attempts)
+    changed = audit.changes(before, audit.snapshot(assignment, AUDITED))
+    if changed["after"]:
+        audit.record(session, actor=instructor, action=audit.EDIT_ASSIGNMENT, target_kind="assignment",
+                     target_id=assignment.id, **changed, reevaluating=len(change.queued))
     session.commit()
     for job in change.queued:
         queue.enqueue(job.id)
@@ -130,7 +140,7 @@ def set_extension(assignment_id: Id, user_id: Id, body: ExtensionIn, instructor:
     """Give a student their own due time (the late window, if any, still ends at late_until)."""
     assignment, student = extension_parties(session, instructor, assignment_id, user_id)
     row = crud.student_assignment(session, assignment_id=assignment.id, user_id=student.id, create=True)
-    row.extension_due_at = body.due_at
+    record_extension(session, instructor, row, body.due_at)
     session.commit()
     return ExtensionOut(assignment_id=assignment.id, user_id=student.id, due_at=row.extension_due_at)
 
@@ -140,10 +150,19 @@ def delete_extension(assignment_id: Id, user_id: Id, instructor: InstructorUser,
     """Back to the assignment's due time."""
     assignment, student = extension_parties(session, instructor, assignment_id, user_id)
     row = crud.student_assignment(session, assignment_id=assignment.id, user_id=student.id)
-    if row is not None:
-        row.extension_due_at = None
+    if row is not None and row.extension_due_at is not None:
+        record_extension(session, instructor, row, None)
         session.commit()
     return ExtensionOut(assignment_id=assignment.id, user_id=student.id, due_at=None)
+
+
+def record_extension(session: SessionDep, instructor: User, row, due_at) -> None:
+    """Set the student's own due time (None: the assignment's) and log it (the student by id only:
+    their name would outlive their erasure)."""
+    before = audit.snapshot(row, ["extension_due_at"])
+    row.extension_due_at = due_at
+    audit.record(session, actor=instructor, action=audit.EXTENSION, target_kind="user", target_id=row.user_id,
+                 assignment_id=row.assignment_id, **audit.changes(before, audit.snapshot(row, ["extension_due_at"])))
 
 
 def extension_parties(session: SessionDep, instructor: User, assignment_id: int, user_id: int):
@@ -180,10 +199,14 @@ def publish_assignment(assignment_id: Id, clock: ClockDep, instructor: Instructo
                        session: SessionDep) -> AssignmentOut:
     """Show the private board, seed and tracks to the students (once every student's close time has passed)."""
     assignment = course_assignment(session, instructor, assignment_id)
+    before = audit.snapshot(assignment, ["published_at"])
     try:
         publish(session, assignment=assignment, now=clock.now())
     except UploadRefused as error:
         raise refused(error) from None
+    if before["published_at"] is None:
+        audit.record(session, actor=instructor, action=audit.PUBLISH, target_kind="assignment",
+                     target_id=assignment.id, **audit.changes(before, audit.snapshot(assignment, ["published_at"])))
     session.commit()
     return assignment_out(session, assignment, instructor, clock)
 

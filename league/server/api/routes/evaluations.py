@@ -2,13 +2,14 @@
 from __future__ import annotations
 
 from fastapi import APIRouter, HTTPException, status
+from sqlalchemy import select
 
 from league.server import audit
 from league.server.api.deps import (
     CurrentUser, InstructorUser, QueueDep, SessionDep, SettingsDep, check_env_options, user_course,
 )
 from league.server.db import crud
-from league.server.db.models import LOW, NORMAL, READY, Assignment, Submission, User
+from league.server.db.models import LOW, NORMAL, PUBLIC, READY, Assignment, Evaluation, Submission, User
 from league.server.results import change_settings, queue_evaluation
 from league.server.schemas import EvaluationSettings, EvaluationSettingsChange, RerunOut, RerunRequest, UploadLimits
 
@@ -36,11 +37,13 @@ def update_evaluation_settings(body: EvaluationSettings, instructor: InstructorU
     own jobs (PATCH /api/assignments/{id} does the same for any assignment)."""
     check_env_options(body.env_options)
     assignment = default_assignment(session, instructor)
+    before = assignment.evaluation_settings()
     change = change_settings(session, assignment=assignment, settings=body.model_dump(),
                              max_attempts=settings.max_job_attempts)
     audit.record(session, actor=instructor, action=audit.SETTINGS, target_kind="course",
                  target_id=assignment.course_id, course_id=assignment.course_id, assignment_id=assignment.id,
-                 settings=body.model_dump(), reevaluating=change.reevaluated)
+                 settings=body.model_dump(), reevaluating=change.reevaluated,
+                 **audit.changes(before, assignment.evaluation_settings()))
     session.commit()
     for job in change.queued:
         queue.enqueue(job.id)
@@ -66,14 +69,24 @@ def rerun_evaluations(body: RerunRequest, instructor: InstructorUser, session: S
                    else [ready_submission(session, instructor, body.submission_id)])
     priority = LOW if body.all else NORMAL  # a whole course's backlog waits for the students' own jobs
     fallback = default_assignment(session, instructor)
+    before = None if body.all else latest_result(session, body.submission_id)
     jobs = [queue_evaluation(session, submission=s, max_attempts=settings.max_job_attempts, priority=priority,
                              assignment=None if s.owner.course_id else fallback) for s in submissions]
+    changed = {} if body.all else {"before": before, "after": {"evaluation_id": jobs[0].evaluation_id,
+                                                                 "status": "queued"}}
     audit.record(session, actor=instructor, action=audit.RERUN, target_kind="submission",
-                 target_id=None if body.all else body.submission_id, all=body.all, queued=len(jobs))
+                 target_id=None if body.all else body.submission_id, all=body.all, queued=len(jobs), **changed)
     session.commit()
     for job in jobs:
         queue.enqueue(job.id)
     return RerunOut(queued=[s.id for s in submissions])
+
+
+def latest_result(session: SessionDep, submission_id: int) -> dict | None:
+    """The submission's latest public result, as the audit log keeps what a re-run replaces."""
+    latest = session.scalar(select(Evaluation).where(Evaluation.submission_id == submission_id,
+                                                     Evaluation.track == PUBLIC).order_by(Evaluation.id.desc()))
+    return None if latest is None else audit.snapshot(latest, ["id", "status", "completed", "mean_return"])
 
 
 def ready_submission(session: SessionDep, instructor: User, submission_id: int) -> Submission:

@@ -6,7 +6,7 @@ from typing import Annotated, Literal
 
 from fastapi import APIRouter, Body, HTTPException, Query, Response, status
 
-from league.server import grades
+from league.server import audit, grades
 from league.server.api.deps import (
     ClockDep, CurrentUser, Id, InstructorUser, QueueDep, SessionDep, SettingsDep, user_course,
 )
@@ -56,7 +56,12 @@ def set_rubric(assignment_id: Id, body: RubricBody, clock: ClockDep, instructor:
     the grades lack are queued at low priority: the baselines' (reference lines), and after a change
     of the assignment's settings, the finals evaluated with the old ones."""
     assignment = course_assignment(session, instructor, assignment_id)
+    before = audit.snapshot(assignment, ["rubric"])
     assignment.rubric = body.model_dump(mode="json")
+    changed = audit.changes(before, audit.snapshot(assignment, ["rubric"]))
+    if changed["after"]:
+        audit.record(session, actor=instructor, action=audit.RUBRIC, target_kind="assignment",
+                     target_id=assignment.id, **changed)
     jobs = queue_missing_evaluations(session, assignment=assignment, max_attempts=settings.max_job_attempts)
     session.commit()
     for job in jobs:

@@ -28,14 +28,17 @@ def read_jobs(instructor: InstructorUser, session: SessionDep, status: JobStatus
 def cancel_job(job_id: Id, instructor: InstructorUser, session: SessionDep, sessions: SessionsDep) -> Job:
     """Stop a queued or running job of your course: it fails as cancelled, and so does what it was for
     (a running job's worker stops at its next heartbeat)."""
-    if crud.course_job(session, course_id=instructor.course_id, job_id=job_id) is None:
+    job = crud.course_job(session, course_id=instructor.course_id, job_id=job_id)
+    if job is None:
         raise HTTPException(status.HTTP_404_NOT_FOUND, f"no job {job_id} in your course")
+    before = audit.snapshot(job, ["status"])
     if not leases.cancel(sessions, HANDLERS, job_id=job_id,
                          reason=f"cancelled by {instructor.name}"):
         raise HTTPException(status.HTTP_409_CONFLICT, f"job {job_id} is already over")
     session.expire_all()
     job = crud.course_job(session, course_id=instructor.course_id, job_id=job_id)
     audit.record(session, actor=instructor, action=audit.CANCEL, target_kind="job", target_id=job_id, kind=job.kind,
-                 submission_id=job.submission_id, race_id=job.race_id)
+                 submission_id=job.submission_id, evaluation_id=job.evaluation_id, race_id=job.race_id,
+                 **audit.changes(before, audit.snapshot(job, ["status"])))
     session.commit()
     return job

@@ -10,7 +10,7 @@ from league.server import audit
 from league.server.api.deps import CurrentUser, Id, InstructorUser, SessionDep, SessionsDep, SettingsDep, StoreDep
 from league.server.db import crud
 from league.server.db.models import STUDENT, User
-from league.server.erasure import DeletionRefused, delete_student
+from league.server.erasure import DeletionRefused, delete_student, write_out
 from league.server.roster import DELIMITERS, MAX_ROSTER_BYTES, RosterError, import_roster, read_roster
 from league.server.schemas import (
     QuotaOut, RosterCreated, RosterFormat, RosterLine, UserCreate, UserCreated, UserMe, UserOut,
@@ -152,5 +152,6 @@ def erase_student(user_id: Id, session: SessionDep, instructor: InstructorUser, 
     audit.record(session, actor=instructor, action=audit.DELETE_USER, target_kind="user", target_id=user_id,
                  note="student and their data deleted", **erased.summary())
     session.commit()
+    write_out(session.get_bind())
     for sha256 in erased.blobs:
         store.remove(sha256)

@@ -401,3 +401,37 @@ def test_a_championship_of_an_assignment_races_the_final_choices_not_the_active_
     with league.client(league.instructor_token) as instructor:
         unknown = instructor.post("/api/championships", json={"name": unique("cup"), "assignment": 999999})
     assert (unknown.status_code, unknown.json()["detail"]) == (404, "no assignment 999999 in your course")
+
+
+def test_a_finals_private_test_is_not_its_owners_job_in_flight_nor_takes_their_turn(league, clock, monkeypatch):
+    """At the due time the student's private test is queued under their id (whose final), yet it is the
+    league's job: their next upload is not refused for it (the 429 counts their own jobs only) and
+    waits behind no job of theirs in the queue (the private test takes a turn of its own)."""
+    from league.server.app import catch_up
+    from league.server.jobs.leases import fairest_queued
+
+    monkeypatch.setattr(league.app.state.league.settings, "max_jobs_in_flight", 1)
+    hw = create(league, due_at=T1)
+    dora_user, dora = league.student("dora")
+    _, ann = league.student("ann")
+    ready(league, dora_user, hw["id"], completed=3)
+    with league.sessions.begin() as session:  # her jobs so far over: only what follows is in flight
+        session.execute(Job.__table__.update().where(Job.owner_id == dora_user.id).values(status=DONE))
+    clock.set(T1 + SECOND)
+    catch_up(league.app.state.league)
+    (private,) = private_jobs(league, hw["id"]).values()
+    first, second = upload(dora, "default"), upload(dora, "default")
+    from_ann = upload(ann, "default")
+    with league.sessions() as session:
+        owner, status = session.execute(crud.select(Job.owner_id, Job.status).where(Job.id == private)).one()
+        validations = [session.scalar(crud.select(Job.id).where(Job.submission_id == s))
+                       for s in (first.json()["id"], from_ann.json()["id"])]
+    order = [job for job in fairest_queued(league.sessions, limit=100_000) if job in {private, *validations}]
+
+    assert (owner, status) == (dora_user.id, "queued")
+    assert first.status_code == 201, first.text
+    assert (second.status_code, second.json()["detail"]) == (
+        429, "1 of your uploads or races are still waiting or running (at most 1 at once): upload again when one "
+             "of them is done")
+    assert from_ann.status_code == 201
+    assert order == [*validations, private]  # hers first: the private test is no job of hers ahead of it

@@ -12,7 +12,9 @@ from dataclasses import dataclass
 import pytest
 
 from league.server.db import crud
-from league.server.db.models import DONE, INSTRUCTOR, Championship, ChampionshipRound, Course, Race, RaceReplay
+from league.server.db.models import (
+    DONE, INSTRUCTOR, Championship, ChampionshipRound, Course, Race, RaceReplay, User,
+)
 from league.server.privacy import pseudonym
 
 from ...api_calls import unique
@@ -89,10 +91,10 @@ def course(request, tmp_path_factory):
                                  championship_id=championship.id, round_id=championship_round.id, heat=1)
             ids = {"friendly": friendly.id, "heat": heat.id, "championship": championship.id,
                    "ada_agent": agents[0].id}
-            key = first.pseudonym_key
+            bob_number = session.get(User, bob.id).pseudonym
         yield Course_(league, {"ada": ada_token, "member": bob_token, "other": cy_token, "instructor":
                                league.instructor_token, "other instructor": dee_token},
-                      [ada.name, bob.name], display_name, pseudonym(key, bob.id), ids)
+                      [ada.name, bob.name], display_name, pseudonym(bob_number), ids)
 
 
 VIEWERS = ["anonymous", "other", "member", "instructor"]
@@ -266,10 +268,53 @@ def test_new_courses_take_the_setting_and_default_to_members(course):
         public = crud.get_or_create_course(session, name=unique("new"), evaluation={"seed": 0, "episodes": 1,
                                            "env_options": {}}, board_visibility="public")
         assert (default.board_visibility, public.board_visibility) == ("members", "public")
-        assert default.pseudonym_key != public.pseudonym_key
 
 
-def test_pseudonyms_are_distinct_and_follow_no_order_of_the_ids():
-    numbers = [int(pseudonym(123456789, user_id).split()[1]) for user_id in range(1, 2001)]
-    assert len(set(numbers)) == len(numbers)
-    assert numbers != sorted(numbers)
+OLD_MODULUS = 999_983  # the keyed permutation pseudonyms were before migration 0020
+
+
+def affine_predictions(known: dict[int, int], modulus: int) -> dict[int, int] | None:
+    """The attack on pseudonyms N = 1 + (a * id + b) mod m: a and b fitted from two known (id, N)
+    pairs; returns the predictor's N for any id, or None if the pairs fix no a (no inverse mod m)."""
+    (x1, y1), (x2, y2) = list(known.items())[:2]
+    try:
+        a = (y2 - y1) * pow(x2 - x1, -1, modulus) % modulus
+    except ValueError:
+        return None
+    b = (y1 - 1 - a * x1) % modulus
+    return lambda user_id: 1 + (a * user_id + b) % modulus
+
+
+@pytest.mark.parametrize("backend", BACKENDS)
+def test_pseudonyms_are_random_per_student_and_one_board_does_not_reveal_the_others_ids(backend, tmp_path):
+    """A visitor of a public board who knows two students' ids (their own and a friend's) fits the
+    affine map that used to make pseudonyms and predicts nobody else's; pseudonyms are distinct in
+    the course, the same on every read, and those of a roster's students too."""
+    with in_process_league(backend, tmp_path, bootstrap=False, board_visibility="public") as league:
+        names = [unique(f"student{i:02d}") for i in range(30)]
+        with league.client(league.instructor_token) as instructor:
+            imported = instructor.post("/api/users/roster", files={"file": ("r.csv", "name\n" + "\n".join(names))})
+        assert imported.status_code == 201, imported.text[:300]
+        with league.sessions() as session:
+            users = [crud.user_by_name(session, name=name) for name in names]
+        owner_of = {league.submission(user).id: user.id for user in users}
+        with league.client() as visitor:
+            reads = [visitor.get("/api/leaderboard", params={"size": 100}).json()["items"] for _ in range(2)]
+        with league.sessions() as session:
+            stored = {user.id: session.get(User, user.id).pseudonym for user in users}
+    shown = [{owner_of[row["submission_id"]]: int(pseudonym_text.split()[1]) for row in rows
+              if (pseudonym_text := row["owner"]).startswith("Student ")} for rows in reads]
+    assert shown[0] == shown[1] == stored and len(shown[0]) == 30
+    assert len(set(stored.values())) == 30
+
+    known = dict(list(shown[0].items())[:2])
+    others = {user_id: number for user_id, number in shown[0].items() if user_id not in known}
+    for modulus in (OLD_MODULUS, 999_999, 1_000_000):
+        predict = affine_predictions(known, modulus)
+        if predict is not None:
+            assert [user_id for user_id, number in others.items() if predict(user_id) == number] == [], modulus
+    # the same attack on the former pseudonyms predicts every one of them
+    a, b = 123_457, 42
+    former = {user_id: 1 + (a * user_id + b) % OLD_MODULUS for user_id in shown[0]}
+    predict = affine_predictions(dict(list(former.items())[:2]), OLD_MODULUS)
+    assert all(predict(user_id) == number for user_id, number in former.items())

@@ -15,16 +15,25 @@ $("show-token").addEventListener("change", (event) => {
   input.type = event.target.checked ? "text" : "password";
 });
 
-/** Only pages of this site, judged as the browser resolves the address ("/\\host" is another site). */
+/** The `next` address if it is a page of this site, else null. Judged on the text first, then as
+ * the browser resolves it: one leading "/" (no scheme), no "//" nor "\" in the path ("//host" and
+ * "/\host" are other sites, and "/.//host" resolves to "//host"), no control characters (the
+ * browser drops tabs and newlines: "/\t/host" is "//host"). */
+function samePage(next) {
+  const path = next.split(/[?#]/, 1)[0];
+  if (!next.startsWith("/") || path.includes("//") || next.includes("\\") || /[\u0000-\u001f\u007f]/.test(next)) {
+    return null;
+  }
+  const target = new URL(next, location.origin);
+  if (target.origin !== location.origin || target.pathname.startsWith("//") || target.pathname.startsWith("/login")) {
+    return null;
+  }
+  return target.pathname + target.search + target.hash;
+}
+
 function nextPage(user) {
   const next = new URLSearchParams(location.search).get("next");
-  if (next) {
-    const target = new URL(next, location.origin);
-    if (target.origin === location.origin && !target.pathname.startsWith("/login")) {
-      return target.pathname + target.search + target.hash;
-    }
-  }
-  return user.role === "instructor" ? "/instructor" : "/submissions";
+  return (next && samePage(next)) || (user.role === "instructor" ? "/instructor" : "/submissions");
 }
 
 onSubmit($("login-form"), async () => {
