@@ -364,7 +364,7 @@ def _add_user(sessions: sessionmaker[Session], name: str, role: str, **identity:
             return 1
         audit.record(session, actor=None, action=audit.CREATE_USER, target_kind="user", target_id=user.id,
                      course_id=user.course_id)
-        print(token)
+        print(token, flush=True)  # before the line below on stderr, which names it "above"
     _say(f"created {role} {user.name!r} (id {user.id}); the token above is shown once")
     return 0
 
@@ -394,8 +394,10 @@ def run_users_import(args: argparse.Namespace) -> int:
         tokens = csv_text(["name", "email", "student_id", "token"],
                           ([user.name, user.email, user.student_id, token] for user, token in report.created))
     sys.stdout.write(tokens)  # once committed
+    sys.stdout.flush()  # before the lines below on stderr, which say "the tokens above"
     for problem in report.skipped:
-        print(f"line {problem.line}: skipped {problem.name}: {problem.reason}", file=sys.stderr)
+        print(f"line {problem.line}: skipped{' ' + problem.name if problem.name else ''}: {problem.reason}",
+              file=sys.stderr)
     for problem in report.errors:
         print(f"line {problem.line}: error: {problem.reason}", file=sys.stderr)
     print(f"created {_count(len(report.created), 'student')}, skipped {_count(len(report.skipped), 'line')}, "
