@@ -69,7 +69,7 @@ CANVAS_FIRST = ("student", "id")
 CANVAS_SECTION = "section"
 CANVAS_POINTS_POSSIBLE = "Points Possible"
 CANVAS_TEST_STUDENT = "Student, Test"  # the account of Canvas's Student View, in every export
-CANVAS_POSTING_CELLS = ("", "muted", "manual posting")  # the posting-policy line's cells (lower case, trimmed)
+CANVAS_POSTING = ("muted", "manual posting")  # how the cells of its posting-policy line start (any case)
 HEADER_HELP = ("name the columns in the first line, e.g. name,email,student id (or first name,last name,...), "
                "or give one name a line without a header")
 
@@ -230,8 +230,7 @@ def canvas_not_student(cells: list[str]) -> str | None:
         return "Canvas's Points Possible line (each assignment's maximum), not a student"
     if student == CANVAS_TEST_STUDENT:
         return "Canvas's Test Student (the account of its Student View), not a person"
-    if all(cell.strip().casefold().startswith(CANVAS_POSTING_CELLS[2]) or cell.strip().casefold()
-           in CANVAS_POSTING_CELLS for cell in cells):
+    if all(not cell.strip() or cell.strip().casefold().startswith(CANVAS_POSTING) for cell in cells):
         return "Canvas's line of grade posting policies, not a student"
     return None
 
