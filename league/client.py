@@ -520,7 +520,8 @@ def run_assignments(args: argparse.Namespace) -> int:
             print(f"{edited['name']}: {describe_changes(assignment, edited, fields)}")
         elif args.action == "publish":
             api.call("POST", f"{where}/publish")
-            print(f"{assignment['name']}: published; its students see the private board and their grades")
+            print(f"{assignment['name']}: published; its students see the private board (and their grades, once "
+                  "it has a rubric)")
         elif args.action == "extend":
             if len(args.names) != 2 or not args.due:
                 raise ClientError("league assignments extend NAME STUDENT --due TIME", EXIT_USAGE)
