@@ -18,9 +18,8 @@ address, ...`) need nothing of their own: ID number is the student id.
 
 `import_roster(session, ...)` then creates the rows' students, skips those already enrolled
 (matched by their ids when the line gives them: Canvas ID, student id, SIS Login ID, email; else
-by name) and
-reports each line it did not create. The API (`POST /api/users/roster`) and `league users import`
-both call these two.
+by name) and reports each line it did not create. The API (`POST /api/users/roster`) and `league
+users import` both call these two.
 """
 from __future__ import annotations
 
@@ -63,8 +62,8 @@ SIS_LOGIN_ID = ("sisloginid",)
 FIELDS = {"full": FULL_NAME, "name": AMBIGUOUS_NAME, "first": FIRST_NAME, "last": LAST_NAME, "email": EMAIL,
           "student_id": STUDENT_ID, "sis_login_id": SIS_LOGIN_ID}
 # Canvas's gradebook export, as its importer recognises it (canvas-lms GradebookImporter): "Student",
-# then "ID", and "Section" within the next four columns (after SIS User ID, SIS Login ID, Integration
-# ID, Root Account); its "ID" is the Canvas user ID, not the school's
+# then "ID", and "Section" within the next five columns (after SIS User ID, SIS Login ID, Integration
+# ID, Root Account, as present); its "ID" is the Canvas user ID, not the school's
 CANVAS_FIRST = ("student", "id")
 CANVAS_SECTION = "section"
 CANVAS_POINTS_POSSIBLE = "Points Possible"
