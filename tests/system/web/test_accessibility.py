@@ -220,6 +220,11 @@ def test_axe_finds_nothing_in_the_instructor_console(web, course):
     web.page.locator("#users button", has_text="Revoke").first.click()
     web.page.wait_for_selector("#revoke-dialog[open]")
     audit.check("asking to revoke an account", widths=(DESKTOP,))
+    web.page.keyboard.press("Escape")
+    web.page.locator("#assignments button", has_text="Publish").first.click()
+    web.page.wait_for_selector("#publish-dialog[open]")
+    audit.check("asking to publish an assignment", widths=(DESKTOP,))
+    web.page.keyboard.press("Escape")  # the course's default assignment stays unpublished
     audit.assert_clean()
 
 
