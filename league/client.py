@@ -273,7 +273,8 @@ def run_submit(args: argparse.Namespace) -> int:
         if args.assignment:
             data["assignment"] = args.assignment
         created = api.call("POST", "/api/submissions", files={"file": (upload.name, upload.data)}, data=data)
-        print(f"submission {created['id']}: {created['status']}", file=sys.stderr)
+        late = api.get(f"/api/submissions/{created['id']}")["late"]  # the upload's answer is {id, status} only
+        print(f"submission {created['id']}: {created['status']}{LATE_NOTE if late else ''}", file=sys.stderr)
         if not args.wait:
             print(created["id"])
             return EXIT_OK
@@ -356,6 +357,7 @@ def wait_settled(api: Api, submission_id: int, timeout: float, progress: bool = 
 
 
 EPISODE_PAGE = 1000  # the most the server gives in one page
+LATE_NOTE = "; late (after your due time): the late penalty applies if it is your final"
 
 
 def report_submission(submission: dict, as_json: bool) -> int:
@@ -374,6 +376,9 @@ def report_submission(submission: dict, as_json: bool) -> int:
                   "result_key": evaluation.get("result_key")}
         result = MetricsResult.from_dict({"episodes": evaluation["episodes"], "settings": record})
         print(f"submission {submission['id']} is ready\n{result.table()}")
+    if submission["late"] and not as_json:
+        print(f"submission {submission['id']} was uploaded late (after your due time): the late penalty applies "
+              "if it is your final")
     ok = submission["status"] == "ready" and evaluation and evaluation["status"] == "done"
     return EXIT_OK if ok else EXIT_REJECTED
 
@@ -381,8 +386,9 @@ def report_submission(submission: dict, as_json: bool) -> int:
 def run_submissions(args: argparse.Namespace) -> int:
     with Api(connection(args)) as api:
         rows = api.get("/api/submissions")
-    table = [[s["id"], s["name"], stage(s), *_figures(s.get("evaluation")), s["error"] or ""] for s in rows]
-    _print_table(["id", "agent", "status", "completed", "mean return", "mean speed", "error"], table, args.csv)
+    table = [[s["id"], s["name"], stage(s), "late" if s["late"] else "", *_figures(s.get("evaluation")),
+              s["error"] or ""] for s in rows]
+    _print_table(["id", "agent", "status", "late", "completed", "mean return", "mean speed", "error"], table, args.csv)
     return EXIT_OK
 
 
@@ -465,13 +471,17 @@ def local_time(text: str | None) -> str:
 
 
 def time_left(until: str | None, now: str) -> str:
+    """What is left to `until`, rounded down ("2d 3h 4m", "0h 5m"); the last minute is "under a
+    minute", never "0h 0m" nor "passed" while uploads are still taken."""
     if not until:
         return "no deadline"
     from datetime import datetime
 
     seconds = (datetime.fromisoformat(until) - datetime.fromisoformat(now)).total_seconds()
     if seconds <= 0:
-        return "closed"
+        return "passed"
+    if seconds < 60:
+        return "under a minute"
     days, rest = divmod(int(seconds), 86400)
     return f"{days}d {rest // 3600}h {rest % 3600 // 60}m" if days else f"{rest // 3600}h {rest % 3600 // 60}m"
 
@@ -496,23 +506,54 @@ def run_assignments(args: argparse.Namespace) -> int:
             raise ClientError(f"league assignments {args.action} NAME: which assignment?", EXIT_USAGE)
         if args.action == "create":
             created = api.call("POST", "/api/assignments", json={"name": args.names[0], **assignment_fields(args)})
-            print(f"assignment {created['id']}: {created['name']} created")
+            print(f"assignment {created['id']}: {created['name']} created ({describe_times(created)}, "
+                  f"{created['episodes']} episodes, public seed {created['seed']})")
             return EXIT_OK
         assignment = find_assignment(api, args.names[0])
         where = f"/api/assignments/{assignment['id']}"
         if args.action == "edit":
-            api.call("PATCH", where, json=assignment_fields(args))
+            fields = assignment_fields(args)
+            if not fields:
+                raise ClientError("league assignments edit NAME: say what to change (--due, --episodes, ...)",
+                                  EXIT_USAGE)
+            edited = api.call("PATCH", where, json=fields)
+            print(f"{edited['name']}: {describe_changes(assignment, edited, fields)}")
         elif args.action == "publish":
             api.call("POST", f"{where}/publish")
+            print(f"{assignment['name']}: published; its students see the private board (and their grades, once "
+                  "it has a rubric)")
         elif args.action == "extend":
             if len(args.names) != 2 or not args.due:
                 raise ClientError("league assignments extend NAME STUDENT --due TIME", EXIT_USAGE)
             student = [u for u in api.get("/api/users") if u["name"] == args.names[1]]
             if not student:
                 raise ClientError(f"no student named {args.names[1]!r} in your course", EXIT_USAGE)
-            api.call("PUT", f"{where}/extensions/{student[0]['id']}", json={"due_at": parse_time(args.due)})
-        print(f"{args.action}: {assignment['name']} done")
+            extension = api.call("PUT", f"{where}/extensions/{student[0]['id']}", json={"due_at": parse_time(args.due)})
+            print(f"{assignment['name']}: {student[0]['name']} is now due {local_time(extension['due_at'])} "
+                  f"(the assignment's due time: {local_time(assignment['due_at']) or 'none'})")
     return EXIT_OK
+
+
+TIME_FIELDS = {"opens_at": "opens", "due_at": "due", "late_until": "late until"}
+
+
+def describe_times(a: dict) -> str:
+    """An assignment's times in this machine's zone: "opens ..., due ..., late until ..."."""
+    times = [f"{label} {local_time(a[name])}" for name, label in TIME_FIELDS.items() if a.get(name)]
+    return ", ".join(times) or "no due time"
+
+
+def describe_changes(before: dict, after: dict, fields: dict) -> str:
+    """What an edit changed, field by field as the server stored it: "due 2026-12-01 23:59 CET (was ...)"."""
+    changes = []
+    for name in fields:
+        old, new = before.get(name), after.get(name)
+        if name in TIME_FIELDS:
+            label, old, new = TIME_FIELDS[name], local_time(old) or "none", local_time(new) or "none"
+        else:
+            label = name.replace("_", " ")
+        changes.append(f"{label} {new}" + (f" (was {old})" if old != new else " (unchanged)"))
+    return "; ".join(changes)
 
 
 def assignment_fields(args: argparse.Namespace) -> dict:
@@ -531,11 +572,20 @@ def list_assignments(assignments: list[dict], as_csv: bool) -> int:
         mine = f"{final.get('submission_id') or ''}{' (selected)' if final.get('selected') else ''}"
         rows.append([a["id"], a["name"], a["state"], local_time(a["opens_at"]),
                      local_time(a["my_due_at"]) + (" (extension)" if a["extended"] else ""),
-                     time_left(a["my_due_at"], a["now"]), local_time(a["late_until"]), mine,
+                     upload_time_left(a), local_time(a["late_until"]), mine,
                      "yes" if a["published_at"] else "no"])
     _print_table(["id", "assignment", "state", "opens", "due (yours)", "time left", "late until", "final",
                   "published"], rows, as_csv)
     return EXIT_OK
+
+
+def upload_time_left(a: dict) -> str:
+    """The time left to upload: to the due time, then (state late) to the late window's end."""
+    if a["state"] == "closed":
+        return "closed"
+    if a["state"] == "late":
+        return f"late window: {time_left(a['my_closes_at'], a['now'])}"
+    return time_left(a["my_due_at"], a["now"])
 
 
 def run_select(args: argparse.Namespace) -> int:
@@ -574,7 +624,8 @@ def run_integrity(args: argparse.Namespace) -> int:
 
 def run_grades(args: argparse.Namespace) -> int:
     """Instructors: the grades as CSV on standard output (an assignment's, or the course's); with
-    --set-rubric, set the assignment's rubric first. Students: their own grade, once published."""
+    --set-rubric, set the assignment's rubric (and say what changed); with --check, how Canvas will
+    match the Canvas file's students. Students: their own grade, once published."""
     with Api(connection(args)) as api:
         me = api.get("/api/users/me")
         assignment = find_assignment(api, args.assignment) if args.assignment else None
@@ -582,16 +633,37 @@ def run_grades(args: argparse.Namespace) -> int:
             if assignment is None:
                 raise ClientError("league grades ASSIGNMENT: which assignment?", EXIT_USAGE)
             return print_my_grade(api.get(f"/api/assignments/{assignment['id']}/grades/me"))
+        if args.check and args.format != "canvas":
+            raise ClientError("--check says how Canvas will match the file's students: league grades "
+                              "[ASSIGNMENT] --format canvas --check", EXIT_USAGE)
         if args.set_rubric:
             if assignment is None:
                 raise ClientError("league grades ASSIGNMENT --set-rubric FILE: which assignment?", EXIT_USAGE)
-            api.call("PUT", f"/api/assignments/{assignment['id']}/rubric", json=read_rubric_file(args.set_rubric))
-            print(f"{assignment['name']}: rubric set", file=sys.stderr)
-        path = f"/api/assignments/{assignment['id']}/grades.csv" if assignment else "/api/grades.csv"
-        sys.stdout.write(api.get(path, format=args.format, identifier=args.identifier))
+            saved = api.call("PUT", f"/api/assignments/{assignment['id']}/rubric",
+                             json=read_rubric_file(args.set_rubric))
+            print(rubric_change(assignment["name"], assignment["rubric"], saved["rubric"]))
+            return EXIT_OK
+        path = f"/api/assignments/{assignment['id']}/grades" if assignment else "/api/grades"
+        if args.check:
+            print(api.get(f"{path}/canvas-match")["summary"])
+            return EXIT_OK
+        sys.stdout.write(api.get(f"{path}.csv", format=args.format, identifier=args.identifier))
+        sys.stdout.flush()
         if args.format == "moodle":
             warn_unidentified(api.get("/api/users"), args.identifier)
+        elif args.format == "canvas":
+            print(api.get(f"{path}/canvas-match")["summary"], file=sys.stderr)
     return EXIT_OK
+
+
+def rubric_change(name: str, old: dict | None, new: dict) -> str:
+    """What --set-rubric changed, in one line: the rubric before and after (compact JSON)."""
+    def compact(rubric: dict | None) -> str:
+        return json.dumps(rubric, separators=(",", ":")) if rubric else "none"
+
+    if old == new:
+        return f"{name}: rubric unchanged ({compact(new)})"
+    return f"{name}: rubric set to {compact(new)} (was {compact(old)}); `league grades {name!r}` prints the grades"
 
 
 def read_rubric_file(name: str) -> dict:
@@ -750,7 +822,8 @@ def add_commands(subparsers) -> None:
         "Instructors: an assignment's grades on its private tracks, as CSV on standard output: generic\n"
         "(every column), or the file Canvas's or Moodle's gradebook imports (see the server README,\n"
         "Grades); without ASSIGNMENT, the course's: a column for each assignment with a rubric.\n"
-        "  league grades \"Time trial\" --set-rubric rubric.json     (set how it is graded first)\n"
+        "  league grades \"Time trial\" --set-rubric rubric.json     (set how it is graded)\n"
+        "  league grades \"Time trial\" --format canvas --check      (how Canvas will match the students)\n"
         "  league grades \"Time trial\" --format canvas > canvas.csv\n"
         "  league grades --format moodle --identifier idnumber > moodle.csv\n"
         "Students: league grades ASSIGNMENT prints your grade once the assignment is published.")
@@ -759,7 +832,10 @@ def add_commands(subparsers) -> None:
                         help="the CSV's layout (default generic)")
     grades.add_argument("--identifier", choices=["email", "idnumber"], default="email",
                         help="moodle: the column Moodle matches students by (default email)")
-    grades.add_argument("--set-rubric", metavar="FILE", help="a JSON rubric to set first ('-': standard input)")
+    grades.add_argument("--set-rubric", metavar="FILE",
+                        help="set the assignment's rubric from a JSON file ('-': standard input) and say what changed")
+    grades.add_argument("--check", action="store_true",
+                        help="with --format canvas: say how many rows carry an id Canvas matches, instead of the file")
 
     standings = command("standings", "print a championship's standings", run_standings)
     standings.add_argument("championship", metavar="CHAMPIONSHIP",

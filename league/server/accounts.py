@@ -1,4 +1,4 @@
-"""What a person's fields may hold: a name, an email address, a student id.
+"""What a person's fields may hold: a name, an email address, a student id, Canvas's ids.
 
 Every way in (the API, a roster, `league users add`) cleans its values here. Names are decided by
 Unicode category, not by a list of characters that happen to be bad: letters of any script and
@@ -22,6 +22,10 @@ JOINERS = frozenset("\u200c\u200d")  # zero-width (non-)joiners: part of Persian
 STUDENT_ID_SIGNS = frozenset("-._/")
 NAME_RULE = "names are letters, digits, spaces, apostrophes, hyphens and . , _ @ +"
 STUDENT_ID_RULE = "student ids are letters, digits and - . _ /"
+CANVAS_ID_MAX = 64  # characters (the users.canvas_id column)
+LOGIN_MAX = 254  # characters (the users.sis_login_id column: a login may be an address)
+LOGIN_SIGNS = STUDENT_ID_SIGNS | frozenset("@+")
+LOGIN_RULE = "SIS Login IDs are letters, digits and - . _ / @ +"
 
 
 def clean_name(text: str) -> str:
@@ -58,19 +62,37 @@ def clean_email(text: str) -> str | None:
 
 def clean_student_id(text: str) -> str | None:
     """The id as given (trimmed), or None for an empty cell."""
-    student_id = unicodedata.normalize("NFC", text.strip())
-    if not student_id:
+    return _clean_identifier(text, "student id", STUDENT_ID_MAX, STUDENT_ID_SIGNS, STUDENT_ID_RULE)
+
+
+def clean_canvas_id(text: str) -> str | None:
+    """A Canvas user ID (the ID column of Canvas's gradebook export: digits), or None for an empty cell."""
+    canvas_id = text.strip()
+    if canvas_id and not (canvas_id.isascii() and canvas_id.isdigit() and len(canvas_id) <= CANVAS_ID_MAX):
+        raise ValueError(f"the Canvas ID {canvas_id[:20]!r} is not a Canvas user ID (digits, {CANVAS_ID_MAX} at "
+                         "most): keep the ID column as Canvas exported it")
+    return canvas_id or None
+
+
+def clean_login(text: str) -> str | None:
+    """A SIS Login ID (a username or an address, as the institution's Canvas has it), or None for an empty cell."""
+    return _clean_identifier(text, "SIS Login ID", LOGIN_MAX, LOGIN_SIGNS, LOGIN_RULE)
+
+
+def _clean_identifier(text: str, label: str, most: int, signs: frozenset[str], rule: str) -> str | None:
+    identifier = unicodedata.normalize("NFC", text.strip())
+    if not identifier:
         return None
-    if len(student_id) > STUDENT_ID_MAX:
-        raise ValueError(f"the student id {student_id[:20] + '…'!r} is too long: {STUDENT_ID_MAX} characters at most")
-    odd = next((char for char in student_id if _category(char) not in "LN" and char not in STUDENT_ID_SIGNS), None)
+    if len(identifier) > most:
+        raise ValueError(f"the {label} {identifier[:20] + '…'!r} is too long: {most} characters at most")
+    odd = next((char for char in identifier if _category(char) not in "LN" and char not in signs), None)
     if odd is not None:  # 1.23457E+11: a spreadsheet that took the id for a number
-        raise ValueError(f"the student id {student_id!r} holds {describe(odd)}: {STUDENT_ID_RULE} "
+        raise ValueError(f"the {label} {identifier!r} holds {describe(odd)}: {rule} "
                          "(format the column as text in the spreadsheet so that it keeps every digit)")
-    if _category(student_id[0]) not in "LN":
-        raise ValueError(f"the student id {student_id!r} starts with {student_id[0]!r}: "
+    if _category(identifier[0]) not in "LN":
+        raise ValueError(f"the {label} {identifier!r} starts with {identifier[0]!r}: "
                          "start it with a letter or a digit")
-    return student_id
+    return identifier
 
 
 def identity_key(text: str) -> str:

@@ -426,7 +426,7 @@ def _add_user(sessions: sessionmaker[Session], name: str, role: str, course_name
             return 1
         audit.record(session, actor=None, action=audit.CREATE_USER, target_kind="user", target_id=user.id,
                      course_id=user.course_id)
-        print(token)
+        print(token, flush=True)  # before the line below on stderr, which names it "above"
         created = f"created {role} {user.name!r} (id {user.id}) in the course {user.course.name!r}"
     _say(f"{created}; the token above is shown once")
     return 0
@@ -495,8 +495,10 @@ def run_users_import(args: argparse.Namespace) -> int:
         tokens = csv_text(["name", "email", "student_id", "token"],
                           ([user.name, user.email, user.student_id, token] for user, token in report.created))
     sys.stdout.write(tokens)  # once committed
+    sys.stdout.flush()  # before the lines below on stderr, which say "the tokens above"
     for problem in report.skipped:
-        print(f"line {problem.line}: skipped {problem.name}: {problem.reason}", file=sys.stderr)
+        print(f"line {problem.line}: skipped{' ' + problem.name if problem.name else ''}: {problem.reason}",
+              file=sys.stderr)
     for problem in report.errors:
         print(f"line {problem.line}: error: {problem.reason}", file=sys.stderr)
     print(f"created {_count(len(report.created), 'student')}, skipped {_count(len(report.skipped), 'line')}, "

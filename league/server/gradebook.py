@@ -79,6 +79,7 @@ def _student_entry(user: User, frozen: dict[int, int | None], finals: dict[int, 
     closed = user.id in frozen or user.revoked_at is not None
     final = finals.get(frozen.get(user.id))
     return grades.Entry(name=user.name, user_id=user.id, email=user.email, student_id=user.student_id,
+                        canvas_id=user.canvas_id, sis_login_id=user.sis_login_id,
                         revoked=user.revoked_at is not None, closed=closed,
                         submission_id=final.id if final else None, late=bool(final and final.late),
                         stale=bool(final and final.id in stale), **figures(current.get(final.id) if final else None))

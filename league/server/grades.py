@@ -388,6 +388,8 @@ class Entry:
     user_id: int | None = None
     email: str | None = None
     student_id: str | None = None
+    canvas_id: str | None = None  # Canvas's own ids, from its gradebook export (league.server.roster)
+    sis_login_id: str | None = None
     baseline: bool = False
     revoked: bool = False
     submission_id: int | None = None
@@ -542,14 +544,55 @@ def course_csv(graded: Sequence[Graded]) -> str:
 def canvas_csv(graded: Sequence[Graded]) -> str:
     """Canvas's gradebook import: the five student columns, a column of points an assignment headed
     by its name (Canvas matches an assignment of that title, or creates one), and the Points
-    Possible row. Canvas finds each student by SIS User ID (our student id), then SIS Login ID (our
-    email), then by name; the Canvas user ID column stays empty (we do not know it)."""
+    Possible row. Canvas finds each student by ID (the Canvas user ID), then SIS User ID (our
+    student id), then SIS Login ID (Canvas's, else our email), then by name or "Last, First" name
+    (canvas-lms GradebookImporter#process_student): the ids come from a roster imported from
+    Canvas's own export, and the names are written as Canvas exports them."""
     points = _points_by_student(graded)
     lines: list[list] = [[CANVAS_POINTS_POSSIBLE, None, None, None, None, *(a.max_points for a in graded)]]
     for e in _students(graded):
-        lines.append([e.name, None, e.student_id, e.email, None,
+        lines.append([sortable_name(e.name), e.canvas_id, e.student_id, e.sis_login_id or e.email, None,
                       *(column.get(e.user_id or e.name) for column in points)])
     return csv_text(CANVAS_STUDENT_COLUMNS + [a.name for a in graded], lines)
+
+
+def sortable_name(name: str) -> str:
+    """A name as Canvas exports it ("Last, First"): the last word is taken for the surname, which
+    Canvas needs only for a student it finds by no id (a name written so already is kept)."""
+    first, space, last = name.rpartition(" ")
+    return f"{last}, {first}" if space and "," not in name else name
+
+
+@dataclass(frozen=True)
+class CanvasMatch:
+    """How Canvas will find the students of a grade file: `by_id`, their Canvas ID, SIS User ID or a
+    SIS Login ID of Canvas's own; `by_email`, only an email written as SIS Login ID (found where the
+    institution's logins are its addresses); `by_name`, nothing but the name."""
+
+    students: int
+    by_id: list[str]
+    by_email: list[str]
+    by_name: list[str]
+
+    def summary(self) -> str:
+        parts = [f"{len(self.by_id)} of {self.students} rows carry an id Canvas matches (ID, SIS User ID or "
+                 "SIS Login ID)"]
+        if self.by_email:
+            parts.append(f"{len(self.by_email)} only an email as SIS Login ID, matched only where Canvas logins "
+                         f"are email addresses: {', '.join(self.by_email)}")
+        if self.by_name:
+            parts.append(f"{len(self.by_name)} only a name, matched only if Canvas spells it the same: "
+                         f"{', '.join(self.by_name)}")
+        return "; ".join(parts)
+
+
+def canvas_match(graded: Sequence[Graded]) -> CanvasMatch:
+    """How Canvas will find each student of `canvas_csv(graded)`."""
+    students = _students(graded)
+    found: dict[str, list[str]] = {"id": [], "email": [], "name": []}
+    for e in students:
+        found["id" if e.canvas_id or e.student_id or e.sis_login_id else "email" if e.email else "name"].append(e.name)
+    return CanvasMatch(len(students), found["id"], found["email"], found["name"])
 
 
 def moodle_csv(graded: Sequence[Graded], *,

@@ -5,10 +5,21 @@ Excel's "Unicode Text" writes it), finds the delimiter (comma, semicolon or tab)
 line, recognises the header's columns in common spellings (name, or first and last name; email;
 student id) whatever their case and accents, or reads one name a line when there is no header.
 Every line becomes a `RosterRow` or a `RosterProblem` with its line number: one bad line never
-hides the others. `import_roster(session, ...)` then creates the rows' students, skips those
-already enrolled (matched by student id or email when the line gives them, else by name) and
-reports each line it did not create. The API (`POST /api/users/roster`) and `league users import`
-both call these two.
+hides the others.
+
+Canvas's gradebook export (Grades > Export: `Student, ID, SIS User ID, SIS Login ID, Section, <one
+column an assignment>`, then a "Points Possible" line; the names written "Last, First") is read as
+Canvas writes it: its ID (the Canvas user ID), SIS User ID (our student id) and SIS Login ID are
+kept, which the Canvas grade file echoes (league.server.grades), and its lines that are not
+students (Points Possible, the posting-policy line, the course's Test Student) are set aside.
+Moodle's exports (the participants page's download: `First name, Last name, Email address, ID
+number`; the gradebook's: `First name, Last name, ID number, Institution, Department, Email
+address, ...`) need nothing of their own: ID number is the student id.
+
+`import_roster(session, ...)` then creates the rows' students, skips those already enrolled
+(matched by their ids when the line gives them: Canvas ID, student id, SIS Login ID, email; else
+by name) and reports each line it did not create. The API (`POST /api/users/roster`) and `league
+users import` both call these two.
 """
 from __future__ import annotations
 
@@ -23,7 +34,9 @@ from dataclasses import dataclass, field
 from sqlalchemy import select
 from sqlalchemy.orm import Session
 
-from league.server.accounts import clean_email, clean_name, clean_student_id, identity_key
+from league.server.accounts import (
+    clean_canvas_id, clean_email, clean_login, clean_name, clean_student_id, identity_key,
+)
 from league.server.db import crud
 from league.server.db.models import STUDENT, Course, User
 
@@ -45,8 +58,17 @@ EMAIL = ("email", "emailaddress", "emailadresse", "mail", "mailaddress", "courri
 STUDENT_ID = ("studentid", "studentnumber", "studentno", "idnumber", "sisuserid", "sisid", "matriculationnumber",
               "matriculation", "matricnumber", "matricno", "matrikelnummer", "matrikelnr", "registrationnumber",
               "numeroetudiant", "numerodetudiant", "matricola", "studentnummer", "id")
+SIS_LOGIN_ID = ("sisloginid",)
 FIELDS = {"full": FULL_NAME, "name": AMBIGUOUS_NAME, "first": FIRST_NAME, "last": LAST_NAME, "email": EMAIL,
-          "student_id": STUDENT_ID}
+          "student_id": STUDENT_ID, "sis_login_id": SIS_LOGIN_ID}
+# Canvas's gradebook export, as its importer recognises it (canvas-lms GradebookImporter): "Student",
+# then "ID", and "Section" within the next five columns (after SIS User ID, SIS Login ID, Integration
+# ID, Root Account, as present); its "ID" is the Canvas user ID, not the school's
+CANVAS_FIRST = ("student", "id")
+CANVAS_SECTION = "section"
+CANVAS_POINTS_POSSIBLE = "Points Possible"
+CANVAS_TEST_STUDENT = "Student, Test"  # the account of Canvas's Student View, in every export
+CANVAS_POSTING = ("muted", "manual posting")  # how the cells of its posting-policy line start (any case)
 HEADER_HELP = ("name the columns in the first line, e.g. name,email,student id (or first name,last name,...), "
                "or give one name a line without a header")
 
@@ -61,6 +83,8 @@ class RosterRow:
     name: str
     email: str | None = None
     student_id: str | None = None
+    canvas_id: str | None = None
+    sis_login_id: str | None = None
 
 
 @dataclass(frozen=True)
@@ -78,6 +102,8 @@ class Roster:
     columns: dict[str, str]  # field -> the header's own spelling; empty without a header
     rows: list[RosterRow] = field(default_factory=list)
     errors: list[RosterProblem] = field(default_factory=list)
+    layout: str = "plain"  # or "canvas": Canvas's gradebook export
+    ignored: list[RosterProblem] = field(default_factory=list)  # lines that are not students (Canvas's)
 
 
 def read_roster(data: bytes) -> Roster:
@@ -133,7 +159,18 @@ def header_columns(cells: list[str]) -> dict[str, int]:
         found = [(labels.index(key), index) for index, key in enumerate(keys) if key in labels]
         if found:
             columns[field_name] = min(found)[1]
+    if is_canvas(keys):  # its ID is Canvas's own: the student id is the SIS User ID, or none
+        columns["canvas_id"] = 1
+        if "sisuserid" in keys:
+            columns["student_id"] = keys.index("sisuserid")
+        else:
+            columns.pop("student_id", None)
     return columns
+
+
+def is_canvas(keys: list[str]) -> bool:
+    """Whether a header (as `label_key` spells it) is that of Canvas's gradebook export."""
+    return tuple(keys[:2]) == CANVAS_FIRST and CANVAS_SECTION in keys[2:7]
 
 
 def _sniff_header(text: str, delimiters: list[str], skip: int) -> tuple[str, dict[str, int]]:
@@ -172,11 +209,35 @@ def _read_with_header(text: str, delimiter: str, skip: int) -> Roster:
     name_columns = _name_columns(columns)
     if not name_columns:
         raise RosterError(f"line {line}: no name column in {_shown(cells)}: {HEADER_HELP}")
-    roster = Roster(delimiter, {f: cells[i].strip() for f, i in columns.items()})
+    canvas = "canvas_id" in columns
+    roster = Roster(delimiter, {f: cells[i].strip() for f, i in columns.items()},
+                    layout="canvas" if canvas else "plain")
     width = len(cells)
     for line, cells in records[1:]:
-        _add_row(roster, line, cells, columns, name_columns, width)
+        not_student = canvas and canvas_not_student(cells)
+        if not_student:
+            roster.ignored.append(RosterProblem(line, None, not_student))
+        else:
+            _add_row(roster, line, cells, columns, name_columns, width)
     return roster
+
+
+def canvas_not_student(cells: list[str]) -> str | None:
+    """Why a line of Canvas's export is not a student's (as Canvas's own importer skips them), else None."""
+    student = cells[0].strip()
+    if CANVAS_POINTS_POSSIBLE in student:
+        return "Canvas's Points Possible line (each assignment's maximum), not a student"
+    if student == CANVAS_TEST_STUDENT:
+        return "Canvas's Test Student (the account of its Student View), not a person"
+    if all(not cell.strip() or cell.strip().casefold().startswith(CANVAS_POSTING) for cell in cells):
+        return "Canvas's line of grade posting policies, not a student"
+    return None
+
+
+def canvas_name(sortable: str) -> str:
+    """A name as Canvas exports it, "Lovelace, Ada", as the league writes it: "Ada Lovelace"."""
+    last, comma, first = sortable.partition(",")
+    return f"{first.strip()} {last.strip()}" if comma and first.strip() and last.strip() else sortable
 
 
 def _name_columns(columns: dict[str, int]) -> list[int]:
@@ -197,12 +258,16 @@ def _add_row(roster: Roster, line: int, cells: list[str], columns: dict[str, int
         return cells[index] if index is not None and index < len(cells) else ""
 
     raw_name = " ".join(cell(index) for index in name_columns)
+    if roster.layout == "canvas":
+        raw_name = canvas_name(raw_name)
     problems, values = [], {}
     if sum(1 for value in cells[width:] if value.strip()):
         problems.append(f"{len(cells)} cells where the header has {width}: put cells that hold a "
                         f"{DELIMITERS[roster.delimiter]} in double quotes")
     for key, clean, raw in (("name", clean_name, raw_name), ("email", clean_email, cell(columns.get("email"))),
-                            ("student_id", clean_student_id, cell(columns.get("student_id")))):
+                            ("student_id", clean_student_id, cell(columns.get("student_id"))),
+                            ("canvas_id", clean_canvas_id, cell(columns.get("canvas_id"))),
+                            ("sis_login_id", clean_login, cell(columns.get("sis_login_id")))):
         try:
             values[key] = clean(raw)
         except ValueError as error:
@@ -211,7 +276,7 @@ def _add_row(roster: Roster, line: int, cells: list[str], columns: dict[str, int
         roster.errors.append(RosterProblem(line, values.get("name") or " ".join(raw_name.split())[:100] or None,
                                            "; ".join(problems)))
     else:
-        roster.rows.append(RosterRow(line, values["name"], values["email"], values["student_id"]))
+        roster.rows.append(RosterRow(line, **values))
 
 
 def _read_names(text: str, skip: int) -> Roster:
@@ -260,7 +325,7 @@ class Known:
 
 
 class Enrolment:
-    """Who the roster can match: by student id and email the course's students, by name every account
+    """Who the roster can match: by their ids (IDENTIFIERS) the course's students, by name every account
     (names are unique in the league), and the students created from earlier lines."""
 
     def __init__(self, session: Session, course: Course) -> None:
@@ -276,7 +341,7 @@ class Enrolment:
                 self.by_key[key] = known
 
     def match(self, row: RosterRow) -> tuple[Known | None, str]:
-        """The student the row names, and how it was found ("student id", "email" or "name")."""
+        """The student the row names, and how it was found (an IDENTIFIERS label, or "name")."""
         found = {how: self.by_key[(how, value)] for how, value in identifier_keys(row) if (how, value) in self.by_key}
         if len({id(known.user) for known in found.values()}) > 1:
             raise ValueError(" but ".join(f"its {how} is that of {who(known)}" for how, known in found.items()))
@@ -286,9 +351,18 @@ class Enrolment:
         return named, "name"
 
 
+# how a roster line and a student are matched (before their names), by their identifiers: label, attribute
+IDENTIFIERS = (("Canvas ID", "canvas_id"), ("student id", "student_id"), ("SIS Login ID", "sis_login_id"),
+               ("email", "email"))
+# the order messages name them in: the school's ids first, as before Canvas's were kept
+SAID = tuple(pair for label in ("email", "student id", "Canvas ID", "SIS Login ID") for pair in IDENTIFIERS
+             if pair[0] == label)
+ANY_CASE = ("sis_login_id", "email")  # Canvas's logins and addresses are one whatever their case; ids are not
+
+
 def identifier_keys(person: RosterRow | User) -> list[tuple[str, str]]:
-    keys = [("student id", person.student_id)] if person.student_id else []
-    return keys + ([("email", identity_key(person.email))] if person.email else [])
+    return [(label, identity_key(value) if attribute in ANY_CASE else value) for label, attribute in IDENTIFIERS
+            if (value := getattr(person, attribute))]
 
 
 def who(known: Known) -> str:
@@ -300,13 +374,15 @@ def import_roster(session: Session, *, course: Course, created_by: User | None, 
     id of enrolled students who had none. Adds and flushes; the caller commits. The checks are those
     of crud.create_user, made against every account at once: run it under crud.lock_user (two
     rosters at once may still collide on a name: the database's unique indexes refuse the second)."""
-    enrolment, report = Enrolment(session, course), RosterReport(errors=list(roster.errors))
+    enrolment = Enrolment(session, course)
+    report = RosterReport(skipped=list(roster.ignored), errors=list(roster.errors))
     for row in roster.rows:
         try:
             known, how = enrolment.match(row)
             if known is None:
                 user, token = crud.add_user(session, name=row.name, role=STUDENT, course=course, created_by=created_by,
-                                            with_token=True, email=row.email, student_id=row.student_id)
+                                            with_token=True, email=row.email, student_id=row.student_id,
+                                            canvas_id=row.canvas_id, sis_login_id=row.sis_login_id)
                 enrolment.add(Known(user, row.line))
                 report.created.append((user, token))
             else:
@@ -314,6 +390,7 @@ def import_roster(session: Session, *, course: Course, created_by: User | None, 
         except ValueError as error:
             report.errors.append(RosterProblem(row.line, row.name, str(error)))
     report.errors.sort(key=lambda problem: problem.line)
+    report.skipped.sort(key=lambda problem: problem.line)
     session.flush()
     return report
 
@@ -325,14 +402,14 @@ def same_student(enrolment: Enrolment, known: Known, how: str, row: RosterRow) -
     if user.course_id != enrolment.course.id or user.role != STUDENT:
         raise ValueError(f"the name {row.name!r} is another account's: give this student a name of their own "
                          "(e.g. with a middle initial)")
-    for label, theirs, given in (("email", user.email, row.email), ("student id", user.student_id, row.student_id)):
+    for label, attribute in SAID:
+        theirs, given = getattr(user, attribute), getattr(row, attribute)
         if theirs and given and identity_key(theirs) != identity_key(given):
             twins = "; if they are two people, give them distinct names (e.g. with a middle initial)"
             raise ValueError(f"{who(known)} has the same {how} but the {label} {theirs!r}, not {given!r}"
                              + (twins if how == "name" else ""))
-    filled = [label for label, attribute in (("email", "email"), ("student id", "student_id"))
-              if getattr(row, attribute) and not getattr(user, attribute)]
-    for attribute in ("email", "student_id"):
+    filled = [label for label, attribute in SAID if getattr(row, attribute) and not getattr(user, attribute)]
+    for _, attribute in IDENTIFIERS:
         setattr(user, attribute, getattr(user, attribute) or getattr(row, attribute))
     enrolment.add(known)
     alias = f" as {user.name!r}" if identity_key(user.name) != identity_key(row.name) else ""

@@ -21,6 +21,10 @@ class UserOut(BaseModel):
     course_id: int | None
     email: str | None
     student_id: str | None = Field(description="the school's id of the student (unique in the course), or null")
+    canvas_id: str | None = Field(default=None, description="the Canvas user ID (from Canvas's gradebook export), "
+                                                            "or null")
+    sis_login_id: str | None = Field(default=None, description="the SIS Login ID (from Canvas's gradebook export), "
+                                                               "or null")
     display_name: str | None = Field(description="what public boards show visitors instead of the name (unique in "
                                                  "the course); null: a \"Student N\" pseudonym")
     created_at: datetime
@@ -63,8 +67,11 @@ class RosterLine(BaseModel):
 
 class RosterFormat(BaseModel):
     delimiter: Literal["comma", "semicolon", "tab"]
-    columns: dict[str, str] = Field(description="field (full, name, first, last, email, student_id) -> the "
-                                                "header's spelling; empty when the file has one name a line")
+    columns: dict[str, str] = Field(description="field (full, name, first, last, email, student_id, canvas_id, "
+                                                "sis_login_id) -> the header's spelling; empty when the file has "
+                                                "one name a line")
+    layout: Literal["canvas", "plain"] = Field(description="canvas: Canvas's gradebook export (names \"Last, "
+                                                           "First\", its ID, SIS User ID and SIS Login ID kept)")
 
 
 class RosterCreated(BaseModel):
@@ -562,6 +569,16 @@ class IntegrityReport(BaseModel):
 
 class ProbesQueued(BaseModel):
     queued: list[int] = Field(description="ids of the submissions queued to be probed (low priority)")
+
+
+class CanvasMatchOut(BaseModel):
+    students: int = Field(description="the students of the Canvas grade file")
+    by_id: list[str] = Field(description="students whose line carries an id Canvas matches: its ID, SIS User ID, "
+                                         "or a SIS Login ID from Canvas's export")
+    by_email: list[str] = Field(description="students with only an email as SIS Login ID: matched only where the "
+                                            "institution's Canvas logins are email addresses")
+    by_name: list[str] = Field(description="students with no id: matched only by the exact name")
+    summary: str = Field(description="the counts in words, as the console and `league grades --check` say them")
 
 
 class GradeRowOut(BaseModel):

@@ -50,6 +50,19 @@ def test_users_add_prints_a_token_once_and_names_are_unique(tmp_path):
     assert [line.split()[1:3] for line in listing.splitlines() if " ann " in line] == [["ann", "student"]]
 
 
+def test_init_prints_the_token_before_the_line_that_says_it_is_above(tmp_path):
+    """stdout (the token) and stderr (what the command says) into one pipe, as a terminal shows them
+    or `2>&1` keeps them: the token comes first, whatever the streams' buffering."""
+    env = {**os.environ, "LEAGUE_DATA_DIR": str(tmp_path), "PYTHONPATH": str(REPO)}
+    done = subprocess.run([sys.executable, "-m", "league.cli", "init", "--instructor", "prof"], env=env, cwd=tmp_path,
+                          stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True, timeout=120)
+    assert done.returncode == 0, done.stdout
+    said = done.stdout.splitlines()
+    token = next(index for index, line in enumerate(said) if line.startswith("lg_"))
+    above = next(index for index, line in enumerate(said) if "the token above is shown once" in line)
+    assert token < above, said
+
+
 def test_users_import_creates_a_rosters_students_and_prints_their_tokens(tmp_path):
     """`league users import` reads rosters as the API does: the good lines' tokens as CSV on stdout,
     each other line with its number on stderr, exit 1 while a line has an error."""

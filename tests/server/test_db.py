@@ -402,3 +402,30 @@ def test_a_backup_before_an_upgrade_is_taken_without_writing_to_the_older_schema
         assert connection.execute(text("SELECT action, actor_name FROM audit_events")).all() == [
             ("league.backup", "league CLI")]
     engine.dispose()
+
+
+# --------------------------------------------------------------------------- 0024: Canvas's ids of a student
+
+
+def test_users_gain_canvas_ids_with_their_data_kept_and_lose_them_on_downgrade(backend):
+    """0024 on a 0017 database that holds users: every row kept, no Canvas ids; they are then
+    stored; the downgrade drops both columns and keeps the rows."""
+    _, database_url = backend
+    engine = engine_at(database_url, "0017")
+    created = datetime(2026, 11, 1)
+    with engine.begin() as connection:
+        course_with_an_assignment(connection, created)
+        connection.execute(text("INSERT INTO users (id, name, role, course_id, student_id, created_at) "
+                                "VALUES (2, 'Ada', 'student', 1, 's1', :now)"), {"now": created})
+    migrate(engine)
+    with engine.begin() as connection:
+        query = "SELECT name, student_id, canvas_id, sis_login_id FROM users"
+        assert tuple(connection.execute(text(query)).one()) == ("Ada", "s1", None, None)
+        connection.execute(text("UPDATE users SET canvas_id = '4011', sis_login_id = 'alovelace'"))
+        assert tuple(connection.execute(text(query)).one()) == ("Ada", "s1", "4011", "alovelace")
+    alembic(engine, "downgrade", "0017")
+    with engine.connect() as connection:
+        assert {"canvas_id", "sis_login_id"}.isdisjoint(c["name"] for c in inspect(connection).get_columns("users"))
+        assert tuple(connection.execute(text("SELECT name, student_id FROM users")).one()) == ("Ada", "s1")
+    migrate(engine)
+    engine.dispose()

@@ -15,7 +15,7 @@ import sys
 import pytest
 
 from league.agents import load_agent
-from league.client import EXIT_AUTH, EXIT_OK, EXIT_REFUSED, EXIT_REJECTED, EXIT_UNREACHABLE
+from league.client import EXIT_AUTH, EXIT_OK, EXIT_REFUSED, EXIT_REJECTED, EXIT_UNREACHABLE, EXIT_USAGE
 from league.server.api.deps import UNKNOWN_TOKEN
 from league.evaluation import metrics_run
 
@@ -173,7 +173,9 @@ def test_an_assignment_is_graded_on_its_private_tracks_and_exported_from_the_ter
                                                        "formula": "10 * completed"}))
     env = {"LEAGUE_SERVER": sqlite_server.url, "LEAGUE_TOKEN": sqlite_server.instructor_token}
     set_rubric = league("grades", title, "--set-rubric", str(tmp_path / "rubric.json"), config=tmp_path, **env)
-    assert set_rubric.returncode == EXIT_OK and f"{title}: rubric set" in set_rubric.stderr, set_rubric.stderr
+    assert set_rubric.returncode == EXIT_OK, set_rubric.stderr
+    assert set_rubric.stdout == (f'{title}: rubric set to {{"kind":"formula","max_points":10.0,"formula":"10 * '
+                                 f'completed"}} (was none); `league grades {title!r}` prints the grades\n')
 
     with sqlite_server.client(sqlite_server.instructor_token) as instructor:
         wait_for(lambda: instructor.get(f"/api/assignments/{assignment['id']}/grades").json()["rows"],
@@ -205,6 +207,71 @@ def test_an_assignment_is_graded_on_its_private_tracks_and_exported_from_the_ter
     mine = league("grades", title, config=tmp_path, **student)
     assert mine.returncode == EXIT_OK, mine.stderr
     assert mine.stdout.startswith(f"{title}: {float(fast['points']):g} / 10 points, rank {fast['rank']} of ")
+
+
+def test_the_terminal_names_what_changed_and_says_when_an_upload_was_late(sqlite_server, models, tmp_path):
+    """An instructor's commands say what they changed (create, edit, extend, publish, --set-rubric);
+    a late upload is said late by `submit` and `submissions`; `--check` counts Canvas's matches."""
+    from datetime import datetime, timedelta, timezone
+
+    from league.client import local_time
+
+    title, now = unique("Late"), datetime.now(timezone.utc)
+    env = {"LEAGUE_SERVER": sqlite_server.url, "LEAGUE_TOKEN": sqlite_server.instructor_token}
+    due, late_until, extended = now - timedelta(minutes=5), now + timedelta(hours=2), now + timedelta(days=3)
+    created = league("assignments", "create", title, "--due", due.isoformat(), "--late-until",
+                     late_until.isoformat(), "--late-penalty", "0.5", "--episodes", "2", config=tmp_path, **env)
+    assert created.returncode == EXIT_OK, created.stderr
+    assert re.fullmatch(rf"assignment \d+: {title} created \(due {re.escape(local_time(due.isoformat()))}, late until "
+                        rf"{re.escape(local_time(late_until.isoformat()))}, 2 episodes, public seed \d+\)\n",
+                        created.stdout), created.stdout
+    edited = league("assignments", "edit", title, "--episodes", "3", config=tmp_path, **env)
+    assert edited.stdout == f"{title}: episodes 3 (was 2)\n", edited.stderr
+    names = {who: unique(who) for who in ("punctual", "tardy")}
+    tokens = {who: student_token(sqlite_server, name) for who, name in names.items()}
+    extend = league("assignments", "extend", title, names["punctual"], "--due", extended.isoformat(),
+                    config=tmp_path, **env)
+    assert extend.stdout == (f"{title}: {names['punctual']} is now due {local_time(extended.isoformat())} "
+                             f"(the assignment's due time: {local_time(due.isoformat())})\n"), extend.stderr
+
+    student = {"LEAGUE_SERVER": sqlite_server.url, "LEAGUE_TOKEN": tokens["tardy"]}
+    late = league("submit", str(models["onnx"]), "--assignment", title, "--no-check", config=tmp_path, **student)
+    assert late.returncode == EXIT_OK, late.stderr
+    assert re.search(r"submission \d+: pending; late \(after your due time\): the late penalty applies if it is "
+                     r"your final\n", late.stderr), late.stderr
+    listed = league("submissions", "--csv", config=tmp_path, **student)
+    assert [row["late"] for row in csv.DictReader(io.StringIO(listed.stdout))] == ["late"]
+    on_time = {"LEAGUE_SERVER": sqlite_server.url, "LEAGUE_TOKEN": tokens["punctual"]}  # their extension
+    league("submit", str(models["onnx"]), "--assignment", title, "--no-check", config=tmp_path, **on_time)
+    listed = league("submissions", "--csv", config=tmp_path, **on_time)
+    assert [row["late"] for row in csv.DictReader(io.StringIO(listed.stdout))] == [""]
+
+    (tmp_path / "rubric.json").write_text(json.dumps({"kind": "points", "max_points": 4,
+                                                       "rank": {"kind": "linear", "points": 4}}))
+    rubric = '{"kind":"points","max_points":4.0,"completed":null,"rank":{"kind":"linear","points":4.0}}'
+    first = league("grades", title, "--set-rubric", str(tmp_path / "rubric.json"), config=tmp_path, **env)
+    again = league("grades", title, "--set-rubric", str(tmp_path / "rubric.json"), config=tmp_path, **env)
+    assert first.stdout.startswith(f"{title}: rubric set to {rubric} (was none)"), first.stdout
+    assert again.stdout == f"{title}: rubric unchanged ({rubric})\n", again.stdout
+    check = league("grades", title, "--format", "canvas", "--check", config=tmp_path, **env)
+    assert check.returncode == EXIT_OK, check.stderr
+    assert re.fullmatch(r"\d+ of \d+ rows carry an id Canvas matches \(ID, SIS User ID or SIS Login ID\); .*"
+                        r"\d+ only a name, matched only if Canvas spells it the same: .*\n", check.stdout), check.stdout
+    assert names["tardy"] in check.stdout.split("only a name")[1]  # created without ids
+    wrong = league("grades", title, "--check", config=tmp_path, **env)
+    assert wrong.returncode == EXIT_USAGE and "--format canvas --check" in wrong.stderr
+
+
+def test_time_left_is_rounded_down_and_the_last_minute_is_under_a_minute():
+    from league.client import time_left, upload_time_left
+
+    now = "2026-12-01T12:00:00+00:00"
+    assert [time_left(until, now) for until in ("2026-12-01T12:00:59+00:00", "2026-12-01T12:01:59+00:00",
+                                                "2026-12-02T13:30:00+00:00", now, None)] == [
+        "under a minute", "0h 1m", "1d 1h 30m", "passed", "no deadline"]
+    assignment = {"now": now, "my_due_at": "2026-12-01T11:00:00+00:00", "my_closes_at": "2026-12-01T12:00:30+00:00"}
+    assert upload_time_left({**assignment, "state": "late"}) == "late window: under a minute"
+    assert upload_time_left({**assignment, "state": "closed"}) == "closed"
 
 
 def _private_seed(server, assignment: dict) -> int:

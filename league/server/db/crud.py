@@ -158,11 +158,13 @@ def create_user(session: Session, *, name: str, role: str, course: Course | None
 
 
 def add_user(session: Session, *, name: str, role: str, course: Course | None, created_by: User | None,
-             with_token: bool, email: str | None, student_id: str | None) -> tuple[User, str | None]:
+             with_token: bool, email: str | None, student_id: str | None, canvas_id: str | None = None,
+             sis_login_id: str | None = None) -> tuple[User, str | None]:
     """Add a user whose values the caller has cleaned and found free (a roster checks them all at once);
     no flush: a roster adds its students in one round trip. A course's user gets its pseudonym."""
     token = new_token() if with_token else None
     user = User(name=name, role=role, course_id=course.id if course else None, email=email, student_id=student_id,
+                canvas_id=canvas_id, sis_login_id=sis_login_id,
                 token_hash=hash_token(token) if token else None, created_by_id=created_by.id if created_by else None,
                 pseudonym=new_pseudonym(session, course_id=course.id) if course else None)
     session.add(user)

@@ -160,7 +160,11 @@ class User(Base):
     course_id: Mapped[int | None] = mapped_column(ForeignKey("courses.id"))
     # how gradebook exports (Canvas, Moodle) identify the student; from the roster, optional
     email: Mapped[str | None] = mapped_column(String(254), default=None)
-    student_id: Mapped[str | None] = mapped_column(String(64), default=None)
+    student_id: Mapped[str | None] = mapped_column(String(64), default=None)  # Canvas's SIS User ID, Moodle's ID number
+    # Canvas's own ids of the student, from its gradebook export (league.server.roster): the Canvas user
+    # ID and the SIS Login ID, which Canvas's gradebook import matches students by before their names
+    canvas_id: Mapped[str | None] = mapped_column(String(64), default=None)
+    sis_login_id: Mapped[str | None] = mapped_column(String(254), default=None)
     # what public boards show instead of the name (league.server.privacy); unique in the course
     display_name: Mapped[str | None] = mapped_column(String(100), default=None)
     # "Student N" on public boards (league.server.privacy): drawn at random when the account is made

@@ -9,6 +9,7 @@ from __future__ import annotations
 import csv
 import io
 import json
+from datetime import datetime, timedelta, timezone
 from types import SimpleNamespace
 
 import numpy as np
@@ -219,6 +220,11 @@ def test_axe_finds_nothing_in_the_instructor_console(web, course):
     web.page.locator("#users button", has_text="Revoke").first.click()
     web.page.wait_for_selector("#revoke-dialog[open]")
     audit.check("asking to revoke an account", widths=(DESKTOP,))
+    web.page.keyboard.press("Escape")
+    web.page.locator("#assignments button", has_text="Publish").first.click()
+    web.page.wait_for_selector("#publish-dialog[open]")
+    audit.check("asking to publish an assignment", widths=(DESKTOP,))
+    web.page.keyboard.press("Escape")  # the course's default assignment stays unpublished
     audit.assert_clean()
 
 
@@ -429,6 +435,40 @@ def test_revoke_by_keyboard_after_a_confirmation(web, web_server):
     expect(web.page.locator(restore)).to_have_accessible_name(f"Restore with a new token for {name}")
     wait_announced(web, "polite", f"{name}'s token no longer works.")
     assert web_server.client(student["token"]).get("/api/users/me").status_code == 401
+
+
+def test_publish_by_keyboard_after_a_confirmation_and_the_focus_on_the_outcome(web, web_server):
+    instructor = instructor_of_a_new_course(web_server)
+    past = (datetime.now(timezone.utc) - timedelta(hours=1)).isoformat()
+    name = unique("Sprint")
+    with web_server.client(instructor) as client:
+        assignment = client.post("/api/assignments", json={"name": name, "episodes": 2, "due_at": past}).json()
+
+    def published():
+        return web_server.client(instructor).get(f"/api/assignments/{assignment['id']}").json()["published_at"]
+
+    web.page.add_init_script(ANNOUNCEMENTS)
+    keyboard_login(web, instructor)
+    publish = f"[data-focus-key='publish-{assignment['id']}']"
+    tab_to(web, publish, limit=200)
+    expect(web.page.locator(publish)).to_have_accessible_name(f"Publish {name}")
+
+    web.page.keyboard.press("Enter")  # asks first, Cancel focused: Enter again changes nothing
+    focused(web, "#publish-dialog[open] button[value=cancel]")
+    expect(web.page.locator("#publish-title")).to_have_text(f"Publish {name}?")
+    expect(web.page.locator("#publish-summary")).to_contain_text("Publishing cannot be undone.")
+    web.page.keyboard.press("Escape")
+    focused(web, publish)
+    assert published() is None
+
+    web.page.keyboard.press("Enter")
+    focused(web, "#publish-dialog[open] button[value=cancel]")
+    web.page.keyboard.press("Shift+Tab")
+    focused(web, "#publish-dialog button[value=publish]")
+    web.page.keyboard.press("Enter")
+    focused(web, f"[data-focus-key='published-{assignment['id']}']")  # the row's outcome, not the page's body
+    wait_announced(web, "polite", f"Published {name}: the students see the private board.")
+    assert published() is not None
 
 
 def test_a_wide_table_scrolls_by_keyboard_on_a_phone(web, course):

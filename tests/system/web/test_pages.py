@@ -475,6 +475,10 @@ def test_instructor_sets_a_rubric_and_sees_the_grades(web, web_server):
     web.page.wait_for_selector("#grades tbody tr")
     cells = web.page.locator("#grades tbody tr td").all_inner_texts()
     assert cells[:3] == ["–", student["name"], "not closed yet"] and cells[6] == "–"
+    expect(web.page.locator("#grades-canvas-match")).to_have_text(  # created without ids: Canvas has only the name
+        f"For Canvas: 0 of 1 rows carry an id Canvas matches (ID, SIS User ID or SIS Login ID); 1 only a name, "
+        f"matched only if Canvas spells it the same: {student['name']}. Import Canvas's own gradebook export as "
+        "the roster to carry its ids.")
     with web_server.client(token) as instructor:
         assert instructor.get(f"/api/assignments/{assignment['id']}").json()["rubric"]["formula"] == "10 * completed"
     with web.page.expect_download() as canvas:

@@ -14,7 +14,7 @@ from league.server.api.routes.assignments import assignment_out, course_assignme
 from league.server.db import crud
 from league.server.db.models import STUDENT, Assignment
 from league.server.gradebook import NoRubric, assignment_grades, queue_missing_evaluations, rubric_of
-from league.server.schemas import AssignmentOut, GradesOut, MyGradeOut
+from league.server.schemas import AssignmentOut, CanvasMatchOut, GradesOut, MyGradeOut
 
 router = APIRouter(tags=["grades"])
 Format = Annotated[Literal["generic", "canvas", "moodle"], Query(
@@ -110,10 +110,36 @@ def read_course_grades_csv(instructor: InstructorUser, session: SessionDep, form
                            identifier: Identifier = "email") -> Response:
     """The course's grades (instructors): a line a student, a column for each assignment that has a
     rubric, and the total (generic); or Canvas's or Moodle's import of those columns."""
+    graded = course_graded(session, instructor)
+    return csv_file(graded, format, identifier, "grades", grades.course_csv(graded))
+
+
+def course_graded(session: SessionDep, instructor: InstructorUser) -> list[grades.Graded]:
+    """The grades of each assignment of the course that has a rubric (409 if none has)."""
     course = user_course(session, instructor)
     graded = [graded_or_409(session, a) for a in crud.course_assignments(session, course_id=course.id)
               if a.rubric is not None]
     if not graded:
         raise HTTPException(status.HTTP_409_CONFLICT, "no assignment has a rubric yet: set one "
                                                       "(PUT /api/assignments/{id}/rubric)")
-    return csv_file(graded, format, identifier, "grades", grades.course_csv(graded))
+    return graded
+
+
+def canvas_match_out(graded: list[grades.Graded]) -> CanvasMatchOut:
+    match = grades.canvas_match(graded)
+    return CanvasMatchOut(students=match.students, by_id=match.by_id, by_email=match.by_email,
+                          by_name=match.by_name, summary=match.summary())
+
+
+@router.get("/assignments/{assignment_id}/grades/canvas-match", response_model=CanvasMatchOut)
+def read_canvas_match(assignment_id: Id, instructor: InstructorUser, session: SessionDep) -> CanvasMatchOut:
+    """Before importing the assignment's Canvas file (instructors): how many of its lines carry an id
+    Canvas matches students by, and who would be matched only by email or by name."""
+    assignment = course_assignment(session, instructor, assignment_id)
+    return canvas_match_out([graded_or_409(session, assignment)])
+
+
+@router.get("/grades/canvas-match", response_model=CanvasMatchOut)
+def read_course_canvas_match(instructor: InstructorUser, session: SessionDep) -> CanvasMatchOut:
+    """The same for the course's Canvas file (every assignment with a rubric)."""
+    return canvas_match_out(course_graded(session, instructor))

@@ -13,7 +13,7 @@ from league.server.package import DISTRIBUTION, package_files
 from league.server.schemas import PackageFileOut, PackageOut
 
 router = APIRouter(prefix="/package", tags=["package"])
-EXTRAS = "onnx,client"  # what a student needs: check, submit, evaluate ONNX models
+EXTRAS = "onnx,client"  # what every student needs: check, submit, evaluate ONNX models (docs/STUDENT_GUIDE.md)
 
 
 @router.get("", response_model=PackageOut)

@@ -103,7 +103,7 @@ def create_students(sessions, instructor_id: int, data: bytes) -> RosterCreated:
             raise HTTPException(status.HTTP_409_CONFLICT, "another roster was imported at the same time: upload this "
                                 "one again (its students created since are skipped)") from error
     return RosterCreated(
-        format=RosterFormat(delimiter=DELIMITERS[roster.delimiter], columns=roster.columns),
+        format=RosterFormat(delimiter=DELIMITERS[roster.delimiter], columns=roster.columns, layout=roster.layout),
         created=[created_out(user, token) for user, token in report.created],
         skipped=[RosterLine(**vars(problem)) for problem in report.skipped],
         errors=[RosterLine(**vars(problem)) for problem in report.errors])

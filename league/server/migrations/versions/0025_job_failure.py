@@ -2,7 +2,7 @@
 `error` keeps the whole reason). Jobs that failed before it say nothing: NULL, counted as "unrecorded".
 
 Revision ID: 0025
-Revises: 0020
+Revises: 0024
 Create Date: 2026-11-28 09:30:00
 """
 from alembic import op
@@ -10,7 +10,7 @@ import sqlalchemy as sa
 
 
 revision = '0025'
-down_revision = '0020'
+down_revision = '0024'
 branch_labels = None
 depends_on = None
 

@@ -57,12 +57,24 @@ export function zonedTime(iso) {
                                 timeZoneName: "short" });
 }
 
-/** What is left from `now` (the server's clock) to `until`: "3 d 4 h", "5 h 12 min", "closed". */
+/**
+ * What is left from `now` (the server's clock) to `until`: "3 d 4 h", "5 h 12 min", "under a minute",
+ * "passed". Rounded down, so never more than is left; the last minute is "under a minute", not 0.
+ */
 export function timeLeft(until, now) {
   if (!until) return "no deadline";
-  const minutes = Math.floor((new Date(until) - new Date(now)) / 60000);
-  if (minutes <= 0) return "closed";
+  const left = new Date(until) - new Date(now);
+  if (left <= 0) return "passed";
+  const minutes = Math.floor(left / 60000);
+  if (minutes < 1) return "under a minute";
   const days = Math.floor(minutes / 1440);
   const hours = Math.floor((minutes % 1440) / 60);
   return days ? `${days} d ${hours} h` : `${hours} h ${minutes % 60} min`;
+}
+
+/** An assignment's time left to upload (the API's answer): to the due time, then (state "late") to the late window's end. */
+export function uploadTimeLeft(a) {
+  if (a.state === "closed") return "closed";
+  if (a.state === "late") return `due time passed; late uploads: ${timeLeft(a.my_closes_at, a.now)} left`;
+  return timeLeft(a.my_due_at, a.now);
 }

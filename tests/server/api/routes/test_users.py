@@ -109,7 +109,7 @@ def test_roster_reads_spreadsheets_as_they_export_them(app_league, shape):
         response = post_roster(instructor, text.format(t=tag))
     assert response.status_code == 201, response.text
     report = response.json()
-    assert report["format"] == {"delimiter": delimiter, "columns": columns}
+    assert report["format"] == {"delimiter": delimiter, "columns": columns, "layout": "plain"}
     assert (people(report["created"]), report["skipped"], report["errors"]) == (expected, [], [])
 
 
@@ -122,7 +122,7 @@ def test_roster_of_excel_unicode_text_and_decomposed_accents(app_league):
         report = post_roster(instructor, text.encode("utf-16"), "roster.txt").json()
         again = post_roster(instructor, f"name\nZo\u00eb {tag}\n").json()
     assert people(report["created"]) == [(f"Zo\u00eb {tag}", f"zoe.{tag}@uni.fr", None)]
-    assert report["format"] == {"delimiter": "tab", "columns": {"name": "Name", "email": "Email"}}
+    assert report["format"] == {"delimiter": "tab", "columns": {"name": "Name", "email": "Email"}, "layout": "plain"}
     assert again["created"] == []
     assert lines(again["skipped"]) == [(2, f"Zo\u00eb {tag}", "already a student (same name)")]
 

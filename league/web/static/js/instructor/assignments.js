@@ -1,7 +1,8 @@
-// The course's assignments: the list with their times (in the viewer's zone), creating one, publishing.
+// The course's assignments: the list with their times (in the viewer's zone), creating one, publishing
+// (after a confirmation: nothing unpublishes).
 
 import { api } from "../api.js";
-import { $, element, onClick, onSubmit, replaceKeepingFocus, say } from "../dom.js";
+import { $, element, focusOn, onClick, onSubmit, replaceKeepingFocus, say } from "../dom.js";
 import { zonedTime } from "../format.js";
 
 /** A datetime-local field's value as an ISO time with the browser's zone (null when empty). */
@@ -35,9 +36,11 @@ export async function setUpAssignments() {
 async function refresh() {
   const assignments = await api("/api/assignments");
   replaceKeepingFocus($("assignments").tBodies[0], ...assignments.map((a) => {
-    const action = a.published_at ? element("span", { className: "muted", text: "published" })
-      : element("button", { className: "secondary small", text: "Publish", attrs: { type: "button", "data-focus-key": `publish-${a.id}` } });
-    if (!a.published_at) onClick(action, () => publish(a));
+    const action = a.published_at
+      ? element("span", { className: "muted", text: "published", attrs: { "data-focus-key": `published-${a.id}` } })
+      : element("button", { className: "secondary small", text: "Publish",
+        attrs: { type: "button", "aria-label": `Publish ${a.name}`, "data-focus-key": `publish-${a.id}` } });
+    if (!a.published_at) onClick(action, () => publish(a, action));
     return element("tr", {}, element("td", { text: a.name }), element("td", { text: zonedTime(a.opens_at) }),
       element("td", { text: zonedTime(a.due_at) }), element("td", { text: zonedTime(a.late_until) }),
       element("td", { text: String(a.seed) }), element("td", { text: String(a.private_seed ?? "–") }),
@@ -45,12 +48,34 @@ async function refresh() {
   }));
 }
 
-async function publish(assignment) {
+/** Publish once the dialog is confirmed; the focus then goes to the row's "published", or back to the button. */
+async function publish(assignment, button) {
+  if (!(await askToPublish(assignment))) {
+    button.focus();
+    return;
+  }
+  button.disabled = true; // which takes its focus: given to the outcome below
   try {
     await api(`/api/assignments/${assignment.id}/publish`, { method: "POST" });
     say($("assignment-message"), `Published ${assignment.name}: the students see the private board.`, "success");
     await refresh();
+    focusOn($("assignments").querySelector(`[data-focus-key="published-${assignment.id}"]`));
   } catch (error) {
     say($("assignment-message"), `Not published: ${error.message}`, "error");
+    button.disabled = false;
+    button.focus();
   }
+}
+
+/** Publishing cannot be undone: a dialog says what the students will see, its Cancel button focused. */
+function askToPublish(assignment) {
+  const dialog = $("publish-dialog");
+  $("publish-title").textContent = `Publish ${assignment.name}?`;
+  $("publish-summary").textContent = `The students see ${assignment.name}'s private board and its private tracks ` +
+    "(their seed) and, once it has a rubric, their own grades. Publishing cannot be undone.";
+  dialog.returnValue = "";
+  dialog.showModal();
+  return new Promise((resolve) => {
+    dialog.addEventListener("close", () => resolve(dialog.returnValue === "publish"), { once: true });
+  });
 }

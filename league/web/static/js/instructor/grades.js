@@ -64,6 +64,7 @@ export async function setUpGrades() {
 async function show(assignment, sayNothing = true) {
   $("rubric-text").value = JSON.stringify(assignment.rubric || EXAMPLE, null, 2);
   const body = $("grades").tBodies[0];
+  $("grades-canvas-match").hidden = true;
   if (!assignment.rubric) {
     body.replaceChildren();
     say($("grades-message"), `${assignment.name} has no rubric yet: edit the example above and save it.`, "info");
@@ -73,10 +74,20 @@ async function show(assignment, sayNothing = true) {
     const grades = await api(`/api/assignments/${assignment.id}/grades`);
     replaceKeepingFocus(body, ...grades.rows.map((row) => gradeRow(row, grades.max_points)));
     if (sayNothing) say($("grades-message"), "");
+    await showCanvasMatch(assignment);
   } catch (error) {
     body.replaceChildren();
     say($("grades-message"), error.message, "error");
   }
+}
+
+/** Before the Canvas file is downloaded: how many of its students carry an id Canvas matches them by. */
+async function showCanvasMatch(assignment) {
+  const match = await api(`/api/assignments/${assignment.id}/grades/canvas-match`);
+  const box = $("grades-canvas-match");
+  box.textContent = `For Canvas: ${match.summary}.` + (match.by_id.length < match.students
+    ? " Import Canvas's own gradebook export as the roster to carry its ids." : "");
+  box.hidden = false;
 }
 
 function gradeRow(row, maxPoints) {

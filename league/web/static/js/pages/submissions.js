@@ -5,7 +5,7 @@
 import { api } from "../api.js";
 import { $, badge, element, focusOn, onSubmit, replaceKeepingFocus, say } from "../dom.js";
 import { showEpisodeChart } from "../episode-chart.js";
-import { count, dateTime, number, outcomeText, timeLeft, zonedTime } from "../format.js";
+import { count, dateTime, number, outcomeText, uploadTimeLeft, zonedTime } from "../format.js";
 import { Poller } from "../poller.js";
 import { requireUser, showAccount } from "../session.js";
 import { dropZone } from "../upload-zone.js";
@@ -68,7 +68,7 @@ async function refreshAssignments() {
     element("td", { text: a.name, attrs: { title: a.description || "" } }), element("td", {}, badge(a.state)),
     element("td", { text: zonedTime(a.opens_at) }),
     element("td", { text: zonedTime(a.my_due_at) + (a.extended ? " (extension)" : "") }),
-    element("td", { text: timeLeft(a.my_due_at, a.now) }), element("td", { text: zonedTime(a.late_until) }),
+    element("td", { text: uploadTimeLeft(a) }), element("td", { text: zonedTime(a.late_until) }),
     element("td", {}, finalCell(a)), element("td", { text: privateResult(a, grades[k]) }))));
 }
 
@@ -182,6 +182,7 @@ function statusBadges(s) {
     cell.append(badge(evaluation === "failed" ? "failed" : "running", evaluation === "failed" ? "evaluation failed" : "evaluating"));
   }
   if (s.evaluation?.stale) cell.append(badge("stale"));
+  if (s.late) cell.append(badge("late"));
   return cell;
 }
 
@@ -228,9 +229,10 @@ function select(id) {
 async function refreshDetail() {
   const s = await api(`/api/submissions/${selectedId}`);
   $("detail").hidden = false;
-  $("detail-title").replaceChildren(`${s.name} `, badge(s.status));
+  $("detail-title").replaceChildren(`${s.name} `, badge(s.status), ...(s.late ? [" ", badge("late")] : []));
   $("detail-facts").textContent = [s.filename, s.kind, `${(s.size / 1024).toFixed(1)} KB`, `sha256 ${s.sha256.slice(0, 12)}…`,
-    s.obs_dim ? `observation size ${s.obs_dim}` : null, `uploaded ${dateTime(s.created_at)}`].filter(Boolean).join(" · ");
+    s.obs_dim ? `observation size ${s.obs_dim}` : null,
+    `uploaded ${dateTime(s.created_at)}${s.late ? " (late: after your due time)" : ""}`].filter(Boolean).join(" · ");
   say($("detail-error"), s.error ? `${s.status === "rejected" ? "Rejected" : "Failed"}: ${s.error}` : "", "error");
   showLog("validation-log", s.log);
   if (focusDetailOf === s.id) {
@@ -309,18 +311,19 @@ function reportUpload() {
   const s = lastUpload && submissions.find((item) => item.id === lastUpload.id);
   if (!s || !["ready", "rejected", "failed"].includes(s.status)) return;
   const { filename } = lastUpload;
+  const late = s.late ? " It was uploaded late (after your due time): the late penalty applies if it is your final." : "";
   if (s.status !== "ready") {
     say($("upload-message"), `${filename} was ${s.status}: ${s.error}`, "error");
     lastUpload = null;
   } else if (!lastUpload.validated) {
-    say($("upload-message"), `${filename} passed validation: it is ready and being evaluated.`, "success");
+    say($("upload-message"), `${filename} passed validation: it is ready and being evaluated.${late}`, "success");
     lastUpload.validated = true;
   }
   const evaluation = s.evaluation;
   if (s.status !== "ready" || !["done", "failed"].includes(evaluation?.status)) return;
   say($("upload-message"), evaluation.status === "done"
     ? `${filename} is evaluated: ${evaluation.completed} of ${count(evaluation.episodes_total, "lap")} completed, ` +
-      `mean return ${number(evaluation.mean_return)}.`
+      `mean return ${number(evaluation.mean_return)}.${late}`
     : `${filename} passed validation, but its evaluation failed: ${evaluation.error}`, evaluation.status === "done" ? "success" : "error");
   lastUpload = null;
 }
