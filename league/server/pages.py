@@ -42,7 +42,8 @@ def page_facts(settings: Settings) -> dict[str, Any]:
     """What the templates show of the server and the toolkit: the upload limit; the car colours (the
     race viewer's cars look as in `league race --save race.gif`); the outcome texts (a car's end is
     worded as the toolkit words it), as JSON; the version the footer names."""
-    return {"version": league.__version__, "upload_limit": f"{settings.max_upload_bytes / MB:g} MB", "max_upload_bytes": settings.max_upload_bytes,
+    return {"version": league.__version__,
+            "upload_limit": f"{settings.max_upload_bytes / MB:g} MB", "max_upload_bytes": settings.max_upload_bytes,
             "car_colors": " ".join("#{:02x}{:02x}{:02x}".format(*color) for color in CAR_COLORS),
             "outcome_text": json.dumps(OUTCOME_TEXT, separators=(",", ":"))}
 

@@ -89,10 +89,6 @@ class Registered:
                 f"{self.heartbeat_at:%Y-%m-%d %H:%M:%S} UTC ({(now - self.heartbeat_at).total_seconds():.0f} s ago)")
 
 
-class ProcessesRunning(DatabaseError):
-    """Processes of another version use the database: migrating under them breaks them."""
-
-
 def registered_elsewhere(connection: Connection, version: str | None = None) -> list[Registered]:
     """The processes of a version other than `version` (default: this one) the database lists, read
     whatever its schema (releases before 0.2.0 registered their workers only, from revision 0014)."""
@@ -111,7 +107,7 @@ def registered_elsewhere(connection: Connection, version: str | None = None) -> 
 
 def refuse_other_versions(connection: Connection, silent_after_s: float, force: bool,
                           now: datetime | None = None) -> None:
-    """Raise ProcessesRunning naming the processes of another version: the live ones (beat within
+    """Raise DatabaseError naming the processes of another version: the live ones (beat within
     `silent_after_s`) must be stopped; the silent ones are forgotten with `force` (they died; their
     rows would expire by themselves after EXPIRE_SILENCES windows)."""
     now = now or utcnow()
@@ -128,10 +124,10 @@ def refuse_other_versions(connection: Connection, silent_after_s: float, force: 
     if not alive and not silent:
         return
     named = [f"alive: {p.describe(now)}" for p in alive] + [f"silent: {p.describe(now)}" for p in silent]
-    todo = ["stop them first (every API and worker of the old version; with Docker: `docker compose stop`)"] \
+    todo = ["Stop them first (every API and worker of the old version; with Docker: `docker compose stop`)"] \
         if alive else []
     if silent:
-        todo.append(f"the silent ones have not beaten for over {silent_after_s:g} s: if they are dead, run "
-                    f"again with --force to forget them")
-    raise ProcessesRunning(f"processes of another version than this one ({league.__version__}) use this database, "
-                           f"and migrating under them would break them: {'; '.join(named)}. {'; '.join(todo)}")
+        todo.append(f"{'the' if alive else 'The'} silent ones have not beaten for over {silent_after_s:g} s: if "
+                    f"they are dead, run again with --force to forget them")
+    raise DatabaseError(f"processes of another version than this one ({league.__version__}) use this database, "
+                           f"and migrating under them would break them: {'; '.join(named)}. {'; '.join(todo)}.")
