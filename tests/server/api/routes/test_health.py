@@ -5,6 +5,7 @@ import importlib.metadata
 import os
 import re
 from datetime import datetime, timedelta
+from html.parser import HTMLParser
 
 import pytest
 from sqlalchemy import text, update
@@ -139,3 +140,31 @@ def test_the_api_docs_load_nothing_from_other_hosts(app_league):
             assert assets and not [url for url in assets if "://" in url or url.startswith("//")], assets
             for url in assets:
                 assert anonymous.get(url).status_code == 200, url
+
+
+class VersionShown(HTMLParser):
+    """The text of the element marked data-version (the footer's) in a page."""
+
+    def __init__(self):
+        super().__init__()
+        self.inside, self.shown = False, []
+
+    def handle_starttag(self, tag, attrs):
+        self.inside = "data-version" in dict(attrs)
+
+    def handle_endtag(self, tag):
+        self.inside = False
+
+    def handle_data(self, data):
+        if self.inside:
+            self.shown.append(data)
+
+
+@pytest.mark.parametrize("page", ["/", "/login", "/submissions", "/instructor"])
+def test_every_page_footer_names_the_version(app_league, page):
+    with app_league.client() as anonymous:
+        answer = anonymous.get(page)
+    assert answer.status_code == 200
+    parser = VersionShown()
+    parser.feed(answer.text)
+    assert parser.shown == [importlib.metadata.version("microracer-league")]
