@@ -44,8 +44,10 @@ def freeze(pid: int) -> None:
 
 
 def embedded_worker(api: subprocess.Popen) -> int:
-    """The pid of the worker process a `league serve` started."""
-    children = Path(f"/proc/{api.pid}/task/{api.pid}/children").read_text().split()
+    """The pid of the worker process a `league serve` started (by its supervising thread: each thread's
+    children are listed under it)."""
+    tasks = Path(f"/proc/{api.pid}/task").iterdir()
+    children = [pid for task in tasks for pid in (task / "children").read_text().split()]
     return next(int(pid) for pid in children if b"worker" in Path(f"/proc/{pid}/cmdline").read_bytes().split(b"\0"))
 
 

@@ -106,6 +106,16 @@ def revision_of(connection: Connection) -> str | None:
     return MigrationContext.configure(connection).get_current_revision()
 
 
+def stored_revision(connection: Connection) -> str | None:
+    """The revision alembic_version holds, read as a plain query: what running processes check at each
+    beat (MigrationContext logs two lines each time it is made)."""
+    try:
+        with connection.begin_nested():  # (a savepoint: a missing table does not spoil the transaction)
+            return connection.scalar(text("SELECT version_num FROM alembic_version"))
+    except DBAPIError:
+        return None
+
+
 @functools.cache
 def _scripts() -> ScriptDirectory:
     return ScriptDirectory.from_config(alembic_config(""))

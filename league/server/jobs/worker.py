@@ -20,7 +20,7 @@ import league
 
 from league.server.config import Settings
 from league.server.db import crud
-from league.server.db.session import make_sessionmaker, revision_of, schema_problem
+from league.server.db.session import make_sessionmaker, schema_problem, stored_revision
 from league.server.jobs import alive, registry
 from league.server.jobs.handlers import HANDLERS
 from league.server.jobs.placement import Placement
@@ -170,7 +170,7 @@ class Worker:
 def schema_changed(sessions) -> str | None:
     """What to do if the database's schema is no longer this installation's (None while it is)."""
     with sessions() as session:
-        problem = schema_problem(revision_of(session.connection()))
+        problem = schema_problem(stored_revision(session.connection()))
     return None if problem is None else (f"the database's schema changed under this running process "
                                          f"(microracer-league {league.__version__}): {problem}, then restart it")
 
