@@ -32,6 +32,8 @@ RELEASES = {
     "c4a0240": "0006",  # the last one before issues 22-26 (assignments, the database as the queue, ...)
     "b0d63d4": "0005",  # before the state stamp's indexes by kind
 }
+# how a release creates a league with an instructor (`league init` since 81d69d7; before it, any command did)
+CREATE = {"7053bbc": ("init", "--instructor", "prof")}
 FIRST_REGISTERING = "0014"  # releases from this schema list their workers: `league migrate` sees them
 CORE_SOURCES = ("league/lidar.pyx", "league/constants.py", "setup.py")  # what league/lidar.*.so is built from
 
@@ -98,7 +100,7 @@ def test_a_league_written_by_an_earlier_release_answers_the_same_after_the_upgra
         env = {**os.environ, **TEST_SETTINGS, "LEAGUE_DATA_DIR": str(data_dir), "LEAGUE_DATABASE_URL": database_url,
                "LEAGUE_CPU_SLOTS_DIR": str(tmp_path / "cpu-slots"), "LEAGUE_BASELINES_DIR": str(data_dir / "baselines")}
         old = LeagueServer({**env, "PYTHONPATH": str(releases[commit])}, data_dir, root=releases[commit])
-        added = old.command("users", "add", "prof", "--role", "instructor")  # (which created the database then)
+        added = old.command(*CREATE.get(commit, ("users", "add", "prof", "--role", "instructor")))
         assert added.returncode == 0, added.stderr
         old.instructor_token = added.stdout.strip()
         new = LeagueServer({**env, "PYTHONPATH": str(REPO)}, data_dir, instructor_token=old.instructor_token)
