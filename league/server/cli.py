@@ -470,9 +470,7 @@ def _confirmed(prompt: str, expected: str) -> bool:
 
 
 def main(argv: list[str] | None = None) -> int:
-    from league.cli import main as run
-
-    from league.cli import add_version
+    from league.cli import add_version, main as run
 
     parser = argparse.ArgumentParser(prog="python -m league.server", description="MicroRacer League server")
     add_version(parser)

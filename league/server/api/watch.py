@@ -78,7 +78,10 @@ class SchemaGuard:
 async def database_error(request: Request, error: DBAPIError) -> JSONResponse:
     """A database error: if the schema changed under us, 503 with what to do; else a 500 as any error."""
     watch: ProcessWatch = request.app.state.watch
-    problem = await run_in_threadpool(watch.check)
+    try:
+        problem = await run_in_threadpool(watch.check)
+    except DBAPIError:  # the database does not answer at all: the first error is the one to report
+        problem = None
     if problem is None:
         raise error
     return JSONResponse({"detail": problem}, status_code=503, headers={"Retry-After": "60"})
