@@ -4,8 +4,10 @@ repository ever shipped."""
 from __future__ import annotations
 
 import importlib.metadata
+import signal
 import subprocess
 import sys
+import time
 import tomllib
 from datetime import timedelta
 
@@ -148,3 +150,40 @@ def test_league_backup_of_the_first_schema(kind, tmp_path):
     assert done.stderr.splitlines()[-1].startswith(f"league: backed up to {tmp_path / 'first.bak'}: 0 users, "
                                                    f"0 submissions, 0 evaluations, 0 jobs (schema revision 0001, ")
 
+
+
+def test_a_worker_whose_schema_is_migrated_under_it_stops_saying_what_to_do(tmp_path, caplog):
+    """A running worker that finds, at a heartbeat, the database at a newer revision stops (as on SIGTERM:
+    its running jobs are handed back) and `league worker` exits 3, with the reason logged."""
+    from league.server.config import Settings
+    from league.server.db.session import make_sessionmaker, migrate
+    from league.server.jobs.queue import JobQueue
+    from league.server.jobs.runner import WorkerContext
+    from league.server.jobs.worker import Worker
+    from league.server.storage import BlobStore
+
+    with fresh_backend("sqlite", tmp_path) as database_url:
+        settings = Settings(_env_file=None, data_dir=tmp_path / "data", database_url=database_url, bootstrap=False,
+                            cpu_placement=False, worker_heartbeat_s=0.2)
+        engine = make_engine(database_url)
+        migrate(engine)
+        context = WorkerContext(settings, make_sessionmaker(engine), JobQueue(engine), BlobStore(settings.data_dir),
+                                handlers={})
+        worker = Worker(context, threads=1, prepare_thread=lambda settings: None)
+        worker.start()
+        try:
+            assert worker.outdated is None
+            with engine.begin() as connection:
+                connection.execute(text("UPDATE alembic_version SET version_num = '0099'"))
+            deadline = time.monotonic() + 30
+            while signal.SIGTERM not in worker.signals and time.monotonic() < deadline:
+                time.sleep(0.05)
+        finally:
+            worker.stop()
+            engine.dispose()
+    assert worker.signals == [signal.SIGTERM]  # what run_forever acts on, as on a SIGTERM
+    assert worker.outdated == (f"the database's schema changed under this running process (microracer-league "
+                               f"{league.__version__}): this database is at revision 0099, written by a newer "
+                               f"version of microracer-league (this one, {league.__version__}, knows revisions up to "
+                               f"{head_revision()}): upgrade this installation, then restart it")
+    assert f"worker stopping: {worker.outdated}" in caplog.messages
