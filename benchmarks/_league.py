@@ -248,8 +248,8 @@ class League:
         while time.monotonic() < deadline:
             if self.api.poll() is not None:
                 raise RuntimeError(f"the server exited ({self.api.returncode}):\n{self.log('api.log')}")
-            with contextlib.suppress(httpx.HTTPError):
-                if httpx.get(f"{self.url}/api/health", timeout=1).status_code == 200:
+            with contextlib.suppress(httpx.HTTPError, ValueError, KeyError):  # "degraded" (503): no worker yet
+                if httpx.get(f"{self.url}/api/health", timeout=1).json()["status"] in ("ok", "degraded"):
                     return
             time.sleep(0.1)
         raise RuntimeError(f"the server did not start in {timeout:g} s:\n{self.log('api.log')}")

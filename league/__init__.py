@@ -14,9 +14,20 @@ the simulator or the evaluation.
     Racer, newrun, metrics_run                                  the thesis' interface (league.compat)
 """
 import importlib
+import importlib.metadata
 import importlib.util
 
-__version__ = "0.1.0"
+
+def _version() -> str:
+    """The installed distribution's version: pyproject.toml's [project] version is its one home (a
+    checkout installed with `pip install -e .` has it from there; reinstall after a bump)."""
+    try:
+        return importlib.metadata.version("microracer-league")
+    except importlib.metadata.PackageNotFoundError:  # sources on PYTHONPATH, not installed
+        return "0+unknown"
+
+
+__version__ = _version()
 
 ENV_ID = "league/MicroRacer-v0"
 

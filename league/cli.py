@@ -52,6 +52,7 @@ def _save_or_show(parser: argparse.ArgumentParser, save_help: str,
 
 def build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(prog="league", description="MicroRacer League: evaluate and race driving agents.")
+    add_version(parser)
     subparsers = parser.add_subparsers(dest="command", metavar="COMMAND", required=True)
     env_flags = _env_flags()
 
@@ -244,6 +245,13 @@ def _require_display() -> None:
 
 class UsageError(Exception):
     """A mistake in the command line that argparse cannot see."""
+
+
+def add_version(parser: argparse.ArgumentParser) -> None:
+    """`--version`: the package's version (its one home is pyproject.toml, read from the installed metadata)."""
+    from league import __version__
+
+    parser.add_argument("--version", action="version", version=f"%(prog)s (microracer-league) {__version__}")
 
 
 def main(argv: Sequence[str] | None = None, parser: argparse.ArgumentParser | None = None) -> int:

@@ -12,6 +12,7 @@ from fastapi.exceptions import RequestValidationError
 from fastapi.concurrency import run_in_threadpool
 from fastapi.responses import JSONResponse
 from fastapi_offline import FastAPIOffline
+from sqlalchemy.exc import DBAPIError
 from starlette.exceptions import HTTPException as StarletteHTTPException
 
 import league
@@ -19,6 +20,7 @@ from league.server.api.cache import ResponseCache
 from league.server.api.limits import KB, BodyLimits, Limit
 from league.server.api.routes import api_router
 from league.server.api.routes.tracks import MAX_TRACK_BYTES
+from league.server.api.watch import ProcessWatch, SchemaGuard, database_error
 from league.server import metrics
 from league.server.logs import AccessLog
 from league.server.bootstrap import bootstrap
@@ -57,7 +59,9 @@ def catch_up(league_: League) -> list[int]:
 @asynccontextmanager
 async def lifespan(app: FastAPI):
     await run_in_threadpool(prepare_league, app.state.league)
+    await run_in_threadpool(app.state.watch.start)
     yield
+    await run_in_threadpool(app.state.watch.stop)
     app.state.league.engine.dispose()
 
 
@@ -70,14 +74,17 @@ def create_app(settings: Settings | None = None, league_: League | None = None) 
     # what the routes' dependencies (league.server.api.deps) hand them
     app.state.league = league_
     app.state.cache = ResponseCache(settings.public_cache_s, settings.public_cache_max_age_s)
+    app.state.watch = ProcessWatch(league_)  # this process in the workers table; the schema under it
     app.include_router(api_router, prefix="/api")
     app.add_exception_handler(StarletteHTTPException, _http_error)
     app.add_exception_handler(RequestValidationError, _validation_error)
+    app.add_exception_handler(DBAPIError, database_error)
     mount_web(app, settings)
-    metrics.install(app, league_.sessions)
+    metrics.install(app, league_.sessions, settings.worker_silent_after_s)
     app.add_middleware(AccessLog)  # outermost: its line has the status of every answer, the limits' included
     app.add_middleware(BodyLimits, default=Limit.of(64 * KB), limits=body_limits(settings),
                        read_timeout_s=settings.request_body_timeout_s)
+    app.add_middleware(SchemaGuard, watch=app.state.watch)
     return app
 
 

@@ -7,11 +7,8 @@ returns the exit status. `python -m league.server ...` runs the same commands.
 from __future__ import annotations
 
 import argparse
-import ctypes
 import logging
-import os
 import signal
-import subprocess
 import sys
 from datetime import datetime, timezone
 from collections.abc import Callable
@@ -28,7 +25,7 @@ from league.server.config import (
 from league.server.db.models import INSTRUCTOR, STUDENT
 
 log = logging.getLogger("league.server")
-PR_SET_PDEATHSIG = 1  # prctl(2)
+EXIT_OUTDATED = 3  # a worker that stopped because the database's schema changed under it (logged why)
 
 
 def add_commands(subparsers) -> None:
@@ -72,9 +69,17 @@ def add_commands(subparsers) -> None:
     init.add_argument("--instructor", metavar="NAME", help="also add this instructor and print their API token")
     init.set_defaults(run=run_init)
 
-    migrate_ = subparsers.add_parser("migrate", parents=[where], help="upgrade the database to this version's schema",
-                                     description="Run the migrations this version of microracer-league brings "
-                                                 "(`league serve` runs them too). Back up first: league backup FILE.")
+    migrate_ = subparsers.add_parser(
+        "migrate", parents=[where], help="upgrade the database to this version's schema (or to a revision)",
+        description="Run the migrations this version of microracer-league brings (`league serve` runs them too), "
+                    "or with --to, upgrade or downgrade to that schema revision (a rollback: see the server README). "
+                    "Back up first: league backup FILE. Refuses while processes of another version (API, workers) "
+                    "are registered in the database: stop them first.")
+    migrate_.add_argument("--to", metavar="REVISION", help="the schema revision to upgrade or downgrade to "
+                                                           "(default: this version's, the newest)")
+    migrate_.add_argument("--force", action="store_true",
+                          help="forget the registered processes of another version that stopped beating (they "
+                               "died); live ones still refuse")
     migrate_.set_defaults(run=run_migrate)
 
     backup = subparsers.add_parser("backup", parents=[where], help="write a snapshot of the league to a file",
@@ -226,62 +231,35 @@ def run_serve(args: argparse.Namespace) -> int:
     from league.server.services import open_league
     from league.server.db.session import migrate
     from league.server.logs import settings_log_config
+    from league.server.supervise import ChildWorker
 
     settings, sources = _logged_setup(args)
     protocols = uvicorn_protocols(connection_limits(settings))
     engine, _ = _open(settings, sources, log.info, create=True)
-    before, after = migrate(engine)
+    before, after = migrate(engine, guard=process_guard(settings, force=False))
     if before != after:
         log.info("database migrated from revision %s to %s", before, after)
     league_ = open_league(settings, engine)
-    worker = None if args.no_worker else start_child_worker(args.threads, args.data_dir, settings.log_file)
+    app = create_app(settings, league_)
+    worker = None if args.no_worker else ChildWorker(args.threads, args.data_dir, settings.log_file)
+    app.state.supervisor = worker  # its restarts at /metrics
+    if worker is not None:
+        worker.start()
     # uvicorn raises the SIGTERM or SIGINT it stopped on again once it is done: end here, not die there
     signal.signal(signal.SIGTERM, _exit_on_signal)
     try:
-        uvicorn.run(create_app(settings, league_), host=args.host, port=args.port, log_level=settings.log_level,
+        uvicorn.run(app, host=args.host, port=args.port, log_level=settings.log_level,
                     log_config=settings_log_config(settings), access_log=False, **protocols)
     except KeyboardInterrupt:
         pass
     finally:
         if worker is not None:
-            stop_child_worker(worker)
+            worker.stop()
     return 0
 
 
 def _exit_on_signal(signum, frame) -> None:
     raise SystemExit(0)
-
-
-def start_child_worker(threads: int | None, data_dir: Path | None = None,
-                       log_file: Path | None = None) -> subprocess.Popen:
-    """`league worker` as a child process: jobs never share the API's GIL. It gets SIGTERM (hands its
-    jobs back, stops its sandboxes) when we stop, and also if we die (PR_SET_PDEATHSIG); in a session
-    of its own, so a Ctrl-C reaches only us and we stop it at once instead of waiting for its jobs."""
-    from league.server.logs import worker_log_file
-
-    prctl, parent = ctypes.CDLL(None, use_errno=True).prctl, os.getpid()  # resolved before the fork
-
-    def die_with_parent() -> None:
-        prctl(PR_SET_PDEATHSIG, signal.SIGTERM)
-        if os.getppid() != parent:  # we died before prctl
-            os.kill(os.getpid(), signal.SIGTERM)
-
-    command = [sys.executable, "-m", "league.server", "worker", *(["--threads", str(threads)] if threads else []),
-               *(["--data-dir", str(data_dir)] if data_dir else [])]
-    env = None if log_file is None else {**os.environ, "LEAGUE_LOG_FILE": str(worker_log_file(log_file))}
-    worker = subprocess.Popen(command, preexec_fn=die_with_parent, start_new_session=True, env=env)
-    log.info("serve: worker process %d started", worker.pid)
-    return worker
-
-
-def stop_child_worker(worker: subprocess.Popen, timeout_s: float = 30) -> None:
-    worker.terminate()
-    try:
-        worker.wait(timeout_s)
-    except subprocess.TimeoutExpired:
-        log.warning("serve: worker process %d did not stop in %g s: killed", worker.pid, timeout_s)
-        worker.kill()
-        worker.wait()
 
 
 def run_worker(args: argparse.Namespace) -> int:
@@ -303,8 +281,9 @@ def run_worker(args: argparse.Namespace) -> int:
     check_schema(revision)  # workers never migrate: `league serve` or `league migrate` does
     lower_session_priority(settings.job_nice)
     context = worker_context(settings, engine)
-    Worker(context, threads=args.threads or settings.worker_threads).run_forever()
-    return 0
+    worker = Worker(context, threads=args.threads or settings.worker_threads)
+    worker.run_forever()
+    return EXIT_OUTDATED if worker.outdated else 0
 
 
 def check_worker(settings: Settings) -> int:
@@ -333,14 +312,22 @@ def run_init(args: argparse.Namespace) -> int:
     return _add_user(sessions, args.instructor, INSTRUCTOR) if args.instructor else 0
 
 
+def process_guard(settings: Settings, force: bool) -> Callable:
+    """What `migrate` runs before changing the schema: refuse while processes of another version run."""
+    from league.server.jobs.registry import refuse_other_versions
+
+    return lambda connection: refuse_other_versions(connection, settings.worker_silent_after_s, force)
+
+
 def run_migrate(args: argparse.Namespace) -> int:
-    from league.server.db.session import DatabaseError, migrate, schema_problem, schema_state
+    from league.server.db.session import DatabaseError, known_revision, migrate, schema_problem, schema_state
 
     settings, sources = _setup(args)
     engine, revision = _open(settings, sources)
     if schema_state(revision) == "empty":
         raise DatabaseError(schema_problem(revision))
-    before, after = migrate(engine)
+    before, after = migrate(engine, to=known_revision(args.to) if args.to else "head",
+                            guard=process_guard(settings, args.force))
     _say(f"migrated from schema revision {before} to {after}" if before != after else
          f"already at schema revision {after}: nothing to do")
     return 0
@@ -584,8 +571,9 @@ def _confirmed(prompt: str, expected: str) -> bool:
 
 
 def main(argv: list[str] | None = None) -> int:
-    from league.cli import main as run
+    from league.cli import add_version, main as run
 
     parser = argparse.ArgumentParser(prog="python -m league.server", description="MicroRacer League server")
+    add_version(parser)
     add_commands(parser.add_subparsers(dest="command", required=True))
     return run(argv, parser)

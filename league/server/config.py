@@ -191,12 +191,13 @@ class Settings(BaseSettings):
                                                    "(where an enqueue also wakes workers at once: "
                                                    "LISTEN/NOTIFY)")
     worker_heartbeat_s: float = Field(5.0, gt=0, le=3600,
-                                      description="how often a worker process says it is alive (the "
-                                                  "workers table; /api/health)")
+                                      description="how often a worker or API process says it is alive "
+                                                  "(the workers table; /api/health, league migrate)")
     worker_silent_after_s: float = Field(30.0, gt=0, le=86_400,
                                          description="a worker not heard from this long is not counted "
-                                                     "alive: /api/health answers 503 if jobs wait and "
-                                                     "no worker is")
+                                                     "alive: /api/health answers 503 (degraded) while no "
+                                                     "worker is; a process silent twice as long is "
+                                                     "forgotten")
     max_job_attempts: int = Field(3, ge=1, le=100, description="a job whose worker dies this many times fails for good")
 
     # monitoring (league/server/metrics.py, logs.py)

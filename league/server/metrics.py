@@ -28,12 +28,15 @@ from sqlalchemy import Float, case, cast, func, select
 from sqlalchemy.orm import Session, sessionmaker
 from starlette.routing import Mount
 
+import league
 from league.server.api.deps import SessionsDep, SettingsDep
 from league.server.config import Settings
 from league.server.db import crud
 from league.server.db.models import (
-    DONE, FAILED, INSTRUCTOR, QUEUED, EpisodeResult, Job, Submission, WorkerProcess, utcnow,
+    DONE, FAILED, INSTRUCTOR, QUEUED, EpisodeResult, Job, Submission, utcnow,
 )
+from league.server.db.session import head_revision
+from league.server.jobs import registry
 from league.server.jobs.leases import queue_depth
 
 # job durations (seconds): a validation takes seconds, an evaluation of 100 episodes minutes, a race about one
@@ -59,8 +62,8 @@ def seconds_between(start, end, dialect: str):
 class DatabaseCollector(Collector):
     """The league's figures from its database, read when Prometheus scrapes."""
 
-    def __init__(self, sessions: sessionmaker[Session]):
-        self.sessions = sessions
+    def __init__(self, sessions: sessionmaker[Session], silent_after_s: float):
+        self.sessions, self.silent_after_s = sessions, silent_after_s
 
     def collect(self) -> Iterator:
         with self.sessions() as session:
@@ -72,7 +75,27 @@ class DatabaseCollector(Collector):
             yield job_retries(session)
             yield validation_outcomes(session)
             yield episode_outcomes(session)
-            yield worker_heartbeats(session)
+            yield from workers(session, self.silent_after_s)
+
+
+class ProcessCollector(Collector):
+    """This API process's own figures: its build, and the restarts of the worker `league serve` supervises
+    (league.server.supervise; none under --no-worker or another server)."""
+
+    def __init__(self, state):
+        self.state = state  # the app's: `league serve` sets state.supervisor once the app is built
+
+    def collect(self) -> Iterator:
+        build = GaugeMetricFamily("league_build_info", "The version of this API process and the schema revision "
+                                  "it needs (always 1)", labels=["version", "schema"])
+        build.add_metric([league.__version__, head_revision()], 1)
+        yield build
+        supervisor = getattr(self.state, "supervisor", None)
+        if supervisor is not None:
+            restarts = CounterMetricFamily("league_worker_restarts", "Restarts of the worker process `league "
+                                           "serve` supervises, after it died")
+            restarts.add_metric([], supervisor.restarts)
+            yield restarts
 
 
 def jobs_by_state(session: Session) -> Iterator:
@@ -156,15 +179,21 @@ def episode_outcomes(session: Session) -> CounterMetricFamily:
     return outcomes
 
 
-def worker_heartbeats(session: Session) -> GaugeMetricFamily:
-    """Each worker process (host/pid) in the workers table, idle or not, and its newest heartbeat: a
-    worker whose time falls behind has stopped (its running jobs go to others after the lease timeout)."""
+def workers(session: Session, silent_after_s: float) -> Iterator:
+    """Each registered worker process (host/pid), idle or not, and its newest heartbeat: a worker whose
+    time falls behind has stopped (its row, and so its series, expires after a few silence windows);
+    and how many were heard from within the silence window, a series that exists with no worker at
+    all (the alert `league_workers_alive < 1`)."""
     beats = GaugeMetricFamily("league_worker_heartbeat_timestamp_seconds",
                               "Newest heartbeat of each worker process (unix time)", labels=["worker"])
-    for host, pid, beat in session.execute(select(WorkerProcess.host, WorkerProcess.pid, WorkerProcess.heartbeat_at)
-                                           .order_by(WorkerProcess.host, WorkerProcess.pid)):
-        beats.add_metric([f"{host}/{pid}"], beat.timestamp())
-    return beats
+    listed = registry.workers(session)
+    for worker in sorted(listed, key=lambda worker: (worker.host, worker.pid)):
+        beats.add_metric([f"{worker.host}/{worker.pid}"], worker.heartbeat_at.timestamp())
+    yield beats
+    alive = GaugeMetricFamily("league_workers_alive", "Worker processes heard from within "
+                              "LEAGUE_WORKER_SILENT_AFTER_S")
+    alive.add_metric([], sum(registry.is_alive(worker, silent_after_s) for worker in listed))
+    yield alive
 
 
 class RequestLatency:
@@ -202,14 +231,15 @@ def route_template(scope) -> str:
     return "/".join(segments[:len(segments) - route.path.count("/")]) + route.path
 
 
-def install(app, sessions: sessionmaker[Session]) -> None:
+def install(app, sessions: sessionmaker[Session], silent_after_s: float) -> None:
     """The app's registry (its own: apps in one process do not mix), its collector and middleware."""
     disable_created_metrics()  # no *_created series: Prometheus needs none, and they double the output
-    registry = CollectorRegistry(auto_describe=False)
-    registry.register(DatabaseCollector(sessions))
+    collectors = CollectorRegistry(auto_describe=False)
+    collectors.register(DatabaseCollector(sessions, silent_after_s))
+    collectors.register(ProcessCollector(app.state))
     latency = Histogram("league_http_request_duration_seconds", "API answer time by method, route template "
-                        "and status", ["method", "route", "status"], registry=registry, buckets=REQUEST_BUCKETS)
-    app.state.metrics = registry
+                        "and status", ["method", "route", "status"], registry=collectors, buckets=REQUEST_BUCKETS)
+    app.state.metrics = collectors
     app.add_middleware(RequestLatency, histogram=latency)
     app.include_router(router)
 

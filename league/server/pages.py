@@ -18,6 +18,7 @@ from fastapi import APIRouter, FastAPI, Request
 from fastapi.staticfiles import StaticFiles
 from starlette.templating import Jinja2Templates
 
+import league
 from league.evaluation import OUTCOME_TEXT
 from league.render import CAR_COLORS
 from league.server.config import MB, Settings
@@ -40,8 +41,9 @@ def web_dir() -> Path:
 def page_facts(settings: Settings) -> dict[str, Any]:
     """What the templates show of the server and the toolkit: the upload limit; the car colours (the
     race viewer's cars look as in `league race --save race.gif`); the outcome texts (a car's end is
-    worded as the toolkit words it), as JSON."""
-    return {"upload_limit": f"{settings.max_upload_bytes / MB:g} MB", "max_upload_bytes": settings.max_upload_bytes,
+    worded as the toolkit words it), as JSON; the version the footer names."""
+    return {"version": league.__version__,
+            "upload_limit": f"{settings.max_upload_bytes / MB:g} MB", "max_upload_bytes": settings.max_upload_bytes,
             "car_colors": " ".join("#{:02x}{:02x}{:02x}".format(*color) for color in CAR_COLORS),
             "outcome_text": json.dumps(OUTCOME_TEXT, separators=(",", ":"))}
 

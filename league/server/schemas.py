@@ -240,22 +240,27 @@ class SandboxIsolation(BaseModel):
 
 
 class WorkerOut(BaseModel):
-    model_config = ConfigDict(from_attributes=True)
-
     host: str
     pid: int
     version: str
     started_at: datetime
-    heartbeat_at: datetime
+    heartbeat_at: datetime = Field(description="its last heartbeat (every worker_heartbeat_s while it runs)")
+    alive: bool = Field(description="heard from in the last worker_silent_after_s seconds")
 
 
 class Health(BaseModel):
-    status: Literal["ok", "no_worker"]
-    reason: str | None = Field(description="why the status is not ok (then the answer is a 503)")
+    status: Literal["ok", "degraded", "outdated"] = Field(
+        description="degraded: no worker heard from in worker_silent_after_s (jobs would not run); outdated: the "
+                    "database's schema is not this process's (an upgrade under it): both answer 503")
+    reason: str | None = Field(description="why the status is not ok, and what to do (then the answer is a 503)")
+    version: str = Field(description="the microracer-league version of this API process")
+    schema_revision: str = Field(description="the database schema revision this version needs")
     database: str = Field(description="sqlite or postgresql: the database, which is also the job queue")
     queued_jobs: int
     oldest_queued_s: float | None = Field(description="how long the oldest queued job has waited (null: none waits)")
-    workers: list[WorkerOut] = Field(description="the workers heard from in the last worker_silent_after_s seconds")
+    worker_silent_after_s: float = Field(description="a worker silent this long is not counted alive")
+    workers: list[WorkerOut] = Field(description="the registered workers, with their last heartbeat (a worker that "
+                                                 "died without a word is listed until its row expires)")
     sandbox: SandboxIsolation = Field(description="how this machine's sandboxes are isolated")
 
 

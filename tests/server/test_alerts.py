@@ -19,6 +19,7 @@ from sqlalchemy import select
 from league.server.db.models import Job, WorkerProcess
 from league.server.jobs.handlers import HANDLERS
 from league.server.jobs.leases import claim, retry_or_fail
+from league.server.supervise import ChildWorker
 
 from league.validation.report import ValidationReport
 
@@ -60,6 +61,7 @@ def exported(tmp_path_factory) -> dict[str, list[dict[str, str]]]:
         with league.sessions() as session:
             passing = session.scalar(select(Job.id).where(Job.submission_id == passed.id))
         league.finish_job(passing, ValidationReport(ok=True, error=None, obs_dim=5, log=""))  # queues its evaluation
+        league.app.state.supervisor = ChildWorker(threads=None)  # what `league serve` adds (not started here)
         with league.client("scrape-me") as prometheus:
             prometheus.get("/api/health")
             text = prometheus.get("/metrics").text
@@ -104,30 +106,32 @@ def fired(name: str, shown_value: str = "") -> dict:
     return {"exp_labels": rule["labels"], "exp_annotations": annotations}
 
 
-def test_a_worker_that_stops_beating_is_alerted_on_after_two_minutes(promtool, exported, tmp_path):
-    """Its heartbeat (unix seconds, promtool's clock starts at 0) follows time for 5 minutes, then stops:
-    stale after 60 s, firing once `for: 1m` is over."""
-    beat = series(exported, "league_worker_heartbeat_timestamp_seconds")
-    up = 'up{instance="league:8000",job="league"}'
-    steps = 5 * 60 // SCRAPE_S
-    test = {"interval": f"{SCRAPE_S}s",
-            "input_series": [{"series": beat, "values": f"0+{SCRAPE_S}x{steps} {steps * SCRAPE_S}x40"},
-                             {"series": up, "values": "1x60"}],
-            "alert_rule_test": [at(5, [], "LeagueNoWorker"), at(6.5, [], "LeagueNoWorker"),
-                                at(7.5, [fired("LeagueNoWorker")], "LeagueNoWorker")]}
+def test_no_worker_alive_is_alerted_on_after_a_minute(promtool, exported, tmp_path):
+    """The gauge reads 1 for 5 minutes, then 0 (the worker's heartbeat is older than the silence window,
+    or no worker is registered at all): pending at once, firing once `for: 1m` is over."""
+    alive = series(exported, "league_workers_alive")
+    test = {"interval": f"{SCRAPE_S}s", "input_series": [{"series": alive, "values": "1x20 0x40"}],
+            "alert_rule_test": [at(5, [], "LeagueNoWorker"), at(5.75, [], "LeagueNoWorker"),
+                                at(6.5, [fired("LeagueNoWorker")], "LeagueNoWorker")]}
     result = run_promtool(promtool, tmp_path, [test])
     assert result.returncode == 0, result.stdout + result.stderr
 
 
-def test_no_worker_registered_at_all_is_alerted_on(promtool, exported, tmp_path):
-    """Workers stopped cleanly (or expired) leave no heartbeat series: absent(), while the API answers."""
-    up = 'up{instance="league:8000",job="league"}'
-    jobs = series(exported, "league_jobs", status="queued")
+def test_a_worker_restarted_again_and_again_and_two_releases_at_once_are_alerted_on(promtool, exported, tmp_path):
+    restarts = series(exported, "league_worker_restarts_total")
+    build = series(exported, "league_build_info")
+    older = re.sub(r'version="[^"]*"', 'version="0.1.9"', build).replace('instance="', 'instance="old-')
+    steps = 60 * 60 // SCRAPE_S
     test = {"interval": f"{SCRAPE_S}s",
-            "input_series": [{"series": up, "values": "1x20"}, {"series": jobs, "values": "1x20"}],
-            "alert_rule_test": [at(0.5, [], "LeagueNoWorker"),
-                                at(2, [fired("LeagueNoWorker")], "LeagueNoWorker"),
-                                at(2, [], "LeagueDown")]}
+            "input_series": [
+                {"series": restarts, "values": f"0x{steps // 2} 1x20 2x20 3x20 4x{steps}"},  # a 4th at 45 min
+                {"series": build, "values": f"1x{steps}"},
+                {"series": older + "", "values": f"_x8 1x{steps}"}],  # an old API starts 2 minutes in
+            "alert_rule_test": [
+                at(40, [], "LeagueWorkerRestarting"),
+                at(46, [fired("LeagueWorkerRestarting", "4")], "LeagueWorkerRestarting"),
+                at(5, [], "LeagueMixedVersions"),
+                at(8, [fired("LeagueMixedVersions", "2")], "LeagueMixedVersions")]}
     result = run_promtool(promtool, tmp_path, [test])
     assert result.returncode == 0, result.stdout + result.stderr
 

@@ -10,6 +10,7 @@ import sys
 import pytest
 from sqlalchemy import create_engine, text
 
+import league
 from league.server.db.session import head_revision, upgrade
 
 from .backends import fresh_backend
@@ -96,4 +97,5 @@ def test_a_schema_older_or_newer_than_the_code_is_refused_with_what_to_do(tmp_pa
         assert refused.returncode == 2, refused.stderr
         assert refused.stderr.splitlines()[-1] == (
             f"league: error: this database is at revision 0999, written by a newer version of microracer-league "
-            f"(this one, 0.1.0, knows revisions up to {head_revision()}): upgrade this installation"), command
+            f"(this one, {league.__version__}, knows revisions up to {head_revision()}): upgrade this "
+            f"installation"), command

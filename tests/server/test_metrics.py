@@ -3,14 +3,19 @@ after jobs ran through their leases (in process, on both backends); who may scra
 labelled by route template, not by the raw path."""
 from __future__ import annotations
 
+import os
+import socket
 from datetime import timedelta
 
 import pytest
 from prometheus_client.parser import text_string_to_metric_families
-from sqlalchemy import func, select
+from sqlalchemy import func, select, update
 
-from league.server.db.models import DONE, EpisodeResult, Job, Submission, WorkerProcess
+import league as league_package
+from league.server.db.models import DONE, EpisodeResult, Job, Submission, WorkerProcess, utcnow
+from league.server.db.session import head_revision
 from league.server.jobs.handlers import HANDLERS
+from league.server.jobs import registry
 from league.server.jobs.leases import claim
 from league.server.metrics import JOB_BUCKETS
 from league.validation.report import ValidationReport
@@ -67,7 +72,7 @@ def test_metrics_equal_the_database_after_jobs_ran(kind, tmp_path):
             statuses = dict(session.execute(select(Submission.status, func.count()).group_by(Submission.status)).all())
             episodes = dict(session.execute(select(EpisodeResult.outcome, func.count())
                                             .group_by(EpisodeResult.outcome)).all())
-            beat = session.scalars(select(WorkerProcess.heartbeat_at)).one()
+            beat = session.scalars(select(WorkerProcess.heartbeat_at).where(WorkerProcess.kind == "worker")).one()
 
     assert samples["league_jobs"] == {(("kind", k), ("status", s)): n for k, s, n in jobs}
     durations = {}
@@ -88,6 +93,9 @@ def test_metrics_equal_the_database_after_jobs_ran(kind, tmp_path):
     assert statuses.get("rejected") == 1 and statuses.get("ready", 0) >= 1
     assert samples["league_evaluation_episodes_total"] == {(("outcome", o),): n for o, n in episodes.items()}
     assert samples["league_worker_heartbeat_timestamp_seconds"] == {(("worker", "box-7/4242"),): beat.timestamp()}
+    assert samples["league_workers_alive"] == {(): 1}  # (the API process's own row is no worker)
+    assert samples["league_build_info"] == {(("schema", head_revision()), ("version", league_package.__version__)): 1}
+    assert "league_worker_restarts_total" not in samples  # this API process supervises no worker
     routes = {dict(labels)["route"] for labels in samples["league_http_request_duration_seconds_count"]}
     assert "/api/races/{race_id}" in routes and not any("987654" in route for route in routes)
 
@@ -153,3 +161,31 @@ def test_the_oldest_queued_job_is_zero_when_none_waits(tmp_path):
     with in_process_league("sqlite", tmp_path, bootstrap=False, metrics_token="scrape-me") as league:
         with league.client("scrape-me") as prometheus:
             assert scrape(prometheus)["league_queue_oldest_job_age_seconds"] == {(): 0.0}
+
+
+def test_the_workers_alive_gauge_exists_with_no_worker_and_a_dead_workers_series_expires(tmp_path):
+    """`league_workers_alive < 1` fires with no worker at all (a worker stopped cleanly removes its row, so
+    `time() - max(league_worker_heartbeat_timestamp_seconds)` has no series then); a worker killed with -9
+    keeps its series until its row expires, two silence windows after its last heartbeat."""
+    with in_process_league("sqlite", tmp_path, bootstrap=False, metrics_token="scrape-me") as league, \
+            league.client("scrape-me") as prometheus:
+        samples = scrape(prometheus)
+        assert samples["league_workers_alive"] == {(): 0}
+        assert "league_worker_heartbeat_timestamp_seconds" not in samples
+        killed = registry.register(league.sessions)
+        assert scrape(prometheus)["league_workers_alive"] == {(): 1}
+        with league.sessions.begin() as session:  # killed -9: no more beats
+            session.execute(update(WorkerProcess).where(WorkerProcess.id == killed)
+                            .values(heartbeat_at=utcnow() - timedelta(seconds=31)))
+        samples = scrape(prometheus)
+        assert samples["league_workers_alive"] == {(): 0}
+        assert len(samples["league_worker_heartbeat_timestamp_seconds"]) == 1  # silent, not yet expired
+        with league.sessions.begin() as session:
+            session.execute(update(WorkerProcess).where(WorkerProcess.id == killed)
+                            .values(heartbeat_at=utcnow() - timedelta(seconds=61)))
+        other = registry.register(league.sessions)
+        registry.beat(league.sessions, other, league.settings.worker_silent_after_s)  # any process's beat expires it
+        samples = scrape(prometheus)
+    assert samples["league_workers_alive"] == {(): 1}
+    assert [dict(labels)["worker"] for labels in samples["league_worker_heartbeat_timestamp_seconds"]] == \
+        [f"{socket.gethostname()}/{os.getpid()}"]  # the one left, `other`

@@ -132,8 +132,8 @@ class OrdinaryLeague:
         while time.monotonic() < deadline:
             if self.api.poll() is not None:
                 raise RuntimeError(f"the server exited ({self.api.returncode}):\n{self.log[-4000:]}")
-            with contextlib.suppress(httpx.HTTPError):
-                if httpx.get(f"{self.url}/api/health", timeout=2).status_code == 200:
+            with contextlib.suppress(httpx.HTTPError, ValueError, KeyError):  # "degraded": --no-worker, it answers
+                if httpx.get(f"{self.url}/api/health", timeout=2).json()["status"] in ("ok", "degraded"):
                     return
             time.sleep(0.2)
         raise TimeoutError(f"the server did not answer in {timeout} s:\n{self.log[-4000:]}")

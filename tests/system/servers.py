@@ -44,8 +44,10 @@ def freeze(pid: int) -> None:
 
 
 def embedded_worker(api: subprocess.Popen) -> int:
-    """The pid of the worker process a `league serve` started."""
-    children = Path(f"/proc/{api.pid}/task/{api.pid}/children").read_text().split()
+    """The pid of the worker process a `league serve` started (by its supervising thread: each thread's
+    children are listed under it)."""
+    tasks = Path(f"/proc/{api.pid}/task").iterdir()
+    children = [pid for task in tasks for pid in (task / "children").read_text().split()]
     return next(int(pid) for pid in children if b"worker" in Path(f"/proc/{pid}/cmdline").read_bytes().split(b"\0"))
 
 
@@ -77,7 +79,7 @@ class LeagueServer:
     def start_api(self, embedded_worker: bool = True) -> None:
         args = ["serve", "--port", str(self.port)] + ([] if embedded_worker else ["--no-worker"])
         self.api = self._spawn(*args, log_name="api.log")
-        self.wait_healthy()
+        self.wait_healthy(ready=("ok",) if embedded_worker else ("ok", "degraded"))
 
     def start_worker(self, prefix: tuple[str, ...] = (), **env: str) -> subprocess.Popen:
         """A `league worker`; give LEAGUE_DATA_DIR to make it one "on another machine" (its own disk),
@@ -86,13 +88,15 @@ class LeagueServer:
         self.workers.append(worker)
         return worker
 
-    def wait_healthy(self, timeout: float = 60) -> None:
+    def wait_healthy(self, timeout: float = 60, ready: tuple[str, ...] = ("ok",)) -> None:
+        """Until /api/health's status is one of `ready`: "ok" once a worker beats, "degraded" (503) for an
+        API that answers with no worker yet (--no-worker)."""
         deadline = time.monotonic() + timeout
         while time.monotonic() < deadline:
             if self.api.poll() is not None:
                 raise RuntimeError(f"the server exited ({self.api.returncode}):\n{self.log('api.log')}")
-            with contextlib.suppress(httpx.HTTPError):
-                if httpx.get(f"{self.url}/api/health", timeout=2).status_code == 200:
+            with contextlib.suppress(httpx.HTTPError, ValueError, KeyError):
+                if httpx.get(f"{self.url}/api/health", timeout=2).json()["status"] in ready:
                     return
             time.sleep(0.1)
         raise TimeoutError(f"the server did not answer in {timeout} s:\n{self.log('api.log')}")

@@ -10,6 +10,7 @@ from __future__ import annotations
 import io
 import os
 import shutil
+import socket
 import subprocess
 import sys
 import tarfile
@@ -17,18 +18,23 @@ from pathlib import Path
 
 import pytest
 
+import league
 from league.server.db.session import head_revision
 
 from ..server.backends import TEST_SETTINGS, fresh_backend
 from ..server.commands import REPO
 from .semester import collect, differences, drained, semester
-from .servers import LeagueServer
+from .servers import LeagueServer, embedded_worker
 
 # commit -> the schema revision its code writes: releases a course may upgrade from
 RELEASES = {
+    "7053bbc": "0017",  # the last 0.1.0: its workers register (the workers table, since 0014), its API does not
     "c4a0240": "0006",  # the last one before issues 22-26 (assignments, the database as the queue, ...)
     "b0d63d4": "0005",  # before the state stamp's indexes by kind
 }
+# how a release creates a league with an instructor (`league init` since 81d69d7; before it, any command did)
+CREATE = {"7053bbc": ("init", "--instructor", "prof")}
+FIRST_REGISTERING = "0014"  # releases from this schema list their workers: `league migrate` sees them
 CORE_SOURCES = ("league/lidar.pyx", "league/constants.py", "setup.py")  # what league/lidar.*.so is built from
 
 
@@ -79,8 +85,13 @@ def releases(tmp_path_factory) -> dict[str, Path]:
     return {commit: release_tree(commit, folder, cores) for commit in RELEASES}
 
 
-# every migration since each release on both backends: PostgreSQL's from 0006, SQLite's (batch copies) from 0005
-@pytest.mark.parametrize("commit, kind", [("c4a0240", "postgres"), ("b0d63d4", "sqlite")])
+def registers(revision: str) -> bool:
+    return int(revision) >= int(FIRST_REGISTERING)
+
+
+# every migration since each release on both backends: PostgreSQL's from 0006, SQLite's (batch copies) from 0005;
+# from 0017 (0.1.0) the unguarded order too: `league migrate` with the old server still running is refused
+@pytest.mark.parametrize("commit, kind", [("c4a0240", "postgres"), ("b0d63d4", "sqlite"), ("7053bbc", "sqlite")])
 def test_a_league_written_by_an_earlier_release_answers_the_same_after_the_upgrade(commit, kind, releases, tmp_path,
                                                                                    models):
     with fresh_backend(kind, tmp_path) as database_url:
@@ -89,18 +100,20 @@ def test_a_league_written_by_an_earlier_release_answers_the_same_after_the_upgra
         env = {**os.environ, **TEST_SETTINGS, "LEAGUE_DATA_DIR": str(data_dir), "LEAGUE_DATABASE_URL": database_url,
                "LEAGUE_CPU_SLOTS_DIR": str(tmp_path / "cpu-slots"), "LEAGUE_BASELINES_DIR": str(data_dir / "baselines")}
         old = LeagueServer({**env, "PYTHONPATH": str(releases[commit])}, data_dir, root=releases[commit])
-        added = old.command("users", "add", "prof", "--role", "instructor")  # (which created the database then)
+        added = old.command(*CREATE.get(commit, ("users", "add", "prof", "--role", "instructor")))
         assert added.returncode == 0, added.stderr
         old.instructor_token = added.stdout.strip()
+        new = LeagueServer({**env, "PYTHONPATH": str(REPO)}, data_dir, instructor_token=old.instructor_token)
         old.start_api()
         try:
             tokens = semester(old, models)
             drained(old)
             before = collect(old.url, old.instructor_token, tokens)
+            if registers(RELEASES[commit]):  # the unguarded order: the old server still runs
+                refused_under_it(new, embedded_worker(old.api))
         finally:
             old.stop_all()
 
-        new = LeagueServer({**env, "PYTHONPATH": str(REPO)}, data_dir, instructor_token=old.instructor_token)
         if RELEASES[commit] != head_revision():  # this code's workers do not run on the old schema
             refused = new.command("worker")
             assert refused.returncode == 2
@@ -122,3 +135,20 @@ def test_a_league_written_by_an_earlier_release_answers_the_same_after_the_upgra
     # in the same order, are compared field by field but for the rank
     assert [d for path in before for d in differences(before[path], after[path], path, common_fields_only=True,
                                                       ignore=csv_rank if path.endswith(".csv") else no_key)] == []
+
+
+def refused_under_it(new: LeagueServer, old_worker: int) -> None:
+    """The new `league migrate` refuses, naming the old release's worker; so does a new `league serve`."""
+    refused = new.command("migrate")
+    assert refused.returncode == 2
+    message = refused.stderr.splitlines()[-1]
+    assert message.startswith(f"league: error: processes of another version than this one ({league.__version__}) "
+                              f"use this database, and migrating under them would break them: alive: worker 0.1.0 "
+                              f"on {socket.gethostname()}, pid {old_worker}, last heartbeat "), message
+    assert message.endswith("Stop them first (every API and worker of the old version; with Docker: `docker "
+                            "compose stop`)."), message
+    serve = new.command("serve", "--port", "1")  # (it would migrate first: refused before it listens)
+    served = serve.stderr.splitlines()[-1]
+    assert serve.returncode == 2 and served.partition(", last heartbeat")[0] == message.partition(", last heartbeat")[0]
+    assert served.endswith("Stop them first (every API and worker of the old version; with Docker: `docker compose "
+                           "stop`)."), served

@@ -434,14 +434,19 @@ class AuditEvent(Base):
     details: Mapped[dict[str, Any]] = mapped_column(default=dict)
 
 
+API_PROCESS, WORKER_PROCESS = "api", "worker"
+
+
 class WorkerProcess(Base):
-    """A running `league worker` (serve's own included), beating every few seconds: /api/health says
-    whether queued jobs have anyone to run them. A worker removes its row when it stops; the rows of
-    workers that died are pruned by the others after a day."""
+    """A running league process, beating every few seconds: a `league worker` (serve's own included)
+    or an API process (`kind`). /api/health says whether queued jobs have a worker to run them;
+    `league migrate` refuses while processes of another version run. A process removes its row when
+    it stops; the rows of processes that died expire (league.server.jobs.registry)."""
 
     __tablename__ = "workers"
 
     id: Mapped[int] = mapped_column(primary_key=True)
+    kind: Mapped[str] = mapped_column(String(10), default=WORKER_PROCESS, server_default=WORKER_PROCESS)
     host: Mapped[str] = mapped_column(String(255))
     pid: Mapped[int] = mapped_column(Integer)
     version: Mapped[str] = mapped_column(String(50))  # microracer-league's

@@ -10,7 +10,7 @@ import contextlib
 import fcntl
 import functools
 import os
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator
 from pathlib import Path
 
 from alembic import command
@@ -109,6 +109,13 @@ def revision_of(connection: Connection) -> str | None:
     return MigrationContext.configure(connection).get_current_revision()
 
 
+def stored_revision(connection: Connection) -> str | None:
+    """The revision alembic_version holds, read as a plain query: what running processes check at each
+    beat (MigrationContext logs two lines each time it is made). A database error is raised, not taken
+    for a changed schema: an outage must not stop a worker (its beat logs the failed pass and goes on)."""
+    return connection.scalar(text("SELECT version_num FROM alembic_version"))
+
+
 @functools.cache
 def _scripts() -> ScriptDirectory:
     return ScriptDirectory.from_config(alembic_config(""))
@@ -146,17 +153,48 @@ def check_schema(revision: str | None) -> None:
         raise DatabaseError(problem)
 
 
-def migrate(engine: Engine, *, new_only: bool = False) -> tuple[str | None, str]:
-    """`alembic upgrade head`, serialised between processes that start together; (from, to) revisions.
-    With `new_only` (`league init`) a database of an older schema is refused instead. The revision is
-    read under the lock: one read before it may see another process's migration half done."""
+def migrate(engine: Engine, *, new_only: bool = False, to: str = "head",
+            guard: Callable[[Connection], None] | None = None) -> tuple[str | None, str]:
+    """`alembic upgrade head` (or up or down `to` a revision), serialised between processes that start
+    together; (from, to) revisions. With `new_only` (`league init`) a database of an older schema is
+    refused instead. `guard(connection)` may refuse before anything changes (processes of another
+    version run: league.server.jobs.registry). The revision is read under the lock: one read before it
+    may see another process's migration half done."""
     with migration_lock(engine) as connection:
         before = revision_of(connection)
         if schema_state(before) == "newer" or (new_only and schema_state(before) == "older"):
             raise DatabaseError(schema_problem(before))
+        target = head_revision() if to == "head" else to
+        if target != before and guard is not None:
+            guard(connection)
         connection.commit()  # (reading the revision began a transaction)
-        upgrade(connection, "head")
+        if to == "head" or is_later(to, before):
+            upgrade(connection, to)
+        elif to != before:
+            downgrade(connection, to)
         return before, revision_of(connection)
+
+
+def known_revision(revision: str) -> str:
+    """`revision` if a migration of this installation has it, else DatabaseError listing them."""
+    known = [script.revision for script in _scripts().walk_revisions()]
+    if revision not in known:
+        raise DatabaseError(f"no schema revision {revision!r} here: this installation knows "
+                            f"{', '.join(reversed(known))}")
+    return revision
+
+
+def is_later(revision: str, than: str | None) -> bool:
+    """Whether `revision` comes after `than` in the migrations' chain (None: before them all)."""
+    return than is None or than in {script.revision for script in _scripts().iterate_revisions(revision, "base")
+                                    if script.revision != revision}
+
+
+def downgrade(connection: Connection, revision: str) -> None:
+    """`alembic downgrade REVISION` on this connection (committed); the migrations' downgrade() steps."""
+    config = alembic_config(connection.engine.url.render_as_string(hide_password=False))
+    config.attributes["connection"] = connection
+    command.downgrade(config, revision)
 
 
 def upgrade(connection: Connection, revision: str) -> None:

@@ -16,9 +16,11 @@ from pathlib import Path
 
 from sqlalchemy import Engine
 
+import league
+
 from league.server.config import Settings
 from league.server.db import crud
-from league.server.db.session import make_sessionmaker
+from league.server.db.session import make_sessionmaker, schema_problem, stored_revision
 from league.server.jobs import alive, registry
 from league.server.jobs.handlers import HANDLERS
 from league.server.jobs.placement import Placement
@@ -69,6 +71,7 @@ class Worker:
         self.draining = threading.Event()  # claim no new job (SIGINT): the running ones finish
         self.signals: list[int] = []  # received, acted on by the main thread
         self.worker_id: int | None = None
+        self.outdated: str | None = None  # why this process stopped: the database's schema is not its own
         self.reaper = Periodic("league-reaper", settings.reaper_interval_s, self._reap)
         self.beat = Periodic("league-worker-beat", settings.worker_heartbeat_s, self._beat)
         self._stop_listening = threading.Event()
@@ -145,7 +148,14 @@ class Worker:
         alive.beat(alive.alive_file(self.context.settings.data_dir))  # `league worker --check`
 
     def _beat(self) -> None:
-        self.worker_id = registry.beat(self.context.sessions, self.worker_id)
+        """Beat, and stop if the schema changed under us (an upgrade whose `league migrate` did not see
+        this worker): running on would fail each job on missing columns; the message says what to do."""
+        self.worker_id = registry.beat(self.context.sessions, self.worker_id,
+                                       self.context.settings.worker_silent_after_s)
+        self.outdated = schema_changed(self.context.sessions)
+        if self.outdated:
+            log.error("worker stopping: %s", self.outdated)
+            self.signals.append(signal.SIGTERM)  # the main thread hands the running jobs back and stops
 
     def _release_cpus(self) -> None:
         if self.context.placement is not None:
@@ -155,6 +165,14 @@ class Worker:
         released = release_active(self.context)
         if released:
             log.info("handed jobs %s back to the queue", released)
+
+
+def schema_changed(sessions) -> str | None:
+    """What to do if the database's schema is no longer this installation's (None while it is)."""
+    with sessions() as session:
+        problem = schema_problem(stored_revision(session.connection()))
+    return None if problem is None else (f"the database's schema changed under this running process "
+                                         f"(microracer-league {league.__version__}): {problem}, then restart it")
 
 
 def sweep_store(sessions, store: BlobStore) -> None:
