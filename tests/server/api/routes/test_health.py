@@ -93,7 +93,7 @@ def test_an_api_whose_schema_is_migrated_under_it_answers_503_saying_what_to_do(
     """An upgrade that did not stop this API (an old process facing a newer schema): its next database
     error (a column renamed) is answered 503 with what to do instead of a 500, and so is every /api/
     request after it, /api/health saying "outdated"; back on its own schema it answers again."""
-    with in_process_league(kind, tmp_path, worker_heartbeat_s=3600) as league, \
+    with in_process_league(kind, tmp_path, worker_heartbeat_s=3600, worker_silent_after_s=7200) as league, \
             league.client(league.instructor_token) as instructor:  # (no beat sees it first: the error does)
         assert instructor.get("/api/leaderboard").status_code == 200
         with league.app.state.league.engine.begin() as connection:  # what a newer release's migration would do
