@@ -204,7 +204,7 @@ class BacklogFigures:
     window_s: float
     publish_s: float  # the due time -> the private board published (the server's own times)
     jobs_s: float  # the workers started -> the last evaluation done
-    after_last_s: float  # the last evaluation done -> the private board published
+    after_last_s: float  # the last evaluation done -> the private board published (to the second)
     graded: int  # of the students who uploaded, those graded when it was published
     without_final: int  # of the students who uploaded, those whose grade is "no final": must be 0
     failures: list[str] = field(default_factory=list)
@@ -299,7 +299,8 @@ def backlog(league: League, args: argparse.Namespace, files: list[Path]) -> Back
     return BacklogFigures(
         students=args.students, uploaded=len(uploaded), episodes=args.episodes, window_s=args.window,
         publish_s=(published_at - datetime.fromisoformat(published["due_at"])).total_seconds(),
-        jobs_s=(last_done - workers_at).total_seconds(), after_last_s=(published_at - last_done).total_seconds(),
+        jobs_s=(last_done - workers_at).total_seconds(),
+        after_last_s=max(0.0, (published_at - last_done).total_seconds()),  # published_at is to the second
         graded=len(uploaders) - len(ungraded), without_final=len(without_final), failures=failures)
 
 

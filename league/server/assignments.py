@@ -220,9 +220,10 @@ def decide_finals(session: Session, assignment: Assignment, *, now: datetime, ma
                   user_ids: set[int] | None = None) -> list[int]:
     """Decide the frozen, undecided finals of the assignment (of `user_ids` only, when given) that
     wait for nothing more, and queue their private evaluations; their job ids."""
-    rows = [row for row in crud.student_assignments(session, assignment_id=assignment.id).values()
-            if row.final_at is not None and row.final_decided_at is None
-            and (user_ids is None or row.user_id in user_ids)]
+    rows = sorted((row for row in crud.student_assignments(session, assignment_id=assignment.id).values()
+                   if row.final_at is not None and row.final_decided_at is None
+                   and (user_ids is None or row.user_id in user_ids)),
+                  key=lambda row: row.user_id)  # rows locked in one order by every process: no deadlock
     if not rows:
         return []
     candidates = {row.user_id: set(row.final_candidates or ()) for row in rows}
