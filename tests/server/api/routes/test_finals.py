@@ -6,6 +6,8 @@ their final, its private evaluation and a grade; the assignment publishes itself
 that changes after the publication changes the grade, which says so."""
 from __future__ import annotations
 
+import threading
+from concurrent.futures import ThreadPoolExecutor
 from datetime import datetime, timedelta, timezone
 
 import pytest
@@ -13,8 +15,9 @@ import pytest
 from league.server.app import catch_up
 from league.server.db import crud
 from league.server.db.models import (
-    EVALUATE, PRIVATE, PUBLIC, QUEUED, VALIDATE, Assignment, Evaluation, Job, StudentAssignment, Submission,
+    DONE, EVALUATE, PRIVATE, PUBLIC, QUEUED, VALIDATE, Assignment, Evaluation, Job, StudentAssignment, Submission,
 )
+from league.server.jobs.runner import close_due_now
 from league.validation.report import ValidationReport
 
 from ...api_calls import unique
@@ -221,3 +224,46 @@ def test_a_selected_final_is_decided_at_the_due_time_and_a_late_evaluation_never
     assert table[chooser_user.name]["submission_id"] == chosen
     with league.sessions() as session:
         assert session.get(Submission, late).status == "ready"
+
+
+def test_due_time_passes_of_several_processes_at_once_decide_each_final_once(league, clock):
+    """Four passes at the same moment (workers' reapers, an API starting) over finals whose candidates
+    have all just been evaluated: each final is decided once, with one private evaluation; a pass that
+    gave way to another leaves nothing undone."""
+    instructor = league.client(league.instructor_token)
+    name, due = unique("race"), DUE + timedelta(days=2)
+    created = instructor.post("/api/assignments", json={"name": name, "episodes": EPISODES, "due_at": due.isoformat()})
+    assert created.status_code == 201, created.text
+    clock.set(due - 60 * SECOND)
+    ids = [upload(league.student("racer")[1], name) for _ in range(6)]
+    validations = queued(league, VALIDATE)
+    for submission_id in ids:
+        league.finish_job(validations[submission_id], ValidationReport(True, 5, None, "validated in a test"))
+    clock.set(due + SECOND)
+    assert catch_up(league.app.state.league) == []  # frozen: every public evaluation still queued
+    public = queued(league, EVALUATE, PUBLIC)
+    with league.sessions.begin() as session:  # they end without their jobs' own passes (as an older worker's)
+        for k, submission_id in enumerate(ids):
+            job = session.get(Job, public[submission_id])
+            evaluation = session.get(Evaluation, job.evaluation_id)
+            job.status, evaluation.status, evaluation.episodes_total = DONE, DONE, EPISODES
+            evaluation.completed, evaluation.mean_return = 1 + k % EPISODES, float(k)
+
+    barrier = threading.Barrier(4)
+
+    def one_pass(_) -> list[int]:
+        barrier.wait()
+        return close_due_now(league.sessions, league.app.state.league.queue, max_attempts=1, now=due + 2 * SECOND)
+
+    with ThreadPoolExecutor(4) as pool:
+        queued_by_passes = [job_id for jobs in pool.map(one_pass, range(4)) for job_id in jobs]
+    catch_up(league.app.state.league)  # the next pass: what every pass gave way on, if any
+    with league.sessions() as session:
+        hw = session.scalar(crud.select(Assignment.id).where(Assignment.name == name))
+        private = session.execute(crud.select(Evaluation.submission_id, Job.id).join(
+            Job, Job.evaluation_id == Evaluation.id).where(Evaluation.assignment_id == hw,
+                                                           Evaluation.track == PRIVATE)).all()
+    assert sorted(submission_id for submission_id, _ in private) == sorted(ids)  # each once
+    assert len(set(queued_by_passes)) == len(queued_by_passes) and set(queued_by_passes) <= {j for _, j in private}
+    assert all(row.final_submission_id in ids for row in final_rows(league, hw).values()
+               if row.final_candidates)
