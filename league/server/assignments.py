@@ -3,11 +3,12 @@
 The server's clock decides (league.server.clock). A student's times in an assignment: uploads open
 at `opens_at`; on time until their due time (their extension, else the assignment's `due_at`); late
 until `late_until` when that is after it; closed after (their close time). At their close time their
-final submission (final_choices: the one they selected, else their best on the public board) is
-frozen and evaluated on the private tracks, as a job of the queue (close_due: run at start and on
-every reaper pass, so a server down at that moment catches up). The private board, seed, tracks and
-figures are shown once the assignment is published (by an instructor, or by itself when every
-final is evaluated, with `auto_publish`).
+final is frozen with its candidates (their uploads), decided once each candidate is validated and
+evaluated on the public tracks (final_choices: the one they selected, else their best on the public
+board), then evaluated on the private tracks, as a job of the queue (close_due: run at start and on
+every reaper pass, so a server down at that moment catches up; after_job: as a candidate's last job
+ends). The private board, seed, tracks and figures are shown once the assignment is published (by an
+instructor, or by itself when every final is decided and evaluated, with `auto_publish`).
 """
 from __future__ import annotations
 

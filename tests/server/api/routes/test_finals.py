@@ -84,7 +84,9 @@ def published_at(instructor, assignment_id: int) -> str | None:
     return instructor.get(f"/api/assignments/{assignment_id}").json()["published_at"]
 
 
-def test_uploads_queued_at_the_due_time_become_finals_graded_before_the_assignment_publishes_itself(league, clock):
+def test_uploads_queued_at_the_due_time_become_finals_graded_before_the_assignment_publishes_itself(league, clock,
+                                                                                                     monkeypatch,
+                                                                                                     capsys):
     """ann uploads twice, bob twice (one is rejected), cy once (rejected), dee never; all within the
     last minute, no worker running. After the due time: three finals wait, none is "no final" but
     cy's and dee's; the worker's jobs then decide them (ann's best, bob's valid one), evaluate them on
@@ -183,6 +185,25 @@ def test_uploads_queued_at_the_due_time_become_finals_graded_before_the_assignme
     assert "completed 2/4" in mine["note"]  # what it was at the publication
     csv_text = instructor.get(f"/api/assignments/{hw}/grades.csv").text
     assert csv_text.splitlines()[0].endswith(",note") and mine["note"] in csv_text
+    assert f"changed since the publication: {mine['note']}" in my_grade_in_the_terminal(
+        league, students["bob"][1], name, monkeypatch, capsys)
+
+
+def my_grade_in_the_terminal(league, client, assignment: str, monkeypatch, capsys) -> str:
+    """`league grades NAME` as the client's student, against the app itself (the CLI's HTTP client
+    given the app's transport)."""
+    from league import client as cli_client
+    from league.cli import main
+
+    def api_on_the_app(self, conn, timeout: float = 60):
+        self.conn, self.http = conn, league.client(conn.token)
+
+    monkeypatch.setattr(cli_client.Api, "__init__", api_on_the_app)
+    monkeypatch.setenv("LEAGUE_SERVER", "http://testserver")
+    monkeypatch.setenv("LEAGUE_TOKEN", client.headers["Authorization"].removeprefix("Bearer "))
+    capsys.readouterr()
+    assert main(["grades", assignment]) == 0
+    return capsys.readouterr().out
 
 
 def test_a_selected_final_is_decided_at_the_due_time_and_a_late_evaluation_never_makes_a_no_final(league, clock):
