@@ -692,6 +692,8 @@ def print_my_grade(grade: dict) -> int:
     rank = f", rank {grade['rank']} of {grade['students']}" if grade["rank"] else ""
     late = f", late: x{grade['penalty']:g}" if grade["late"] else ""
     print(f"{grade['assignment']}: {grade['points']:g} / {grade['max_points']:g} points{rank}{late}")
+    if grade.get("note"):  # its private result changed after the publication (a server before 0018: no key)
+        print(f"  changed since the publication: {grade['note']}")
     return EXIT_OK
 
 

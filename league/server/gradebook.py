@@ -15,7 +15,7 @@ from sqlalchemy.orm import Session
 from league.server import grades, results
 from league.server.db import crud
 from league.server.db.models import (
-    DONE, LOW, PRIVATE, QUEUED, RUNNING, STUDENT, Assignment, Evaluation, Job, Submission, User,
+    DONE, LOW, PRIVATE, QUEUED, RUNNING, STUDENT, Assignment, Evaluation, Job, StudentAssignment, Submission, User,
 )
 
 
@@ -62,27 +62,49 @@ def assignment_entries(session: Session, assignment: Assignment) -> list[grades.
     private result, as league.server.grades reads them."""
     students = [u for u in crud.course_users(session, course_id=assignment.course_id) if u.role == STUDENT]
     rows = crud.student_assignments(session, assignment_id=assignment.id)
-    frozen = {u.id: rows[u.id].final_submission_id for u in students if u.id in rows and rows[u.id].final_at}
+    frozen = {u.id: rows[u.id] for u in students if u.id in rows and rows[u.id].final_at}
     baselines = crud.ready_baseline_submissions(session)
-    finals = crud.submissions_by_id(session, ids=[i for i in frozen.values() if i is not None])
+    finals = crud.submissions_by_id(session, ids=[row.final_submission_id for row in frozen.values()
+                                                  if row.final_submission_id is not None])
     current, stale = private_results(session, assignment, list(finals) + [b.id for b in baselines])
-    entries = [_student_entry(u, frozen, finals, current, stale) for u in students]
+    published = assignment.published_at is not None
+    entries = [_student_entry(session, u, frozen.get(u.id), finals, current, stale, published) for u in students]
     entries += [grades.Entry(name=b.name, baseline=True, submission_id=b.id, **figures(current[b.id]))
                 for b in baselines if b.id in current]
     return entries
 
 
-def _student_entry(user: User, frozen: dict[int, int | None], finals: dict[int, Submission],
-                   current: dict[int, Evaluation], stale: set[int]) -> grades.Entry:
+def _student_entry(session: Session, user: User, row: StudentAssignment | None, finals: dict[int, Submission],
+                   current: dict[int, Evaluation], stale: set[int], published: bool) -> grades.Entry:
     # a student revoked before their close time is never frozen (close_due takes active students):
     # they have no final
-    closed = user.id in frozen or user.revoked_at is not None
-    final = finals.get(frozen.get(user.id))
+    closed = row is not None or user.revoked_at is not None
+    final = finals.get(row.final_submission_id) if row is not None else None
+    evaluation = current.get(final.id) if final else None
     return grades.Entry(name=user.name, user_id=user.id, email=user.email, student_id=user.student_id,
                         canvas_id=user.canvas_id, sis_login_id=user.sis_login_id,
                         revoked=user.revoked_at is not None, closed=closed,
+                        deciding=row is not None and row.final_decided_at is None,
                         submission_id=final.id if final else None, late=bool(final and final.late),
-                        stale=bool(final and final.id in stale), **figures(current.get(final.id) if final else None))
+                        stale=bool(final and final.id in stale), **figures(evaluation),
+                        note=revision(session, row, evaluation) if published else None)
+
+
+def revision(session: Session, row: StudentAssignment | None, evaluation: Evaluation | None) -> str | None:
+    """How a published assignment's grade changed since its publication (None: it did not): its
+    final's private result then (league.server.assignments keeps its id) against the one that counts now."""
+    then = row.published_evaluation_id if row is not None else None
+    now = evaluation.id if evaluation is not None else None
+    if then == now:
+        return None
+    if then is None:
+        return "graded after the publication (its private evaluation finished after it)"
+    before = session.get(Evaluation, then)
+    was = (f": completed {before.completed}/{before.episodes_total}, mean return {before.mean_return:.3f} at the "
+           f"publication" if before is not None and before.status == DONE else "")
+    if now is None:
+        return f"its private result at the publication no longer counts (settings changed){was}"
+    return f"re-evaluated after the publication{was}"
 
 
 def assignment_grades(session: Session, assignment: Assignment) -> list[grades.GradeRow]:

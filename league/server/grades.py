@@ -9,11 +9,14 @@ returns the rows, best first. The rules, in one place:
   stand, no rank, no grade. A revoked student is flagged and ranked among the active students as
   if they were the only one added (they move no one else): `rank` and `students` are theirs alone.
 - **Points**: the rubric's, within [0, max_points], times the assignment's late penalty factor if
-  the final was late. A student **without a final** (no submission by their close time) gets 0
-  points; one whose close time has not passed, or whose final has **no private result of the
-  current settings** (not evaluated yet, its evaluation failed, or only of other settings: `stale`)
-  gets an empty grade, so that a gradebook never reads a pending grade as a zero. Each row's
-  `status` says which: graded, no final, open, pending, stale, or reference (a baseline).
+  the final was late. A student **without a final** (no submission by their close time that
+  passed validation) gets 0 points; one whose close time has not passed, whose final is not
+  decided yet (an upload of theirs still to be validated or evaluated on the public tracks:
+  `deciding`), or whose final has **no private result of the current settings** (not evaluated
+  yet, its evaluation failed, or only of other settings: `stale`) gets an empty grade, so that a
+  gradebook never reads a pending grade as a zero. Each row's `status` says which: graded, no
+  final, open, pending, stale, or reference (a baseline). A row's `note` says when its private
+  result changed after the assignment was published (re-evaluated, or graded after it).
 - **Rubrics** (`Rubric`, JSON the instructor sets): points by completed fraction (steps or
   linear) plus points by rank (linear or a table), or a formula over `completed` (fraction 0-1),
   `mean_speed`, `rank` and `students` (the count ranked), with numbers, + - * / **, min(),
@@ -399,6 +402,8 @@ class Entry:
     late: bool = False
     closed: bool = True
     stale: bool = False
+    deciding: bool = False  # closed, the final not decided yet (league.server.assignments)
+    note: str | None = None  # how its private result changed since the publication (None: it did not)
 
     @property
     def evaluated(self) -> bool:
@@ -424,6 +429,8 @@ class GradeRow:
             return "reference"
         if not e.closed:
             return "open"
+        if e.deciding:
+            return "pending"
         if e.submission_id is None:
             return "no final"
         if not e.evaluated:
@@ -436,7 +443,7 @@ class GradeRow:
                 "email": e.email, "student_id": e.student_id, "submission_id": e.submission_id,
                 "completed": e.completed, "mean_return": e.mean_return, "mean_speed": e.mean_speed, "rank": self.rank,
                 "students": self.students, "late": e.late, "penalty": self.penalty, "points": self.points,
-                "revoked": e.revoked}
+                "revoked": e.revoked, "revised": e.note is not None, "note": e.note}
 
 
 def grade(entries: Sequence[Entry], rubric: PointsRubric | FormulaRubric, *,
@@ -458,7 +465,8 @@ def grade(entries: Sequence[Entry], rubric: PointsRubric | FormulaRubric, *,
 
 
 def _row(entry: Entry, rank: int | None, students: int | None, rubric, late_penalty: float | None) -> GradeRow:
-    if entry.baseline or not entry.closed or (entry.submission_id is not None and not entry.evaluated):
+    if entry.baseline or not entry.closed or entry.deciding or (
+            entry.submission_id is not None and not entry.evaluated):
         return GradeRow(entry, rank, students, None, None)
     if entry.submission_id is None:
         return GradeRow(entry, None, None, None, 0.0)
@@ -473,7 +481,7 @@ def _order(row: GradeRow) -> tuple:
     e = row.entry
     if e.evaluated:
         return (0, tuple(-x for x in e.score()), e.baseline, e.name)
-    return (2 if e.closed and e.submission_id is None else 1, (), False, e.name)
+    return (2 if e.closed and not e.deciding and e.submission_id is None else 1, (), False, e.name)
 
 
 def student_rows(rows: Sequence[GradeRow]) -> list[GradeRow]:
@@ -483,7 +491,7 @@ def student_rows(rows: Sequence[GradeRow]) -> list[GradeRow]:
 # --------------------------------------------------------------------------- exports
 
 GENERIC_COLUMNS = ["name", "status", "role", "email", "student_id", "submission", "completed", "mean_return",
-                   "mean_speed", "rank", "students", "late", "penalty", "points", "revoked"]
+                   "mean_speed", "rank", "students", "late", "penalty", "points", "revoked", "note"]
 CANVAS_STUDENT_COLUMNS = ["Student", "ID", "SIS User ID", "SIS Login ID", "Section"]
 CANVAS_POINTS_POSSIBLE = "Points Possible"  # the row Canvas reads each column's maximum from
 MOODLE_IDENTIFIERS = {"email": "Email address", "idnumber": "ID number"}  # Moodle's names for the user fields
@@ -507,7 +515,7 @@ def generic_csv(rows: Sequence[GradeRow]) -> str:
     return csv_text(GENERIC_COLUMNS, [[
         e.name, row.status, "baseline" if e.baseline else "student", e.email, e.student_id, e.submission_id,
         _round(e.completed, 4), _round(e.mean_return, 3), _round(e.mean_speed, 3), row.rank, row.students,
-        _yes(e.late), row.penalty, row.points, _yes(e.revoked)] for row in rows for e in [row.entry]])
+        _yes(e.late), row.penalty, row.points, _yes(e.revoked), e.note] for row in rows for e in [row.entry]])
 
 
 def _round(x: float | None, decimals: int) -> float | None:

@@ -470,6 +470,9 @@ class FinalOut(BaseModel):
     submission_id: int | None = Field(description="the final submission: selected, else the best on the public board")
     selected: bool = Field(description="the student selected it (else: their best on the public board)")
     frozen_at: UtcTime | None = Field(description="when it was frozen (the student's close time); null before")
+    decided: bool = Field(False, description="the final is decided: after the close time, once each upload made "
+                                             "before it is validated and evaluated on the public tracks (until "
+                                             "then, submission_id is what it would be now)")
     evaluation: EvaluationOut | None = Field(None, description="its private test: once published (instructors: "
                                                                "always)")
 
@@ -589,9 +592,10 @@ class CanvasMatchOut(BaseModel):
 class GradeRowOut(BaseModel):
     name: str = Field(description="the student's name, or the baseline agent's")
     status: Literal["graded", "no final", "open", "pending", "stale", "reference"] = Field(
-        description="graded; no final (0 points); open (final not frozen yet), pending (its private evaluation "
-                    "not done, or failed), stale (its private result is of other settings): empty points; "
-                    "reference: a baseline (no rank, no grade)")
+        description="graded; no final (0 points); open (final not frozen yet), pending (the final not decided "
+                    "yet: an upload still to be validated or evaluated on the public tracks; or its private "
+                    "evaluation not done, or failed), stale (its private result is of other settings): empty "
+                    "points; reference: a baseline (no rank, no grade)")
     role: Literal["student", "baseline"]
     email: str | None
     student_id: str | None
@@ -605,6 +609,8 @@ class GradeRowOut(BaseModel):
     penalty: float | None = Field(description="the factor the points were multiplied by (the late penalty, else 1)")
     points: float | None
     revoked: bool
+    revised: bool = Field(description="its private result changed after the assignment was published")
+    note: str | None = Field(description="how it changed (re-evaluated, or graded after the publication)")
 
 
 class GradesOut(BaseModel):

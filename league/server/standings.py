@@ -118,6 +118,21 @@ def assignment_board(session: Session, assignment: Assignment, track: str = PUBL
             + [_leaderboard_row(None, entry, rating(entry)) for entry in unranked])
 
 
+def best_submissions(session: Session, assignment: Assignment, among: set[int] | None = None) -> dict[int, int]:
+    """Each student's submission that stands best on the assignment's public board, by owner id: as
+    assignment_board picks a student's row (their best ranked submission, else their best stale one;
+    of equals, the newest), among the submissions of `among` only when given. The rule by which a
+    final is chosen when the student selected none (league.server.assignments)."""
+    best: dict[int, Any] = {}
+    for entry in crud.leaderboard_entries(session, assignment=assignment, result_key=results.current_key(assignment)):
+        if entry.owner_role != STUDENT or (among is not None and entry.id not in among):
+            continue
+        standing = (not entry.stale, *_score(entry))  # entries come newest first: an equal one does not win
+        if entry.owner_id not in best or standing > best[entry.owner_id][0]:
+            best[entry.owner_id] = (standing, entry.id)
+    return {owner_id: submission_id for owner_id, (_, submission_id) in best.items()}
+
+
 def leaderboard_key(entry) -> tuple[str, int]:
     """A row's identity: each baseline agent has a row, each student one (their best agent).
     Tagged, so that a student's user id never collides with a baseline's submission id."""

@@ -427,5 +427,45 @@ def test_users_gain_canvas_ids_with_their_data_kept_and_lose_them_on_downgrade(b
     with engine.connect() as connection:
         assert {"canvas_id", "sis_login_id"}.isdisjoint(c["name"] for c in inspect(connection).get_columns("users"))
         assert tuple(connection.execute(text("SELECT name, student_id FROM users")).one()) == ("Ada", "s1")
+
+
+# --------------------------------------------------------------------------- 0018: finals' candidates
+
+
+def test_finals_frozen_before_0018_stay_decided_and_published_results_are_kept_as_of_the_publication(backend):
+    """0018 on a 0017 database with a published assignment whose final was frozen and evaluated: the
+    final counts as decided when frozen (nothing to wait for), its evaluation is the one of the
+    publication (a grade says so only if that changes); the downgrade keeps the row."""
+    _, database_url = backend
+    engine = engine_at(database_url, "0017")
+    now, frozen = datetime(2026, 11, 1), datetime(2026, 10, 30, 23, 59)
+    with engine.begin() as connection:
+        course_with_an_assignment(connection, now)
+        connection.execute(text("UPDATE assignments SET due_at = :frozen, published_at = :now"),
+                           {"frozen": frozen, "now": now})
+        connection.execute(text("INSERT INTO users (id, name, role, course_id, created_at) "
+                                "VALUES (1, 'ann', 'student', 1, :now)"), {"now": now})
+        connection.execute(text(
+            "INSERT INTO submissions (id, owner_id, assignment_id, name, filename, kind, sha256, size, status, public, "
+            "created_at, updated_at) VALUES (1, 1, 1, 'a', 'a.onnx', 'onnx', :sha, 1, 'ready', false, :now, :now)"),
+            {"sha": "0" * 64, "now": now})
+        connection.execute(text("INSERT INTO evaluations (id, submission_id, course_id, assignment_id, track, "
+                                "settings, status, created_at) VALUES (7, 1, 1, 1, 'private', '{}', 'done', :now)"),
+                           {"now": now})
+        connection.execute(text("INSERT INTO student_assignments (id, assignment_id, user_id, final_at, "
+                                "final_submission_id, final_evaluation_id) VALUES (1, 1, 1, :frozen, 1, 7)"),
+                           {"frozen": frozen})
+    migrate(engine)
+    with engine.connect() as connection:
+        row = connection.execute(text("SELECT final_at, final_decided_at, final_candidates, published_evaluation_id "
+                                      "FROM student_assignments")).one()
+        assert row[0] is not None and row[1] == row[0]  # (SQLite reads a time back as text)
+        assert (row[2], row[3]) == (None, 7)
+    alembic(engine, "downgrade", "0017")
+    with engine.connect() as connection:
+        columns = {c["name"] for c in inspect(connection).get_columns("student_assignments")}
+        assert not columns & {"final_decided_at", "final_candidates", "published_evaluation_id"}
+        assert connection.execute(text("SELECT final_submission_id, final_evaluation_id FROM student_assignments")
+                                  ).one() == (1, 7)
     migrate(engine)
     engine.dispose()

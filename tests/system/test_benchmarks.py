@@ -8,9 +8,10 @@ baselines_report.py (finished training runs); of bench_server.py only (a), of be
 at a small size is tests/system/test_rush.py (with its checks). bench_claims.py runs on SQLite
 here (PostgreSQL in the benchmark).
 
-bench_queue.py, bench_course.py and bench_backup.py start a league of servers (`serve` and
-workers): 10-30 s each at their smallest size on a quiet 2-CPU machine, a minute or more on a busy
-one (marked `long`: this file starts first in the whole suite). The file takes about 70 s.
+bench_queue.py, bench_course.py (its course and its backlog run) and bench_backup.py start a league
+of servers (`serve` and workers): 10-30 s each at their smallest size on a quiet 2-CPU machine, a
+minute or more on a busy one (marked `long`: this file starts first in the whole suite). The file
+takes about 90 s.
 """
 from __future__ import annotations
 
@@ -133,6 +134,16 @@ def test_course():
     f = bench_course.measure(bench_course.parse(["--students", "2", "--episodes", "1", "--distinct", "2"]))
     assert f.failures == [] and (f.students, f.episodes, f.finals) == (2, 1, 2)
     assert positive(f.public_s, f.publish_s, f.private_span_s)
+
+
+@pytest.mark.long
+def test_course_backlog():
+    """The backlog run: every upload still queued at the due time, each student still gets their final,
+    its private evaluation and a grade before the board publishes itself."""
+    f = bench_course.measure_backlog(bench_course.parse(["--backlog", "--students", "3", "--episodes", "1",
+                                                         "--distinct", "2", "--window", "8"]))
+    assert f.failures == [] and (f.students, f.uploaded, f.graded, f.without_final) == (3, 3, 3, 0)
+    assert positive(f.publish_s, f.jobs_s) and f.after_last_s >= 0
 
 
 @pytest.mark.long

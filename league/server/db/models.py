@@ -128,9 +128,15 @@ class Assignment(Base):
 
 class StudentAssignment(Base):
     """A student's own state in an assignment, one row made when first needed: the extension an
-    instructor gave, the submission they selected, and their final, frozen at their close time
-    (`final_at`; then `final_submission_id` is what the private test evaluates, None if they had
-    no ready submission, and `final_evaluation_id` that evaluation)."""
+    instructor gave, the submission they selected, and their final (league.server.assignments).
+
+    At their close time the final is frozen (`final_at`, the close time) with its candidates
+    (`final_candidates`: the ids of their uploads then, rejected ones aside); it is decided
+    (`final_decided_at`) once each candidate is validated and evaluated on the public tracks,
+    whatever the queue was doing at the close time. Then `final_submission_id` is what the private
+    test evaluates (None: no candidate made it) and `final_evaluation_id` that evaluation.
+    `published_evaluation_id` is the private result the grade had when the assignment was
+    published (no foreign key: a record), so that a grade can say it changed since."""
 
     __tablename__ = "student_assignments"
     __table_args__ = (UniqueConstraint("assignment_id", "user_id"),)
@@ -143,6 +149,9 @@ class StudentAssignment(Base):
     final_at: Mapped[datetime | None] = mapped_column(default=None)
     final_submission_id: Mapped[int | None] = mapped_column(ForeignKey("submissions.id"), default=None)
     final_evaluation_id: Mapped[int | None] = mapped_column(ForeignKey("evaluations.id"), default=None)
+    final_candidates: Mapped[list[Any] | None] = mapped_column(JSON, default=None)
+    final_decided_at: Mapped[datetime | None] = mapped_column(default=None)
+    published_evaluation_id: Mapped[int | None] = mapped_column(Integer, default=None)
 
 
 class User(Base):

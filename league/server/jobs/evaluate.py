@@ -11,6 +11,7 @@ from sqlalchemy.orm import Session
 from league.agents import AgentError
 from league.evaluation import metrics_run
 from league.track import TrackGenerationError
+from league.server.assignments import after_job
 from league.server.db.models import DONE, FAILED, RUNNING, EpisodeResult, Evaluation, Job, utcnow
 from league.server.jobs.runner import JobRun
 from league.server.sandbox.agent import SandboxedAgent
@@ -53,15 +54,17 @@ class EvaluateSubmission:
         evaluation.log, evaluation.finished_at = outcome.log, utcnow()
         if outcome.result is None:
             evaluation.status, evaluation.error = FAILED, outcome.error
-            return []
-        _store_result(session, evaluation, outcome.result)
-        evaluation.status, evaluation.error = DONE, None
-        return []
+        else:
+            _store_result(session, evaluation, outcome.result)
+            evaluation.status, evaluation.error = DONE, None
+        # the final it may decide, the private board it may complete
+        return after_job(session, submission_id=job.submission_id, max_attempts=job.max_attempts)
 
     def give_up(self, session: Session, job: Job, reason: str) -> None:
         evaluation = session.get(Evaluation, job.evaluation_id)
         evaluation.status, evaluation.error = FAILED, f"the evaluation could not be completed: {reason}"
         evaluation.finished_at = utcnow()
+        after_job(session, submission_id=job.submission_id, max_attempts=job.max_attempts)  # (polled: no wake-up)
 
 
 def _store_result(session: Session, evaluation: Evaluation, result: dict[str, Any]) -> None:

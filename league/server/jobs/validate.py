@@ -3,6 +3,7 @@ from __future__ import annotations
 
 from sqlalchemy.orm import Session
 
+from league.server.assignments import after_job
 from league.server.db import crud
 from league.server.db.models import BASELINE, FAILED, READY, REJECTED, VALIDATING, Job, Submission
 from league.server.jobs.runner import JobRun
@@ -28,7 +29,8 @@ class ValidateSubmission:
         if not report.ok:
             submission.status, submission.error = REJECTED, report.error
             crud.forget_blob_unless_used(session, sha256=submission.sha256)  # the stores sweep their copies
-            return []
+            # a candidate of a frozen final drops out: the final may be decided now
+            return after_job(session, submission_id=submission.id, max_attempts=job.max_attempts)
         submission.status, submission.error, submission.obs_dim = READY, None, report.obs_dim
         if report.probe is not None:
             submission.probe_key, submission.probe_actions = report.probe.key, report.probe.actions
@@ -40,3 +42,4 @@ class ValidateSubmission:
     def give_up(self, session: Session, job: Job, reason: str) -> None:
         submission = session.get(Submission, job.submission_id)
         submission.status, submission.error = FAILED, f"the validation could not be completed: {reason}"
+        after_job(session, submission_id=submission.id, max_attempts=job.max_attempts)  # (polled: no wake-up)

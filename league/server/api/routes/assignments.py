@@ -54,7 +54,7 @@ def assignment_out(session: SessionDep, assignment: Assignment, user: User, cloc
         chosen = final_choices(session, assignment, [user.id])[user.id]
         evaluation = row and row.final_evaluation_id and visible and session.get(Evaluation, row.final_evaluation_id)
         final = FinalOut(submission_id=chosen, selected=bool(row and row.selected_submission_id == chosen and chosen),
-                         frozen_at=row.final_at if row else None,
+                         frozen_at=row.final_at if row else None, decided=bool(row and row.final_decided_at),
                          evaluation=EvaluationOut.model_validate(evaluation) if evaluation else None)
     return AssignmentOut(
         **{name: getattr(assignment, name) for name in ("id", "name", "description", *SETTINGS, *TIMES,

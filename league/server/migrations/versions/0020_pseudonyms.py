@@ -4,7 +4,7 @@ in it), instead of a keyed permutation of the user id that one board let anyone 
 Existing users of a course get theirs here, drawn with `secrets`, distinct within the course.
 
 Revision ID: 0020
-Revises: 0017
+Revises: 0018
 Create Date: 2026-11-28 09:30:00
 """
 import secrets
@@ -14,7 +14,7 @@ from alembic import op
 
 
 revision = '0020'
-down_revision = '0017'
+down_revision = '0018'
 branch_labels = None
 depends_on = None
 

@@ -201,7 +201,7 @@ def test_finals_are_frozen_at_the_due_time_tested_privately_and_shown_only_once_
     clock.set(T1 - SECOND)
     selected = chooser.post(f"/api/assignments/{hw['id']}/selection", json={"submission_id": chosen})
     assert selected.status_code == 200 and selected.json()["final"] == {
-        "submission_id": chosen, "selected": True, "frozen_at": None, "evaluation": None}
+        "submission_id": chosen, "selected": True, "frozen_at": None, "decided": False, "evaluation": None}
     assert best.post(f"/api/assignments/{hw['id']}/selection",
                      json={"submission_id": chosen}).status_code == 404  # not theirs
     assert best.get(f"/api/assignments/{hw['id']}").json()["final"]["submission_id"] == strongest

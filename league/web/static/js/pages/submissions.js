@@ -84,7 +84,9 @@ function finalCell(a) {
   const final = a.final || {};
   const text = !final.submission_id ? "none yet"
     : final.selected ? `${nameOf(final.submission_id)} (selected)` : `best on the public board: ${nameOf(final.submission_id)}`;
-  const cell = element("div", {}, element("span", { text: final.frozen_at ? `${text}, frozen` : text }));
+  // frozen at the close time, decided once every upload made before it is validated and evaluated
+  const state = !final.frozen_at ? "" : final.decided ? ", frozen" : ", frozen: decided once your uploads are evaluated";
+  const cell = element("div", {}, element("span", { text: text + state }));
   const ready = submissions.filter((s) => s.assignment_id === a.id && s.status === "ready");
   if (final.frozen_at || !["open", "late"].includes(a.state) || !ready.length) return cell;
   const menu = element("select", { attrs: { id: `final-${a.id}`, "aria-label": `Final submission of ${a.name}`,
