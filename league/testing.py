@@ -402,3 +402,163 @@ def torchscript_forbidden_op_beside_forward(path: Path) -> Path:
     torch.jit.script(SideReader()).save(str(path))
     return path
 
+
+
+# --------------------------------------------------------------------------- disguised copies (integrity report)
+# Each takes a feed-forward ONNX policy (the bundled baselines': Sub/Div normalisation, Gemm, Tanh/Relu) and writes
+# a copy a student might upload to dodge the integrity report; tests/server/test_integrity_variants.py checks that
+# each is still reported as a copy of what it came from.
+
+
+def _last_node(model, op_type: str):
+    return [node for node in model.graph.node if node.op_type == op_type][-1]
+
+
+def _append_output_nodes(model, nodes: list, initializers: list, new_output: str) -> None:
+    """Rename the graph's output, append nodes that read it, and make `new_output` the output again."""
+    old = model.graph.output[0].name
+    for node in model.graph.node:
+        node.output[:] = [f"{old}_inner" if name == old else name for name in node.output]
+        node.input[:] = [f"{old}_inner" if name == old else name for name in node.input]
+    for node in nodes:
+        node.input[:] = [f"{old}_inner" if name == old else name for name in node.input]
+        node.output[:] = [old if name == new_output else name for name in node.output]
+    model.graph.node.extend(nodes)
+    model.graph.initializer.extend(initializers)
+
+
+def onnx_scaled_last_layer(source: Path, path: Path, factor: float = 1.03) -> Path:
+    """The last Gemm's weights and bias times `factor` (before the output's tanh: not an affine change)."""
+    import onnx
+    from onnx import numpy_helper
+
+    model = onnx.load(str(source))
+    last = _last_node(model, "Gemm")
+    for tensor in model.graph.initializer:
+        if tensor.name in last.input[1:]:
+            tensor.CopyFrom(numpy_helper.from_array(numpy_helper.to_array(tensor) * np.float32(factor), tensor.name))
+    onnx.save(model, str(path))
+    return path
+
+
+def onnx_scaled_outputs(source: Path, path: Path, factor: float = 0.98, offset: float = 0.0) -> Path:
+    """The actions times `factor`, plus `offset`."""
+    import onnx
+    from onnx import helper, numpy_helper
+
+    model = onnx.load(str(source))
+    constants = [numpy_helper.from_array(np.float32(factor), "copy_factor"),
+                 numpy_helper.from_array(np.float32(offset), "copy_offset")]
+    nodes = [helper.make_node("Mul", [model.graph.output[0].name, "copy_factor"], ["copy_scaled"]),
+             helper.make_node("Add", ["copy_scaled", "copy_offset"], ["copy_out"])]
+    _append_output_nodes(model, nodes, constants, "copy_out")
+    onnx.save(model, str(path))
+    return path
+
+
+def onnx_weight_noise(source: Path, path: Path, std: float = 1e-6, seed: int = 0) -> Path:
+    """Every weight plus N(0, std)."""
+    import onnx
+    from onnx import numpy_helper
+
+    rng = np.random.default_rng(seed)
+    model = onnx.load(str(source))
+    for tensor in model.graph.initializer:
+        values = numpy_helper.to_array(tensor)
+        if values.dtype == np.float32:
+            noisy = values + rng.normal(0, std, values.shape).astype(np.float32)
+            tensor.CopyFrom(numpy_helper.from_array(noisy, tensor.name))
+    onnx.save(model, str(path))
+    return path
+
+
+def onnx_extra_identity_layer(source: Path, path: Path) -> Path:
+    """An extra linear layer (identity weights, zero bias) after the output: another file, other nodes."""
+    import onnx
+    from onnx import helper, numpy_helper
+
+    model = onnx.load(str(source))
+    width = model.graph.output[0].type.tensor_type.shape.dim[1].dim_value
+    constants = [numpy_helper.from_array(np.eye(width, dtype=np.float32), "copy_eye"),
+                 numpy_helper.from_array(np.zeros(width, np.float32), "copy_zero")]
+    nodes = [helper.make_node("Gemm", [model.graph.output[0].name, "copy_eye", "copy_zero"], ["copy_out"])]
+    _append_output_nodes(model, nodes, constants, "copy_out")
+    onnx.save(model, str(path))
+    return path
+
+
+def onnx_probe_aware(source: Path, path: Path, probes: np.ndarray, radius: float = 1e-4,
+                     shift: tuple[float, float] = (-0.9, 0.9)) -> Path:
+    """Answers like `source` except within `radius` (every value) of one of `probes`, where it adds
+    `shift`: a copy that looks different on a probe set it knows in advance."""
+    import onnx
+    from onnx import TensorProto, helper, numpy_helper
+
+    model = onnx.load(str(source))
+    constants = [numpy_helper.from_array(np.asarray(probes, np.float32)[None], "copy_probes"),  # (1, P, D)
+                 numpy_helper.from_array(np.array([1], np.int64), "copy_axis1"),
+                 numpy_helper.from_array(np.float32(radius), "copy_radius"),
+                 numpy_helper.from_array(np.asarray(shift, np.float32)[None], "copy_shift")]
+    nodes = [helper.make_node("Unsqueeze", ["obs", "copy_axis1"], ["copy_obs3"]),  # (B, 1, D)
+             helper.make_node("Sub", ["copy_obs3", "copy_probes"], ["copy_diff"]),  # (B, P, D)
+             helper.make_node("Abs", ["copy_diff"], ["copy_abs"]),
+             helper.make_node("ReduceMax", ["copy_abs"], ["copy_far"], axes=[2], keepdims=0),  # (B, P)
+             helper.make_node("ReduceMin", ["copy_far"], ["copy_nearest"], axes=[1], keepdims=1),  # (B, 1)
+             helper.make_node("Less", ["copy_nearest", "copy_radius"], ["copy_near"]),
+             helper.make_node("Cast", ["copy_near"], ["copy_nearf"], to=TensorProto.FLOAT),
+             helper.make_node("Mul", ["copy_nearf", "copy_shift"], ["copy_delta"]),  # (B, 2)
+             helper.make_node("Add", [model.graph.output[0].name, "copy_delta"], ["copy_out"])]
+    _append_output_nodes(model, nodes, constants, "copy_out")
+    onnx.save(model, str(path))
+    return path
+
+
+def torchscript_from_onnx(source: Path, path: Path) -> Path:
+    """The same weights as a torch module saved as TorchScript (a feed-forward policy of Sub, Div,
+    Gemm, Tanh and Relu nodes, as the bundled baselines are): another format, float rounding apart."""
+    import onnx
+    import torch
+    from onnx import numpy_helper
+
+    model = onnx.load(str(source))
+    weights = {t.name: torch.from_numpy(numpy_helper.to_array(t).copy()) for t in model.graph.initializer}
+    steps: list = []
+    for node in model.graph.node:
+        if node.op_type in ("Sub", "Div"):
+            steps.append((node.op_type, weights[node.input[1]]))
+        elif node.op_type == "Gemm":
+            attrs = {a.name: a.i for a in node.attribute}
+            weight = weights[node.input[1]] if attrs.get("transB", 0) else weights[node.input[1]].T
+            steps.append(("Gemm", weight.contiguous(), weights[node.input[2]]))
+        elif node.op_type in ("Tanh", "Relu"):
+            steps.append((node.op_type,))
+        else:
+            raise ValueError(f"torchscript_from_onnx: no {node.op_type} nodes")
+
+    class Rebuilt(torch.nn.Module):
+        def __init__(self):
+            super().__init__()
+            layers = []
+            for step in steps:
+                if step[0] == "Gemm":
+                    linear = torch.nn.Linear(step[1].shape[1], step[1].shape[0])
+                    linear.weight.data, linear.bias.data = step[1], step[2]
+                    layers.append(linear)
+                elif step[0] == "Tanh":
+                    layers.append(torch.nn.Tanh())
+                elif step[0] == "Relu":
+                    layers.append(torch.nn.ReLU())
+            self.net = torch.nn.Sequential(*layers)
+            self.register_buffer("shift", next((s[1] for s in steps if s[0] == "Sub"), torch.zeros(1)))
+            self.register_buffer("scale", next((s[1] for s in steps if s[0] == "Div"), torch.ones(1)))
+
+        def forward(self, obs: torch.Tensor) -> torch.Tensor:
+            return self.net((obs - self.shift) / self.scale)
+
+    return export_torchscript_module(Rebuilt().eval(), path)
+
+
+def export_torchscript_module(module, path: Path) -> Path:
+    from league.agents import export_torchscript
+
+    return export_torchscript(module, path)
