@@ -487,26 +487,27 @@ def onnx_extra_identity_layer(source: Path, path: Path) -> Path:
     return path
 
 
-def onnx_probe_aware(source: Path, path: Path, probes: np.ndarray, radius: float = 1e-4,
-                     shift: tuple[float, float] = (-0.9, 0.9)) -> Path:
-    """Answers like `source` except within `radius` (every value) of one of `probes`, where it adds
-    `shift`: a copy that looks different on a probe set it knows in advance."""
+def onnx_probe_aware(source: Path, path: Path, probes: np.ndarray, radius: float = 1e-4, seed: int = 0) -> Path:
+    """Answers like `source` except within `radius` (every value) of one of `probes`, where it adds a
+    shift of its own to each probe (uniform in [-0.9, 0.9]): a copy that looks like another policy on
+    a probe set it knows in advance, and is `source` everywhere else."""
     import onnx
     from onnx import TensorProto, helper, numpy_helper
 
     model = onnx.load(str(source))
-    constants = [numpy_helper.from_array(np.asarray(probes, np.float32)[None], "copy_probes"),  # (1, P, D)
+    probes = np.asarray(probes, np.float32)
+    shifts = np.random.default_rng(seed).uniform(-0.9, 0.9, (len(probes), 2)).astype(np.float32)
+    constants = [numpy_helper.from_array(probes[None], "copy_probes"),  # (1, P, D)
                  numpy_helper.from_array(np.array([1], np.int64), "copy_axis1"),
                  numpy_helper.from_array(np.float32(radius), "copy_radius"),
-                 numpy_helper.from_array(np.asarray(shift, np.float32)[None], "copy_shift")]
+                 numpy_helper.from_array(shifts, "copy_shifts")]  # (P, 2)
     nodes = [helper.make_node("Unsqueeze", ["obs", "copy_axis1"], ["copy_obs3"]),  # (B, 1, D)
              helper.make_node("Sub", ["copy_obs3", "copy_probes"], ["copy_diff"]),  # (B, P, D)
              helper.make_node("Abs", ["copy_diff"], ["copy_abs"]),
              helper.make_node("ReduceMax", ["copy_abs"], ["copy_far"], axes=[2], keepdims=0),  # (B, P)
-             helper.make_node("ReduceMin", ["copy_far"], ["copy_nearest"], axes=[1], keepdims=1),  # (B, 1)
-             helper.make_node("Less", ["copy_nearest", "copy_radius"], ["copy_near"]),
+             helper.make_node("Less", ["copy_far", "copy_radius"], ["copy_near"]),  # (B, P): at that probe
              helper.make_node("Cast", ["copy_near"], ["copy_nearf"], to=TensorProto.FLOAT),
-             helper.make_node("Mul", ["copy_nearf", "copy_shift"], ["copy_delta"]),  # (B, 2)
+             helper.make_node("MatMul", ["copy_nearf", "copy_shifts"], ["copy_delta"]),  # (B, 2)
              helper.make_node("Add", [model.graph.output[0].name, "copy_delta"], ["copy_out"])]
     _append_output_nodes(model, nodes, constants, "copy_out")
     onnx.save(model, str(path))
@@ -514,51 +515,47 @@ def onnx_probe_aware(source: Path, path: Path, probes: np.ndarray, radius: float
 
 
 def torchscript_from_onnx(source: Path, path: Path) -> Path:
-    """The same weights as a torch module saved as TorchScript (a feed-forward policy of Sub, Div,
-    Gemm, Tanh and Relu nodes, as the bundled baselines are): another format, float rounding apart."""
+    """The same weights as a torch module saved as TorchScript (traced), for a feed-forward policy of
+    Sub, Div, Mul, Add, Gemm, Tanh, Relu and Concat nodes, as the bundled baselines are: another
+    format and another file, float rounding apart."""
     import onnx
     import torch
     from onnx import numpy_helper
 
     model = onnx.load(str(source))
     weights = {t.name: torch.from_numpy(numpy_helper.to_array(t).copy()) for t in model.graph.initializer}
-    steps: list = []
-    for node in model.graph.node:
-        if node.op_type in ("Sub", "Div"):
-            steps.append((node.op_type, weights[node.input[1]]))
-        elif node.op_type == "Gemm":
-            attrs = {a.name: a.i for a in node.attribute}
-            weight = weights[node.input[1]] if attrs.get("transB", 0) else weights[node.input[1]].T
-            steps.append(("Gemm", weight.contiguous(), weights[node.input[2]]))
-        elif node.op_type in ("Tanh", "Relu"):
-            steps.append((node.op_type,))
-        else:
-            raise ValueError(f"torchscript_from_onnx: no {node.op_type} nodes")
+    nodes = [(node.op_type, list(node.input), node.output[0], {a.name: onnx.helper.get_attribute_value(a)
+                                                              for a in node.attribute}) for node in model.graph.node]
+    binary = {"Sub": torch.sub, "Div": torch.div, "Mul": torch.mul, "Add": torch.add}
+    obs_dim = model.graph.input[0].type.tensor_type.shape.dim[1].dim_value
 
     class Rebuilt(torch.nn.Module):
         def __init__(self):
             super().__init__()
-            layers = []
-            for step in steps:
-                if step[0] == "Gemm":
-                    linear = torch.nn.Linear(step[1].shape[1], step[1].shape[0])
-                    linear.weight.data, linear.bias.data = step[1], step[2]
-                    layers.append(linear)
-                elif step[0] == "Tanh":
-                    layers.append(torch.nn.Tanh())
-                elif step[0] == "Relu":
-                    layers.append(torch.nn.ReLU())
-            self.net = torch.nn.Sequential(*layers)
-            self.register_buffer("shift", next((s[1] for s in steps if s[0] == "Sub"), torch.zeros(1)))
-            self.register_buffer("scale", next((s[1] for s in steps if s[0] == "Div"), torch.ones(1)))
+            self.obs_dim = obs_dim
+            self.params = torch.nn.ParameterDict({f"w{i}": torch.nn.Parameter(w, requires_grad=False)
+                                                  for i, w in enumerate(weights.values())})
+            self.names = {name: f"w{i}" for i, name in enumerate(weights)}
 
-        def forward(self, obs: torch.Tensor) -> torch.Tensor:
-            return self.net((obs - self.shift) / self.scale)
+        def forward(self, obs):
+            values = {model.graph.input[0].name: obs, **{n: self.params[k] for n, k in self.names.items()}}
+            for op, inputs, output, attrs in nodes:
+                args = [values[name] for name in inputs]
+                if op in binary:
+                    values[output] = binary[op](*args)
+                elif op == "Gemm":
+                    weight = args[1].T if attrs.get("transB", 0) else args[1]
+                    values[output] = attrs.get("alpha", 1.0) * args[0] @ weight + attrs.get("beta", 1.0) * args[2]
+                elif op in ("Tanh", "Relu"):
+                    values[output] = torch.tanh(args[0]) if op == "Tanh" else torch.relu(args[0])
+                elif op == "Concat":
+                    values[output] = torch.cat(args, dim=attrs["axis"])
+                else:
+                    raise ValueError(f"torchscript_from_onnx: no {op} nodes")
+            return values[model.graph.output[0].name]
 
-    return export_torchscript_module(Rebuilt().eval(), path)
-
-
-def export_torchscript_module(module, path: Path) -> Path:
-    from league.agents import export_torchscript
-
-    return export_torchscript(module, path)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")  # tracing warns of the Python control flow it records once
+        traced = torch.jit.trace(Rebuilt().eval(), torch.zeros(1, obs_dim))
+    traced.save(str(path))
+    return path

@@ -179,9 +179,9 @@ def behaviour_distances(first: np.ndarray, second: np.ndarray) -> np.ndarray:
     all_flat = np.ones((len(a), len(b)), dtype=bool)
     for dim in range(a.shape[2]):
         x, y = a[:, :, dim], b[:, :, dim]
-        residual, both_flat = _fit_residual(x, np.ones_like(x), y, np.ones_like(y))
+        residual, both_flat = _fit_residual_all(x, y)
         residual[both_flat] = 0.0  # no evidence either way from this dimension
-        inside, _ = _fit_residual(x, _inside(x), y, _inside(y), min_shared=MIN_SHARED)
+        inside = _fit_residual_inside(x, _inside(x), y, _inside(y))
         distance = np.maximum(distance, np.minimum(residual, inside))
         all_flat &= both_flat
     if all_flat.any():  # constant answers both: their largest difference
@@ -196,20 +196,40 @@ def _inside(x: np.ndarray) -> np.ndarray:
     return ((x > low + EDGE) & (x < high - EDGE)).astype(np.float64)
 
 
-def _fit_residual(x: np.ndarray, mx: np.ndarray, y: np.ndarray, my: np.ndarray,
-                  min_shared: int = 2) -> tuple[np.ndarray, np.ndarray]:
-    """sqrt(1 - r^2) of each row of x against each row of y over the probes both masks keep (1
-    where r <= 0, too few probes or one side constant); and where both sides are constant."""
-    n = mx @ my.T
-    sx, sy = (mx * x) @ my.T, mx @ (my * y).T
-    sxx, syy, sxy = (mx * x * x) @ my.T, mx @ (my * y * y).T, (mx * x) @ (my * y).T
+def _standardised(x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Rows centred and scaled to unit norm (their dot products are correlations); which are constant."""
+    centred = x - x.mean(axis=1, keepdims=True)
+    norm = np.sqrt((centred * centred).sum(axis=1, keepdims=True))
+    flat = norm[:, 0] <= MIN_SPREAD * np.sqrt(x.shape[1])
+    return centred / np.where(flat[:, None], 1.0, norm), flat
+
+
+def _residual(r: np.ndarray, unknown: np.ndarray) -> np.ndarray:
+    residual = np.where(r > 0, np.sqrt(np.clip(1 - r * r, 0, None)), 1.0)
+    residual[unknown] = 1.0
+    return residual
+
+
+def _fit_residual_all(x: np.ndarray, y: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """sqrt(1 - r^2) of each row of x against each row of y over every probe (1 where r <= 0 or
+    one side is constant: one matrix product); and where both sides are constant."""
+    (zx, flat_x), (zy, flat_y) = _standardised(x), _standardised(y)
+    either, both = flat_x[:, None] | flat_y[None, :], flat_x[:, None] & flat_y[None, :]
+    return _residual(zx @ zy.T, either), both
+
+
+def _fit_residual_inside(x: np.ndarray, mx: np.ndarray, y: np.ndarray, my: np.ndarray) -> np.ndarray:
+    """The same over the probes both masks keep (1 with fewer than MIN_SHARED of them, or one side
+    constant there): the sums over those probes are matrix products of the masked rows."""
+    first = (np.concatenate([mx, mx * x, mx * x * x]) @ my.T).reshape(3, len(x), len(y))
+    second = (mx @ np.concatenate([my * y, my * y * y]).T).reshape(len(x), 2, len(y))
+    n, sx, sxx, sy, syy = first[0], first[1], first[2], second[:, 0], second[:, 1]
+    sxy = (mx * x) @ (my * y).T
     with np.errstate(invalid="ignore", divide="ignore"):
         vx, vy = sxx - sx * sx / n, syy - sy * sy / n  # n times the variances
         r = (sxy - sx * sy / n) / np.sqrt(vx * vy)
-        flat_x, flat_y = ~(vx > n * MIN_SPREAD**2), ~(vy > n * MIN_SPREAD**2)
-    residual = np.where(r > 0, np.sqrt(np.clip(1 - r * r, 0, None)), 1.0)
-    residual[flat_x | flat_y | (n < min_shared)] = 1.0
-    return residual, flat_x & flat_y
+        unknown = ~(vx > n * MIN_SPREAD**2) | ~(vy > n * MIN_SPREAD**2) | (n < MIN_SHARED)
+    return _residual(r, unknown)
 
 
 def close_pairs(actions: np.ndarray, tolerance: float) -> list[tuple[int, int]]:
