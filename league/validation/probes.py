@@ -97,14 +97,14 @@ def _drive(rng: np.random.Generator, track_seeds, env_options: dict) -> np.ndarr
     """PROBES observations kept every SAMPLE_EVERY steps of a noisy driver on the tracks `track_seeds` gives."""
     from league.env import MicroRacerEnv  # the simulator, only when a probe set is first needed
 
-    env, kept = MicroRacerEnv(**{**env_options, "observation": "lidar"}), []
+    env, kept, seen = MicroRacerEnv(**{**env_options, "observation": "lidar"}), [], set()
     for track in track_seeds:
         if len(kept) == PROBES:
             break
         obs, _ = env.reset(seed=track)
         target_speed = rng.uniform(0.1, 0.5)
         for step in range(MAX_STEPS):
-            if step % SAMPLE_EVERY == 0:
+            if step % SAMPLE_EVERY == 0 and (step or track not in seen):  # a track's start: kept once
                 kept.append(obs)
             action = heuristic_actions(compact_from_lidar(obs[None]))[0]
             action[0] = 0.5 if obs[-1] < target_speed else -0.3
@@ -112,6 +112,7 @@ def _drive(rng: np.random.Generator, track_seeds, env_options: dict) -> np.ndarr
             obs, _, terminated, truncated, _ = env.step(np.clip(action, -1, 1))
             if terminated or truncated or len(kept) == PROBES:
                 break
+        seen.add(track)
     return np.asarray(kept, dtype=np.float32)
 
 
