@@ -8,11 +8,11 @@ import os
 import subprocess
 import sys
 
-from sqlalchemy import update
+from sqlalchemy import delete, update
 
 from league.agents import export_onnx, export_torchscript
 from league.server.config import BUNDLED_BASELINES, Settings
-from league.server.db.models import Submission
+from league.server.db.models import Submission, SubmissionProbe
 from league.server.db.session import make_engine, make_sessionmaker
 from league.server.integrity import CSV_COLUMNS
 from league.testing import onnx_probe_aware, onnx_scaled_last_layer, thesis_driver
@@ -59,12 +59,14 @@ def league_cli(server, token: str, *args: str) -> subprocess.CompletedProcess:
 
 
 def forget_probe(server, submission_id: int) -> None:
-    """The submission as one validated before probes were recorded (an upgraded server's)."""
+    """The submission as one validated before probes were recorded (an upgraded server's): no
+    actions on the public set nor on a secret one."""
     engine = make_engine(server.env["LEAGUE_DATABASE_URL"])
     try:
         with make_sessionmaker(engine).begin() as session:
             session.execute(update(Submission).where(Submission.id == submission_id)
                             .values(probe_key=None, probe_actions=None))
+            session.execute(delete(SubmissionProbe).where(SubmissionProbe.submission_id == submission_id))
     finally:
         engine.dispose()
 
