@@ -36,6 +36,8 @@ PROBE_SEED = 20260401
 PROBES = 64  # observations: enough to tell trained agents apart, small to store (512 bytes of actions)
 SAMPLE_EVERY = 9  # steps between kept observations (consecutive ones are near-duplicates)
 MAX_STEPS = 300  # per track, so the set spans several tracks
+SECRET_PROBES = 192  # a secret set's observations, picked at random from its visits' (1.5 kB of actions)
+SECRET_VISITS = 64  # at most, drives round the private tracks (in turn), each at a target speed of its own
 STEER_NOISE = 0.35  # standard deviation added to the steering, which takes the car off the ideal line
 SECRET_SALT = 0x1A7E6B17  # keeps a secret set's driver noise apart from the private tracks' own draws
 
@@ -90,16 +92,21 @@ def _secret_lidar_probes(seed: int, episodes: int, env_options: tuple) -> np.nda
 
     tracks = episode_seeds(seed, max(episodes, 1))
     rng = np.random.default_rng(np.random.SeedSequence([seed, SECRET_SALT]))  # not the tracks' own stream
-    return _drive(rng, itertools.cycle(tracks), dict(env_options))
+    visited = _drive(rng, itertools.islice(itertools.cycle(tracks), SECRET_VISITS), dict(env_options),
+                     count=2 * SECRET_PROBES)  # then half of them at random: any speed, any point of a lap
+    keep = np.sort(rng.choice(len(visited), size=min(SECRET_PROBES, len(visited)), replace=False))
+    return visited[keep]
 
 
-def _drive(rng: np.random.Generator, track_seeds, env_options: dict) -> np.ndarray:
-    """PROBES observations kept every SAMPLE_EVERY steps of a noisy driver on the tracks `track_seeds` gives."""
+def _drive(rng: np.random.Generator, track_seeds, env_options: dict, count: int = PROBES) -> np.ndarray:
+    """`count` observations (fewer if the tracks run out) kept every SAMPLE_EVERY steps of a noisy
+    driver, at most MAX_STEPS per visit of the tracks `track_seeds` gives, each visit with a target
+    speed of its own."""
     from league.env import MicroRacerEnv  # the simulator, only when a probe set is first needed
 
     env, kept, seen = MicroRacerEnv(**{**env_options, "observation": "lidar"}), [], set()
     for track in track_seeds:
-        if len(kept) == PROBES:
+        if len(kept) == count:
             break
         obs, _ = env.reset(seed=track)
         target_speed = rng.uniform(0.1, 0.5)
@@ -110,19 +117,20 @@ def _drive(rng: np.random.Generator, track_seeds, env_options: dict) -> np.ndarr
             action[0] = 0.5 if obs[-1] < target_speed else -0.3
             action[1] += rng.normal(0, STEER_NOISE)
             obs, _, terminated, truncated, _ = env.step(np.clip(action, -1, 1))
-            if terminated or truncated or len(kept) == PROBES:
+            if terminated or truncated or len(kept) == count:
                 break
         seen.add(track)
     return np.asarray(kept, dtype=np.float32)
 
 
 def probe_actions_bytes(actions: np.ndarray) -> bytes:
-    """Actions on the probe set as stored: float32 (PROBES, 2), row-major."""
+    """Actions on a probe set as stored: float32 (observations, 2), row-major (PROBES of them for
+    the public set, up to SECRET_PROBES for a secret one)."""
     actions = np.asarray(actions, dtype=np.float32)
-    if actions.shape != (PROBES, 2):
-        raise ValueError(f"expected {PROBES} actions of 2 values, got shape {actions.shape}")
+    if actions.ndim != 2 or actions.shape[1] != 2 or not 0 < len(actions) <= max(PROBES, SECRET_PROBES):
+        raise ValueError(f"expected up to {SECRET_PROBES} actions of 2 values, got shape {actions.shape}")
     return actions.tobytes()
 
 
 def probe_actions_from_bytes(data: bytes) -> np.ndarray:
-    return np.frombuffer(data, dtype=np.float32).reshape(PROBES, 2)
+    return np.frombuffer(data, dtype=np.float32).reshape(-1, 2)
