@@ -12,7 +12,7 @@
     them the max-abs difference the report used before (whose tolerance was 1e-3). The tolerance
     (integrity_tolerance) must sit far above the copies and far below the distinct agents.
 (b) league.server.integrity.integrity_report over N submissions of a course, each with actions
-    on the public set and on its assignment's secret set (N/3 students, random actions, 5 % of
+    on the public set (64 probes) and on its assignment's secret set (192) (N/3 students, random actions, 5 % of
     them copies of another student's file, 5 % another student's actions rescaled, offset and
     noisy): the wall time of the report (the behaviour distance matrix, 256 rows at a time, by
     matrix products), beside the report it replaces (max-abs distances on the public set only,
@@ -40,7 +40,8 @@ from league.testing import (
     thesis_driver, torchscript_from_onnx,
 )
 from league.validation.probes import (
-    PROBES, observations_key, probe_actions_bytes, probe_key, probe_observations, secret_probe_observations,
+    PROBES, SECRET_PROBES, observations_key, probe_actions_bytes, probe_actions_from_bytes, probe_key,
+    probe_observations, secret_probe_observations,
 )
 
 SPEEDS = (0.21, 0.25, 0.29, 0.37)  # the drivers' target speeds in (a)
@@ -127,19 +128,18 @@ def report_distances(found: Distances) -> None:
 
 
 def course(n: int, rng: np.random.Generator) -> list[Candidate]:
-    """n submissions with actions on the public set and on one secret set."""
+    """n submissions with actions on the public set and on one secret set (keyed here by any values)."""
     public, secret = probe_key(5), observations_key(np.full((PROBES, 5), 0.5, np.float32))
     when, out = datetime(2026, 11, 25, tzinfo=timezone.utc), []
     for i in range(n):
         owner, sha = i % (n // 3), f"{i:064x}"
-        acts = rng.uniform(-1, 1, (2, PROBES, 2))
+        acts = [rng.uniform(-1, 1, (PROBES, 2)), rng.uniform(-1, 1, (SECRET_PROBES, 2))]
         if i > 10 and rng.random() < 0.05:
             sha = out[int(rng.integers(i))].sha256  # a copied file
         elif i > 10 and rng.random() < 0.05:
             source = out[int(rng.integers(i))]
-            copied = np.stack([np.frombuffer(source.probe_actions, np.float32).reshape(PROBES, 2),
-                               np.frombuffer(source.secret[0][1], np.float32).reshape(PROBES, 2)])
-            acts = 0.97 * copied + 0.02 + rng.normal(0, 1e-4, copied.shape)  # rescaled, offset, noisy
+            acts = [0.97 * probe_actions_from_bytes(copied) + 0.02 + rng.normal(0, 1e-4, (len(copied) // 8, 2))
+                    for copied in (source.probe_actions, source.secret[0][1])]  # rescaled, offset, noisy
         out.append(Candidate(i, f"agent {i}", owner, f"student {owner}", False, "onnx", sha, 5, public,
                              probe_actions_bytes(acts[0]), when, secret=((secret, probe_actions_bytes(acts[1])),),
                              secret_keys=(secret,)))
