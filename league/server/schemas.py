@@ -558,7 +558,8 @@ class IntegrityReport(BaseModel):
     tolerance: float = Field(description="submissions whose behaviour distance (0: the same actions up "
                                              "to a per-dimension affine map; 1: unrelated) is within this "
                                              "are the same behaviour")
-    probes: int = Field(description="observations in each probe set (2 actions each)")
+    probes: int = Field(description="observations in the public probe set (2 actions each; an "
+                                        "assignment's secret set has 192)")
     submissions: int = Field(description="ready submissions the report covers (the course's and the baselines')")
     compared: int = Field(description="of them, those whose actions on every probe set they are "
                                                "compared on are known")
