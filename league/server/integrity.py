@@ -20,8 +20,9 @@ A copy rescaled (outputs x 0.98, the last layer x 1.03 under a tanh), offset, cl
 noise on its weights or re-exported stays within 0.05 of its original; the bundled baselines are
 0.8 to 1 apart, and hand-made drivers that steer identically and hold different speeds 0.3 or
 more (benchmarks/bench_integrity.py). Any pair's distance costs the same few matrix products, so
-every pair is compared (the cost grows with the square of the submissions: 200 take ~30 ms). A dimension that is constant for both agents says nothing
-(a constant answer is a trivial policy); when every dimension is, their largest difference counts.
+every pair is compared (the cost grows with the square of the submissions: 200 take ~30 ms). A
+dimension that is constant for both agents says nothing (a constant answer is a trivial policy);
+when every dimension is, their largest difference counts.
 
 Submissions close on any probe set they share are linked; linked submissions form groups
 (connected components); a group is reported when it holds the submissions of two students or
