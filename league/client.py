@@ -617,8 +617,8 @@ def run_integrity(args: argparse.Namespace) -> int:
                    s["kind"]] for number, group in enumerate(report["groups"], 1) for s in group["submissions"]],
                  False)
     if report["not_compared"]:
-        print(f"{len(report['not_compared'])} submissions compared by file only (not yet probed, or failed on the "
-              "probe set): `league integrity --probe` probes those not yet probed", file=sys.stderr)
+        print(f"{len(report['not_compared'])} submissions not compared on every probe set (not yet probed, or "
+              "failed on one): `league integrity --probe` probes those not yet probed", file=sys.stderr)
     return EXIT_OK
 
 
@@ -846,9 +846,10 @@ def add_commands(subparsers) -> None:
 
     integrity = command("integrity", "instructors: print the integrity report (submissions that look copied)",
                         run_integrity,
-                        "Submissions of different students with the same file, or the same actions on the league's "
-                        "probe set (one network exported to ONNX and to TorchScript), and copies of the bundled "
-                        "baselines: one line per submission of each group. Nothing is blocked.")
+                        "Submissions of different students with the same file, or alike actions on the league's "
+                        "probe sets (public, and the assignment's secret one) up to a rescaling or offset, and "
+                        "copies of the bundled baselines: one line per submission of each group. Nothing is "
+                        "blocked.")
     integrity.add_argument("--csv", action="store_true", help="print the report as CSV")
     integrity.add_argument("--probe", action="store_true",
                            help="queue the submissions not yet probed to be probed, then run the report again")

@@ -402,3 +402,160 @@ def torchscript_forbidden_op_beside_forward(path: Path) -> Path:
     torch.jit.script(SideReader()).save(str(path))
     return path
 
+
+
+# --------------------------------------------------------------------------- disguised copies (integrity report)
+# Each takes a feed-forward ONNX policy (the bundled baselines': Sub/Div normalisation, Gemm, Tanh/Relu) and writes
+# a copy a student might upload to dodge the integrity report; tests/server/test_integrity_variants.py checks that
+# each is still reported as a copy of what it came from.
+
+
+def _last_node(model, op_type: str):
+    return [node for node in model.graph.node if node.op_type == op_type][-1]
+
+
+def _append_output_nodes(model, nodes: list, initializers: list, new_output: str) -> None:
+    """Rename the graph's output, append nodes that read it, and make `new_output` the output again."""
+    old = model.graph.output[0].name
+    for node in model.graph.node:
+        node.output[:] = [f"{old}_inner" if name == old else name for name in node.output]
+        node.input[:] = [f"{old}_inner" if name == old else name for name in node.input]
+    for node in nodes:
+        node.input[:] = [f"{old}_inner" if name == old else name for name in node.input]
+        node.output[:] = [old if name == new_output else name for name in node.output]
+    model.graph.node.extend(nodes)
+    model.graph.initializer.extend(initializers)
+
+
+def onnx_scaled_last_layer(source: Path, path: Path, factor: float = 1.03) -> Path:
+    """The last Gemm's weights and bias times `factor` (before the output's tanh: not an affine change)."""
+    import onnx
+    from onnx import numpy_helper
+
+    model = onnx.load(str(source))
+    last = _last_node(model, "Gemm")
+    for tensor in model.graph.initializer:
+        if tensor.name in last.input[1:]:
+            tensor.CopyFrom(numpy_helper.from_array(numpy_helper.to_array(tensor) * np.float32(factor), tensor.name))
+    onnx.save(model, str(path))
+    return path
+
+
+def onnx_scaled_outputs(source: Path, path: Path, factor: float = 0.98, offset: float = 0.0) -> Path:
+    """The actions times `factor`, plus `offset`."""
+    import onnx
+    from onnx import helper, numpy_helper
+
+    model = onnx.load(str(source))
+    constants = [numpy_helper.from_array(np.float32(factor), "copy_factor"),
+                 numpy_helper.from_array(np.float32(offset), "copy_offset")]
+    nodes = [helper.make_node("Mul", [model.graph.output[0].name, "copy_factor"], ["copy_scaled"]),
+             helper.make_node("Add", ["copy_scaled", "copy_offset"], ["copy_out"])]
+    _append_output_nodes(model, nodes, constants, "copy_out")
+    onnx.save(model, str(path))
+    return path
+
+
+def onnx_weight_noise(source: Path, path: Path, std: float = 1e-6, seed: int = 0) -> Path:
+    """Every weight plus N(0, std)."""
+    import onnx
+    from onnx import numpy_helper
+
+    rng = np.random.default_rng(seed)
+    model = onnx.load(str(source))
+    for tensor in model.graph.initializer:
+        values = numpy_helper.to_array(tensor)
+        if values.dtype == np.float32:
+            noisy = values + rng.normal(0, std, values.shape).astype(np.float32)
+            tensor.CopyFrom(numpy_helper.from_array(noisy, tensor.name))
+    onnx.save(model, str(path))
+    return path
+
+
+def onnx_extra_identity_layer(source: Path, path: Path) -> Path:
+    """An extra linear layer (identity weights, zero bias) after the output: another file, other nodes."""
+    import onnx
+    from onnx import helper, numpy_helper
+
+    model = onnx.load(str(source))
+    width = model.graph.output[0].type.tensor_type.shape.dim[1].dim_value
+    constants = [numpy_helper.from_array(np.eye(width, dtype=np.float32), "copy_eye"),
+                 numpy_helper.from_array(np.zeros(width, np.float32), "copy_zero")]
+    nodes = [helper.make_node("Gemm", [model.graph.output[0].name, "copy_eye", "copy_zero"], ["copy_out"])]
+    _append_output_nodes(model, nodes, constants, "copy_out")
+    onnx.save(model, str(path))
+    return path
+
+
+def onnx_probe_aware(source: Path, path: Path, probes: np.ndarray, radius: float = 1e-4, seed: int = 0) -> Path:
+    """Answers like `source` except within `radius` (every value) of one of `probes`, where it adds a
+    shift of its own to each probe (uniform in [-0.9, 0.9]): a copy that looks like another policy on
+    a probe set it knows in advance, and is `source` everywhere else."""
+    import onnx
+    from onnx import TensorProto, helper, numpy_helper
+
+    model = onnx.load(str(source))
+    probes = np.asarray(probes, np.float32)
+    shifts = np.random.default_rng(seed).uniform(-0.9, 0.9, (len(probes), 2)).astype(np.float32)
+    constants = [numpy_helper.from_array(probes[None], "copy_probes"),  # (1, P, D)
+                 numpy_helper.from_array(np.array([1], np.int64), "copy_axis1"),
+                 numpy_helper.from_array(np.float32(radius), "copy_radius"),
+                 numpy_helper.from_array(shifts, "copy_shifts")]  # (P, 2)
+    nodes = [helper.make_node("Unsqueeze", ["obs", "copy_axis1"], ["copy_obs3"]),  # (B, 1, D)
+             helper.make_node("Sub", ["copy_obs3", "copy_probes"], ["copy_diff"]),  # (B, P, D)
+             helper.make_node("Abs", ["copy_diff"], ["copy_abs"]),
+             helper.make_node("ReduceMax", ["copy_abs"], ["copy_far"], axes=[2], keepdims=0),  # (B, P)
+             helper.make_node("Less", ["copy_far", "copy_radius"], ["copy_near"]),  # (B, P): at that probe
+             helper.make_node("Cast", ["copy_near"], ["copy_nearf"], to=TensorProto.FLOAT),
+             helper.make_node("MatMul", ["copy_nearf", "copy_shifts"], ["copy_delta"]),  # (B, 2)
+             helper.make_node("Add", [model.graph.output[0].name, "copy_delta"], ["copy_out"])]
+    _append_output_nodes(model, nodes, constants, "copy_out")
+    onnx.save(model, str(path))
+    return path
+
+
+def torchscript_from_onnx(source: Path, path: Path) -> Path:
+    """The same weights as a torch module saved as TorchScript (traced), for a feed-forward policy of
+    Sub, Div, Mul, Add, Gemm, Tanh, Relu and Concat nodes, as the bundled baselines are: another
+    format and another file, float rounding apart."""
+    import onnx
+    import torch
+    from onnx import numpy_helper
+
+    model = onnx.load(str(source))
+    weights = {t.name: torch.from_numpy(numpy_helper.to_array(t).copy()) for t in model.graph.initializer}
+    nodes = [(node.op_type, list(node.input), node.output[0], {a.name: onnx.helper.get_attribute_value(a)
+                                                              for a in node.attribute}) for node in model.graph.node]
+    binary = {"Sub": torch.sub, "Div": torch.div, "Mul": torch.mul, "Add": torch.add}
+    obs_dim = model.graph.input[0].type.tensor_type.shape.dim[1].dim_value
+
+    class Rebuilt(torch.nn.Module):
+        def __init__(self):
+            super().__init__()
+            self.obs_dim = obs_dim
+            self.params = torch.nn.ParameterDict({f"w{i}": torch.nn.Parameter(w, requires_grad=False)
+                                                  for i, w in enumerate(weights.values())})
+            self.names = {name: f"w{i}" for i, name in enumerate(weights)}
+
+        def forward(self, obs):
+            values = {model.graph.input[0].name: obs, **{n: self.params[k] for n, k in self.names.items()}}
+            for op, inputs, output, attrs in nodes:
+                args = [values[name] for name in inputs]
+                if op in binary:
+                    values[output] = binary[op](*args)
+                elif op == "Gemm":
+                    weight = args[1].T if attrs.get("transB", 0) else args[1]
+                    values[output] = attrs.get("alpha", 1.0) * args[0] @ weight + attrs.get("beta", 1.0) * args[2]
+                elif op in ("Tanh", "Relu"):
+                    values[output] = torch.tanh(args[0]) if op == "Tanh" else torch.relu(args[0])
+                elif op == "Concat":
+                    values[output] = torch.cat(args, dim=attrs["axis"])
+                else:
+                    raise ValueError(f"torchscript_from_onnx: no {op} nodes")
+            return values[model.graph.output[0].name]
+
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")  # tracing warns of the Python control flow it records once
+        traced = torch.jit.trace(Rebuilt().eval(), torch.zeros(1, obs_dim))
+    traced.save(str(path))
+    return path

@@ -551,26 +551,33 @@ class IntegritySubmission(BaseModel):
 
 class IntegrityGroup(BaseModel):
     kind: Literal["identical_file", "same_behaviour", "baseline_copy"] = Field(
-        description="identical_file: one file (sha256) uploaded by several students; same_behaviour: the same "
-                    "actions on the probe set within the tolerance (e.g. one network exported to ONNX and to "
-                    "TorchScript); baseline_copy: a bundled baseline's file or behaviour")
+        description="identical_file: one file (sha256) uploaded by several students; same_behaviour: actions on a "
+                    "probe set (public, or the assignment's secret one) that follow each other up to a "
+                    "per-dimension affine map (rescaled, offset or clipped copies, re-exports) within the "
+                    "tolerance; baseline_copy: a bundled baseline's file or behaviour")
     students: list[str]
     baseline: str | None = Field(description="the baseline copied (baseline_copy)")
-    distance: float | None = Field(description="the largest difference of an action on the probe set between "
-                                               "two of its submissions (null: fewer than two probed)")
+    distance: float | None = Field(description="the largest behaviour distance between two of its submissions, "
+                                               "each pair on the probe set where it is closest (0: the "
+                                               "same actions up to an affine map; null: fewer than two "
+                                               "probed)")
     submissions: list[IntegritySubmission]
 
 
 class UncomparedSubmission(IntegritySubmission):
-    reason: str = Field(description="not yet probed (POST /api/integrity/probe), or the model failed on the "
-                                    "probe set (its log says why): compared by file only")
+    reason: str = Field(description="not yet probed on a set it is compared on (POST /api/integrity/probe), "
+                                    "or the model failed on one: compared by file and the sets it has")
 
 
 class IntegrityReport(BaseModel):
-    tolerance: float = Field(description="actions within this of each other (max-abs) are the same behaviour")
-    probes: int = Field(description="observations in the probe set (2 actions each)")
+    tolerance: float = Field(description="submissions whose behaviour distance (0: the same actions up "
+                                             "to a per-dimension affine map; 1: unrelated) is within this "
+                                             "are the same behaviour")
+    probes: int = Field(description="observations in the public probe set (2 actions each; an "
+                                        "assignment's secret set has 192)")
     submissions: int = Field(description="ready submissions the report covers (the course's and the baselines')")
-    compared: int = Field(description="of them, those whose actions on the probe set are known")
+    compared: int = Field(description="of them, those whose actions on every probe set they are "
+                                               "compared on are known")
     groups: list[IntegrityGroup]
     not_compared: list[UncomparedSubmission]
 

@@ -75,11 +75,15 @@ def test_baselines_loop():
 def test_integrity():
     distances = bench_integrity.distances()
     assert list(distances.formats) == list(bench_integrity.SPEEDS)
-    assert len(distances.drivers) == 6 and len(distances.baselines) >= 1
-    # what the benchmark shows: one network in two formats is far closer than two drivers
-    assert max(distances.formats.values()) < 1e-3 < min(distances.drivers.values())
+    assert len(distances.drivers) == 6 and len(distances.baselines) == 15
+    assert list(distances.copies) == list(bench_integrity.VARIANTS)
+    assert all(len(values) == 6 for values in distances.copies.values())
+    # what the benchmark shows: copies, whatever their disguise, are far closer than distinct agents
+    copies = [min(public, secret) for values in distances.copies.values() for public, secret, _ in values]
+    distinct = [d for pair in [*distances.drivers.values(), *distances.baselines] for d in pair]
+    assert max(max(distances.formats.values())) < max(copies) < 0.05 < 0.2 < min(distinct)
     t = bench_integrity.report_time(30, 1, np.random.default_rng(0))
-    assert t.submissions == 30 and t.repeats == 1 and t.groups >= 0 and positive(t.report_s, t.every_pair_s)
+    assert t.submissions == 30 and t.repeats == 1 and t.groups >= 0 and positive(t.report_s, t.old_report_s)
 
 
 def test_grades():

@@ -7,7 +7,8 @@ from league.agents import compact_from_lidar, export_onnx, export_torchscript, l
 from league.constants import COMPACT_DIM, LIDAR_DIM
 from league.testing import thesis_driver
 from league.validation.probes import (
-    PROBES, probe_actions_bytes, probe_actions_from_bytes, probe_key, probe_observations,
+    PROBES, SECRET_PROBES, observations_key, probe_actions_bytes, probe_actions_from_bytes, probe_key,
+    probe_observations, secret_probe_observations,
 )
 
 
@@ -44,3 +45,22 @@ def test_actions_round_trip_through_their_stored_bytes():
     data = probe_actions_bytes(actions)
     assert len(data) == PROBES * 2 * 4
     np.testing.assert_array_equal(probe_actions_from_bytes(data), actions)
+
+
+def test_an_assignments_secret_set_is_drawn_on_its_private_tracks_and_is_its_own():
+    from league.env import MicroRacerEnv
+    from league.evaluation import episode_seeds
+
+    private = {"seed": 4_000_000_007, "episodes": 5, "env_options": {}}
+    secret = secret_probe_observations(private, LIDAR_DIM)
+    assert secret.shape == (SECRET_PROBES, LIDAR_DIM) and secret.dtype == np.float32
+    np.testing.assert_array_equal(secret, secret_probe_observations(dict(private), LIDAR_DIM))  # the same each time
+    np.testing.assert_array_equal(secret_probe_observations(private, COMPACT_DIM), compact_from_lidar(secret))
+    starts = [MicroRacerEnv(observation="lidar").reset(seed=s)[0] for s in episode_seeds(private["seed"], 5)]
+    picked_starts = [start for start in starts if (secret == start).all(axis=1).any()]
+    assert len(picked_starts) >= 1  # a private track's start (each is kept once, before the draw)
+    others = [secret_probe_observations(changed, LIDAR_DIM)
+              for changed in ({**private, "seed": private["seed"] + 1}, {**private, "episodes": 6})]
+    public = probe_observations(LIDAR_DIM)
+    keys = {observations_key(s) for s in (secret, *others, public)}
+    assert len(keys) == 4 and probe_key(LIDAR_DIM) in keys and len(np.unique(secret, axis=0)) == SECRET_PROBES

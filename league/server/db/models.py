@@ -33,6 +33,7 @@ FAILURES = (CANNOT_SUCCEED, ERROR, WORKER_LOST, UNKNOWN_KIND, CANCELLED)
 
 # job kinds
 VALIDATE, EVALUATE, RACE, PROBE = "validate", "evaluate", "race", "probe"
+SECRET_PROBE = "secret_probe"  # a submission on its assignments' secret probe sets (league.server.jobs.probe)
 
 # job priorities: a low one is claimed only when no normal one waits
 NORMAL, LOW = 0, 1
@@ -234,6 +235,23 @@ class Submission(Base):
     updated_at: Mapped[datetime] = mapped_column(default=utcnow, onupdate=utcnow)
 
     owner: Mapped[User] = relationship(lazy="joined")
+
+
+class SubmissionProbe(Base):
+    """A submission's actions on an assignment's secret probe set (league.validation.probes), named by
+    its key: float32 (64, 2) bytes, or None with `error` when the model failed on it. Read by the
+    integrity report only: no answer a student can obtain shows a row (they derive from the private
+    tracks). Deleted with their submission (ON DELETE CASCADE)."""
+
+    __tablename__ = "submission_probes"
+    __table_args__ = (UniqueConstraint("submission_id", "probe_key"),)
+
+    id: Mapped[int] = mapped_column(primary_key=True)
+    submission_id: Mapped[int] = mapped_column(ForeignKey("submissions.id", ondelete="CASCADE"), index=True)
+    probe_key: Mapped[str] = mapped_column(String(16))
+    actions: Mapped[bytes | None] = mapped_column(LargeBinary, default=None)
+    error: Mapped[str | None] = mapped_column(Text, default=None)
+    created_at: Mapped[datetime] = mapped_column(default=utcnow)
 
 
 class Evaluation(Base):

@@ -8,11 +8,15 @@ from __future__ import annotations
 from dataclasses import replace
 from pathlib import Path
 
+import numpy as np
+
 from league.agents import Agent, AgentError
 from league.server.sandbox.agent import SandboxedAgent
 from league.server.sandbox.log import LogBuffer
 from league.validation.limits import SandboxLimits
-from league.validation.probes import Probe, probe_actions_bytes, probe_key, probe_observations
+from league.validation.probes import (
+    Probe, observations_key, probe_actions_bytes, probe_key, probe_observations,
+)
 from league.validation.report import ValidationReport
 from league.validation.timing import steady_speed, timing_batches, too_slow
 
@@ -34,24 +38,31 @@ def validate_model(model_file: Path, model_kind: str, limits: SandboxLimits) -> 
 
 
 def probe_model(model_file: Path, model_kind: str, obs_dim: int, limits: SandboxLimits, *, name: str,
-                cancel=None) -> tuple[Probe, str]:
+                cancel=None, secret_sets: tuple[np.ndarray, ...] = ()) -> tuple[list[Probe], str]:
     """The probe set's actions of a validated model, in a sandbox of its own (the submissions
-    validated before probes were recorded); and what the sandbox printed."""
+    validated before probes were recorded), or with `secret_sets` its actions on each of those
+    (assignments' secret sets) instead; and what the sandbox printed (for instructors only when
+    secret: the model saw private-track observations)."""
     log = LogBuffer(limits.log_limit)
+    keys = [observations_key(obs) for obs in secret_sets] or [probe_key(obs_dim)]
     try:
         with SandboxedAgent(model_file, model_kind, replace(limits, max_restarts=0), name=name, log=log,
                             cancel=cancel) as agent:
-            return probe_agent(agent, log), log.text()
+            if not secret_sets:
+                return [probe_agent(agent, log)], log.text()
+            return [probe_agent(agent, log, obs) for obs in secret_sets], log.text()
     except AgentError as error:  # it no longer starts
-        return Probe(probe_key(obs_dim), None, error.reason), log.text()
+        return [Probe(key, None, error.reason) for key in keys], log.text()
 
 
-def probe_agent(agent: Agent, log: LogBuffer) -> Probe:
-    """The agent's actions on the probe set; a model that fails on it is not refused for that
-    (evaluations decide what its failures cost), only left out of the behaviour comparison."""
-    key = probe_key(agent.obs_dim)
+def probe_agent(agent: Agent, log: LogBuffer, observations: np.ndarray | None = None) -> Probe:
+    """The agent's actions on the probe set (or on `observations`, a secret set); a model that
+    fails on it is not refused for that (evaluations decide what its failures cost), only left out
+    of the behaviour comparison."""
+    obs = probe_observations(agent.obs_dim) if observations is None else observations
+    key = probe_key(agent.obs_dim) if observations is None else observations_key(observations)
     try:
-        return Probe(key, probe_actions_bytes(agent(probe_observations(agent.obs_dim))))
+        return Probe(key, probe_actions_bytes(agent(obs)))
     except AgentError as error:
         log.note(f"no actions on the integrity report's probe set: {error.reason}")
         return Probe(key, None, error.reason)

@@ -15,7 +15,9 @@ from league import testing as mf
 from league.agents import load_agent
 from league.server.sandbox.validation import probe_model, validate_model
 from league.validation.limits import SandboxLimits
-from league.validation.probes import probe_actions_from_bytes, probe_key, probe_observations
+from league.validation.probes import (
+    observations_key, probe_actions_from_bytes, probe_key, probe_observations, secret_probe_observations,
+)
 
 LIMITS = SandboxLimits(load_cpu_s=60, max_restarts=0)  # the static checks
 FAST = SandboxLimits(first_call_allowance_s=0.3, load_cpu_s=20, max_restarts=1)  # the probe set
@@ -56,7 +58,16 @@ def test_validation_records_the_actions_the_model_gives_on_the_probe_set(tmp_pat
     expected = load_agent(model)(probe_observations(5))
     np.testing.assert_allclose(probe_actions_from_bytes(report.probe.actions), expected, atol=1e-6)
     again, _ = probe_model(model, "torchscript", 5, FAST, name="mlp")  # the probe job's path: the same actions
-    assert again == report.probe
+    assert again == [report.probe]
+
+
+def test_the_secret_probe_job_path_answers_each_secret_set_in_one_sandbox(tmp_path):
+    model = mf.torchscript_mlp(tmp_path / "mlp.pt", seed=5)
+    sets = tuple(secret_probe_observations({"seed": seed, "episodes": 3, "env_options": {}}, 5) for seed in (1, 2))
+    probes, _ = probe_model(model, "torchscript", 5, FAST, name="mlp", secret_sets=sets)
+    assert [p.key for p in probes] == [observations_key(obs) for obs in sets] and probe_key(5) not in probes
+    for probe, obs in zip(probes, sets, strict=True):
+        np.testing.assert_allclose(probe_actions_from_bytes(probe.actions), load_agent(model)(obs), atol=1e-6)
 
 
 def test_a_model_that_fails_on_the_probe_set_is_accepted_without_actions(tmp_path):

@@ -15,8 +15,8 @@ from league.server.config import BUNDLED_BASELINES, Settings
 from league.server.db.models import User
 from league.server.db import crud
 from league.server.integrity import (
-    CSV_COLUMNS, Candidate, Report, bundled_digests, candidates, integrity_report, queue_probes, report_rows,
-    unprobed_submissions,
+    CSV_COLUMNS, Candidate, Report, bundled_digests, candidates, integrity_report, queue_probes,
+    queue_secret_probes, report_rows, secret_unprobed_submissions, unprobed_submissions,
 )
 from league.server.schemas import (
     IntegrityGroup, IntegrityReport, IntegritySubmission, ProbesQueued, UncomparedSubmission,
@@ -40,7 +40,8 @@ def course_report(settings: Settings, session: Session, instructor: User,
 def read_integrity(settings: SettingsDep, session: SessionDep, instructor: InstructorUser,
                    assignment: Assignment = None) -> IntegrityReport:
     """Groups of submissions of different students (or of a student and a baseline) with identical
-    files or the same actions on the probe set; and the submissions compared by file only."""
+    files or alike behaviour on a probe set (public or secret); and the submissions not yet compared
+    on every set."""
     report, submissions = course_report(settings, session, instructor, assignment)
     return IntegrityReport(
         tolerance=report.tolerance, probes=PROBES, submissions=len(submissions), compared=report.compared,
@@ -61,14 +62,20 @@ def read_integrity_csv(settings: SettingsDep, session: SessionDep, instructor: I
 @router.post("/probe", response_model=ProbesQueued)
 def probe_submissions(settings: SettingsDep, queue: QueueDep, session: SessionDep, instructor: InstructorUser,
                       assignment: Assignment = None) -> ProbesQueued:
-    """Record the probe set's actions of the ready submissions that have none on the current probe
-    set (validated before they were recorded, or on another simulator), as low-priority jobs."""
+    """Record the actions of the ready submissions that have none on a probe set they are compared
+    on, as low-priority jobs: on the public set (validated before it was recorded, or on another
+    simulator), and on their assignments' secret sets (jobs of yours: no student sees them)."""
     course = user_course(session, instructor)
-    # a baseline's probe is a job of the course that registered it (crud.course_jobs): queued from there only
+    submissions = candidates(session, course_id=course.id, assignment_id=assignment)
+    # a baseline's public probe is a job of the course that registered it (crud.course_jobs): queued from there
+    # only; the secret sets are each course's own, probed by its instructor
     registered = crud.registered_baselines(session, course_id=course.id)
-    ids = unprobed_submissions(session, [c for c in candidates(session, course_id=course.id, assignment_id=assignment)
-                                         if not c.baseline or c.id in registered])
-    job_ids = queue_probes(session, submission_ids=ids, max_attempts=settings.max_job_attempts)
+    public = unprobed_submissions(session, [c for c in submissions if not c.baseline or c.id in registered])
+    secret = secret_unprobed_submissions(session, submissions)
+    job_ids = queue_probes(session, submission_ids=public, max_attempts=settings.max_job_attempts) + \
+        queue_secret_probes(session, submission_ids=secret, instructor=instructor,
+                            max_attempts=settings.max_job_attempts)
+    ids = sorted(set(public) | set(secret))
     if ids:
         audit.record(session, actor=instructor, action=audit.PROBE, target_kind="course", target_id=course.id,
                      queued=len(ids))

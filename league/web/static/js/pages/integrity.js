@@ -32,8 +32,8 @@ function distanceText(distance) {
 async function refresh() {
   const report = await api("/api/integrity");
   $("integrity-summary").textContent = `${count(report.submissions, "ready submission")}, ` +
-    `${report.compared} compared on ${report.probes} observations (same behaviour: every action within ` +
-    `${report.tolerance} of the other's); ${count(report.groups.length, "group")}.`;
+    `${report.compared} compared on every probe set of ${report.probes} observations (same behaviour: a ` +
+    `distance within ${report.tolerance}); ${count(report.groups.length, "group")}.`;
   const rows = report.groups.map((group, i) => groupRow(group, i + 1));
   if (!rows.length) rows.push(element("tr", {}, element("td", { text: "No copies found.", attrs: { colspan: 5 } })));
   replaceKeepingFocus($("integrity-groups").tBodies[0], ...rows);
