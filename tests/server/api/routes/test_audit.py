@@ -176,7 +176,8 @@ def test_every_change_of_a_grade_or_a_deadline_is_recorded_with_the_values_befor
     assert settings["after"] == {"seed": 7, "episodes": 2} and settings["before"]["seed"] != 7
     published = {"before": {"published_at": None}, "after": {"published_at": iso(T2 + timedelta(seconds=1))}}
     assert publications[hw["id"]] == ("prof", published)
-    assert publications[auto["id"]] == ("league server", {**published, "note": "auto_publish: every final decided and evaluated"})
+    assert publications[auto["id"]] == ("league server",
+                                        {**published, "note": "auto_publish: every final decided and evaluated"})
     backup = events["league.backup"]
     assert (backup["actor_name"], backup["target_kind"]) == ("league CLI", "league")
     assert backup["details"]["rows"]["users"] >= 2  # prof, sue (and the baselines' account)
