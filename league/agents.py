@@ -372,7 +372,7 @@ def _is_cuda_constant(node: Any) -> bool:
 
 def cuda_uses(module: Any) -> list[str]:
     """Where a loaded TorchScript module names CUDA, in its methods and hooks with every call
-    inlined: a CUDA device constant or a `.cuda()` call (as 'Policy.forward: .cuda()')."""
+    inlined: a CUDA device constant or a `.cuda()` call ('Policy.forward names the device cuda')."""
     import torch
 
     found = []
