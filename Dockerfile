@@ -11,7 +11,8 @@ WORKDIR /app
 COPY . /app
 # torch runs TorchScript uploads: the CPU build from PyTorch's CPU index (the default index's
 # brings GBs of CUDA libraries the league never uses), the release the test suite runs (README.md).
-# The C compiler builds the simulator's Cython core, then goes; libseccomp2 confines the sandboxes.
+# The C compiler builds the simulator's Cython core, then goes (the sdist the server hands out needs
+# none: the server extra's Cython writes its C file); libseccomp2 confines the sandboxes.
 RUN apt-get update && apt-get install -y --no-install-recommends build-essential libseccomp2 \
     && pip install torch==2.13.0 --index-url https://download.pytorch.org/whl/cpu \
     && pip install -e ".[server]" \

@@ -305,8 +305,101 @@ def _load_torchscript(path: Path, obs_dim: int | None, name: str) -> Agent:
     except Exception as error:
         raise AgentError(f"{path.name} is not a loadable TorchScript file (truncated or corrupt?): "
                          f"{_one_line(error, 200)}") from error
+    onto_cpu(module)
     module.eval()
     return _with_probed_obs_dim(lambda dim: TorchAgent(module, dim, name), obs_dim, _declared_obs_dim(module))
+
+
+# --------------------------------------------------------------------------- models from GPUs
+
+# The fix, for a model that needs CUDA (students train on GPUs; the league runs models on CPUs).
+EXPORT_FROM_CPU = ("export it from the CPU: model.cpu() before torch.jit.script / torch.jit.trace (a traced "
+                   "model with CPU example inputs), and no device in forward (no .cuda(), no .to(\"cuda\"))")
+
+
+def onto_cpu(module: Any) -> None:
+    """A TorchScript module saved on or for a GPU, made to run on the CPU as it would on the GPU.
+
+    Its tensors are on the CPU already (torch.jit.load's map_location="cpu"); what names CUDA is in
+    its methods: device constants (`.to("cuda")`, `device="cuda"`, a trace's recorded device), which
+    become the CPU; `.cuda()` calls, which are dropped (on the CPU they would copy to the GPU and
+    nothing else); Device attributes its methods read (`self.device`), set to the CPU. Done before
+    the module first runs (its graphs are compiled then). What is left, a device in a function the
+    methods call, refuses the model with the fix (AgentError): `cuda_uses` finds it on structure.
+    """
+    import torch
+
+    for _, submodule in module.named_modules():
+        for name in submodule._c._method_names():
+            graph = submodule._c._get_method(name).graph
+            _cpu_constants(torch, graph, graph)
+            _cpu_device_attributes(torch, submodule, graph)
+        for hook in [*submodule._c._get_forward_pre_hooks(), *submodule._c._get_forward_hooks()]:
+            _cpu_constants(torch, hook.graph, hook.graph)
+    left = cuda_uses(module)
+    if left:
+        raise AgentError(f"the model needs CUDA (a GPU) and the league runs models on the CPU: {left[0]}; "
+                         f"{EXPORT_FROM_CPU}")
+
+
+def _cpu_constants(torch: Any, graph: Any, block: Any) -> None:
+    for node in list(block.nodes()):
+        for inner in node.blocks():
+            _cpu_constants(torch, graph, inner)
+        if node.kind() == "aten::cuda" and len(list(node.inputs())) == 1:  # Tensor.cuda(), no options
+            node.output().replaceAllUsesWith(node.input())
+            node.destroy()
+        elif _is_cuda_constant(node):
+            with graph.insert_point_guard(node):
+                cpu = graph.insertConstant(torch.device("cpu"))
+            node.output().replaceAllUsesWith(cpu)
+            node.destroy()
+
+
+def _cpu_device_attributes(torch: Any, submodule: Any, graph: Any) -> None:
+    this = next(graph.inputs())  # self
+    for node in graph.findAllNodes("prim::GetAttr"):
+        name = node.s("name")
+        if node.input().unique() == this.unique():
+            if node.output().type().kind() == "DeviceObjType" and submodule._c.getattr(name).type == "cuda":
+                submodule._c.setattr(name, torch.device("cpu"))
+
+
+def _is_cuda_constant(node: Any) -> bool:
+    return (node.kind() == "prim::Constant" and node.output().type().kind() == "DeviceObjType"
+            and node.output().toIValue().type == "cuda")
+
+
+def cuda_uses(module: Any) -> list[str]:
+    """Where a loaded TorchScript module names CUDA, in its methods and hooks with every call
+    inlined: a CUDA device constant or a `.cuda()` call ('Policy.forward names the device cuda')."""
+    import torch
+
+    found = []
+    for prefix, submodule in module.named_modules():
+        owner = prefix or module.original_name
+        graphs = [(f"{owner}.{name}", submodule._c._get_method(name).graph)
+                  for name in submodule._c._method_names()]
+        graphs += [(f"a hook of {owner}", hook.graph)
+                   for hook in [*submodule._c._get_forward_pre_hooks(), *submodule._c._get_forward_hooks()]]
+        for where, graph in graphs:
+            inlined = graph.copy()
+            torch._C._jit_pass_inline(inlined)
+            for node in _all_nodes(inlined.block()):
+                if node.kind() == "aten::cuda":
+                    found.append(f"{where} calls .cuda()")
+                elif _is_cuda_constant(node):
+                    found.append(f"{where} names the device {node.output().toIValue()}")
+    return found
+
+
+def _all_nodes(block: Any) -> list[Any]:
+    nodes = []
+    for node in block.nodes():
+        nodes.append(node)
+        for inner in node.blocks():
+            nodes += _all_nodes(inner)
+    return nodes
 
 
 def _refuse_pickles(path: Path) -> None:

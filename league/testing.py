@@ -20,6 +20,7 @@ import pickle
 import warnings
 import zipfile
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
@@ -558,4 +559,85 @@ def torchscript_from_onnx(source: Path, path: Path) -> Path:
         warnings.simplefilter("ignore")  # tracing warns of the Python control flow it records once
         traced = torch.jit.trace(Rebuilt().eval(), torch.zeros(1, obs_dim))
     traced.save(str(path))
+
+
+# How students' GPU-trained models come out (a traced device is the CPU's respelt as a GPU's trace
+# writes it; parameters on CUDA, their storages' location rewritten): tests/test_agents_gpu.py.
+# Every one but "in-a-function" is loaded onto the CPU; that one is refused, naming CUDA.
+GPU_EXPORTS = ("to-device", "to-string", "cuda-call", "device-argument", "device-attribute", "traced",
+               "parameters", "in-a-function")
+
+
+def torchscript_for_cuda(path: Path, how: str, seed: int = 0) -> tuple[Path, Any]:
+    """A policy saved on or for a GPU as `how` says (GPU_EXPORTS), made without a GPU; returns the
+    file and the CPU module it computes the same actions as."""
+    import torch
+
+    torch.manual_seed(seed)
+    plain = torch.nn.Sequential(torch.nn.Linear(5, HIDDEN), torch.nn.ReLU(), torch.nn.Linear(HIDDEN, 2),
+                                torch.nn.Tanh()).eval()
+
+    def moved(x: torch.Tensor) -> torch.Tensor:
+        return x.to(torch.device("cuda"))
+
+    class OnGpu(torch.nn.Module):
+        def __init__(self):
+            super().__init__()
+            self.net = plain
+            self.device = torch.device("cuda")
+
+    class ToDevice(OnGpu):
+        def forward(self, obs: torch.Tensor) -> torch.Tensor:
+            return self.net(obs.to(torch.device("cuda"))).cpu()
+
+    class ToString(OnGpu):
+        def forward(self, obs: torch.Tensor) -> torch.Tensor:
+            return self.net(obs.to("cuda")).cpu()
+
+    class CudaCall(OnGpu):
+        def forward(self, obs: torch.Tensor) -> torch.Tensor:
+            return self.net(obs.cuda()).cpu()
+
+    class DeviceArgument(OnGpu):
+        def forward(self, obs: torch.Tensor) -> torch.Tensor:
+            return self.net(obs + torch.zeros(5, device="cuda")).cpu()
+
+    class DeviceAttribute(OnGpu):
+        def forward(self, obs: torch.Tensor) -> torch.Tensor:
+            return self.net(obs.to(self.device)).cpu()
+
+    class InAFunction(OnGpu):
+        def forward(self, obs: torch.Tensor) -> torch.Tensor:
+            return self.net(moved(obs)).cpu()
+
+    scripted = {"to-device": ToDevice, "to-string": ToString, "cuda-call": CudaCall,
+                "device-argument": DeviceArgument, "device-attribute": DeviceAttribute, "in-a-function": InAFunction}
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", DeprecationWarning)
+        if how == "traced":
+            class Traced(OnGpu):  # the trace records the device of `.to(device)`
+                def forward(self, obs: torch.Tensor) -> torch.Tensor:
+                    return self.net(obs.to(torch.device("cpu")))
+
+            torch.jit.trace(Traced(), torch.zeros(1, 5)).save(str(path))
+            return _respell(path, 'torch.device("cpu")', 'torch.device("cuda:0")'), plain
+        if how == "parameters":
+            torch.jit.script(plain).save(str(path))
+            return _storages_on_cuda(path), plain
+        torch.jit.script(scripted[how]()).save(str(path))
+    return path, plain
+
+
+def _storages_on_cuda(path: Path) -> Path:
+    """The archive's tensors as saved from a GPU: their storages' location (a pickled string) cuda:0."""
+    entries = []
+    with zipfile.ZipFile(path) as archive:
+        for info in archive.infolist():
+            data = archive.read(info)
+            if info.filename.endswith(("/data.pkl", "/constants.pkl")):
+                data = data.replace(b"X\x03\x00\x00\x00cpu", b"X\x06\x00\x00\x00cuda:0")  # BINUNICODE, its length
+            entries.append((info, data))
+    with zipfile.ZipFile(path, "w", zipfile.ZIP_STORED) as archive:
+        for info, data in entries:
+            archive.writestr(info, data)
     return path

@@ -8,7 +8,10 @@ server runs, so that a student's `league evaluate` and `league check` are the se
            compiled): it installs on machines like the server's, with no compiler.
     sdist  built from the source tree by setuptools' own hook (PEP 517), when the server runs from
            one: any platform with a C compiler (and Python >= 3.10) installs it, pip building the
-           core; students whose machine is not like the server's take it.
+           core; students whose machine is not like the server's take it. The hook runs in the
+           server's own environment, which has the build's requirements (setuptools, Cython, numpy:
+           the server extra installs them), so that it needs no package index: not pip's isolated
+           build, which would fetch them at the first request, on a server that may have none.
 
 Both are built once per source (their name says the version, their digest the content) into
 DATA_DIR/package/<digest of the sources>/, on the first request; nothing here runs at start-up.

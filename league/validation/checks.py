@@ -34,6 +34,7 @@ TORCH_PRIM_OPS = frozenset("""
 Constant GetAttr ListConstruct ListUnpack TupleConstruct TupleUnpack TupleIndex DictConstruct If Loop
 NumToTensor unchecked_cast RaiseException Uninitialized dtype device layout min max abs Print isinstance
 """.split())
+# (`cpu`: the `.cpu()` a GPU-trained model ends forward with, the identity on the CPU: agents.onto_cpu)
 TORCH_ATEN_OPS = frozenset("""
 linear addmm matmul mm bmm t relu relu_ leaky_relu leaky_relu_ elu elu_ selu celu gelu silu mish hardswish
 hardsigmoid hardtanh hardtanh_ relu6 prelu softplus softsign tanh tanh_ sigmoid sigmoid_ softmax log_softmax
@@ -47,7 +48,7 @@ round trunc sin cos atan atan2 mean sum prod max min amax amin maximum minimum a
 where eq ne lt le gt ge logical_and logical_or logical_not zeros ones zeros_like ones_like full full_like
 arange tensor scalar_tensor to type_as float double detach clone copy_ fill_ zero_ size dim numel len
 __getitem__ __is__ __isnot__ __not__ __and__ __or__ __contains__ list append Int Float Bool ScalarImplicit
-format warn item is_floating_point new_zeros new_ones masked_fill where_ erf lerp tensor_split movedim
+format warn item is_floating_point new_zeros new_ones masked_fill where_ erf lerp tensor_split movedim cpu
 """.split())
 # Methods that run while a TorchScript file is loaded (the unpickler calls __setstate__; its pair
 # makes no sense alone): refused outright, wherever they are defined.

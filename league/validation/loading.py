@@ -23,7 +23,8 @@ def load_checked(model_path: Path, memory_mb: int | None):
     checks.check_torchscript_archive(model_path)
     torch = import_torch()
     cap_address_space(memory_mb)
-    module = torch.jit.load(str(model_path), map_location="cpu")
+    module = torch.jit.load(str(model_path), map_location="cpu")  # a GPU's tensors onto the CPU
+    agents.onto_cpu(module)  # and its device constants (or refused, naming CUDA and the fix)
     checks.check_torchscript_graph(module)
     return agents.torch_module_agent(module, name="submission")
 

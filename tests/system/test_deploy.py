@@ -15,12 +15,14 @@ import ssl
 import subprocess
 import sys
 import time
+import tomllib
 from pathlib import Path
 
 import httpx
 import pytest
 import yaml
 from packaging.requirements import Requirement
+from packaging.utils import canonicalize_name
 from sqlalchemy.engine import make_url
 
 from league.cli import build_parser
@@ -267,6 +269,25 @@ def test_the_image_installs_the_tested_cpu_build_of_torch():
     extra = re.search(r'^torch = \["(.*)"\]', (REPO / "pyproject.toml").read_text(), re.M)[1]
     assert Requirement(extra).specifier.contains(version)
     assert f'"torch=={version}"' in (REPO / "README.md").read_text()  # the release the test command installs
+
+
+def test_the_image_and_the_readmes_install_what_building_the_students_sdist_needs():
+    """GET /api/package builds the sdist with setup.py in the server's own environment, with no
+    package index (league/server/package.py): every server install documented (the Dockerfile's, the
+    READMEs') holds [build-system]'s requirements, but wheel, which only building a wheel asks for.
+    tests/system/test_as_documented.py builds it from the README's install."""
+    pyproject = tomllib.loads((REPO / "pyproject.toml").read_text())
+    needed = {canonicalize_name(Requirement(r).name) for r in pyproject["build-system"]["requires"]} - {"wheel"}
+    install = re.compile(r'pip install -e "\.\[([\w,]+)\]"')
+    texts = [dockerfile(), *(path.read_text() for path in (REPO / "README.md", REPO / "league/server/README.md"))]
+    installs = [extras for text in texts for extras in install.findall(text)]
+    assert len(installs) >= 3, installs
+    for extras in installs:
+        optional = pyproject["project"]["optional-dependencies"]
+        requirements = pyproject["project"]["dependencies"] + [requirement for extra in extras.split(",")
+                                                               for requirement in optional[extra]]
+        have = {canonicalize_name(Requirement(requirement).name) for requirement in requirements}
+        assert needed <= have, (extras, needed - have)
 
 
 def test_the_image_runs_as_an_ordinary_user_and_only_the_worker_as_root():

@@ -1,6 +1,7 @@
-"""docs/STUDENT_GUIDE.md runs: its python and bash blocks, in order, in one folder, as a student
-runs them (the `league` command, a real league server started here), with training at smoke size
-(GUIDE_STEPS). A block that fails fails the test with its output."""
+"""docs/STUDENT_GUIDE.md runs: its python and bash blocks, in order, in one folder, each pasted into
+a file of its own and run as a script (`python block_3.py`), as a student runs them (the `league`
+command, a real league server started here), with training at smoke size (GUIDE_STEPS). A block
+that fails fails the test with its output."""
 from __future__ import annotations
 
 import os
@@ -51,7 +52,10 @@ def test_every_block_of_the_student_guide_runs(tmp_path):
                 if "$MY_SUBMISSION" in code:  # the id of the upload a block before made
                     with server.client(token) as student:
                         env["MY_SUBMISSION"] = str(student.get("/api/submissions").json()[0]["id"])
-                command = [sys.executable, "-c", code] if kind == "python" else ["bash", "-euo", "pipefail", "-c", code]
+                script = work / f"block_{number}.{'py' if kind == 'python' else 'sh'}"  # pasted into a file
+                script.write_text(code)
+                command = [sys.executable, script.name] if kind == "python" else ["bash", "-euo", "pipefail",
+                                                                                  script.name]
                 done = subprocess.run(command, cwd=work, env=env, capture_output=True, text=True, timeout=600)
                 assert done.returncode == 0, f"block {number} ({kind}) failed:\n{code}\n{done.stdout}\n{done.stderr}"
             assert (work / "race.mp4").stat().st_size > 10_000

@@ -14,11 +14,9 @@ from __future__ import annotations
 
 import json
 import os
-import pwd
 import shlex
 import subprocess
 import sys
-import warnings
 from pathlib import Path
 
 import httpx
@@ -28,36 +26,14 @@ from league.client import EXIT_OK, EXIT_USAGE
 
 from ..server.api_calls import unique
 from ..server.backends import TEST_SETTINGS
-from .ordinary import SYSTEM_PYTHON, ordinary_user, require_root_tools, shared_directory
+from .ordinary import SYSTEM_PYTHON, require_root_tools, shared_directory
 from .servers import student_token
-from .students import league, student_env
+from .students import Student, export, league, student_env
 
 EPISODES, SEED = TEST_SETTINGS["LEAGUE_EVAL_EPISODES"], TEST_SETTINGS["LEAGUE_EVAL_SEED"]
-PIP_CACHE = Path("/tmp/league-student-pip-cache")  # the ordinary user's downloads, kept between runs
 
 
 # --------------------------------------------------------------------------- exports
-
-
-def export(how: str, folder: Path) -> Path:
-    """The thesis-like driver exported as a student would, with each exporter's defaults."""
-    import torch
-
-    from league.testing import thesis_driver
-
-    model, example = thesis_driver().eval(), (torch.zeros(1, 5),)
-    path = folder / ("policy.pt" if how.startswith("jit") else "policy.onnx")
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore")  # the legacy exporter's and torch.jit's deprecation notices
-        if how == "onnx":
-            torch.onnx.export(model, example, str(path))
-        elif how == "onnx-legacy":
-            torch.onnx.export(model, example, str(path), dynamo=False)
-        elif how == "jit-script":
-            torch.jit.script(model).save(str(path))
-        else:
-            torch.jit.trace(model, example).save(str(path))
-    return path
 
 
 def evaluated_table(result: subprocess.CompletedProcess) -> list[str]:
@@ -100,38 +76,6 @@ def test_every_common_export_is_checked_submitted_and_evaluated_as_league_evalua
 
 
 # --------------------------------------------------------------------------- the student's own venv
-
-
-class Student:
-    """An ordinary user with a home and a venv of the system's Python, under a shared directory."""
-
-    def __init__(self, root: Path):
-        self.uid = ordinary_user()
-        self.gid = pwd.getpwuid(self.uid).pw_gid
-        self.root, self.home, self.venv = root, root / "home", root / "home" / "venv"
-        self.home.mkdir()
-        PIP_CACHE.mkdir(exist_ok=True)
-        for path in (self.home, PIP_CACHE):
-            os.chown(path, self.uid, self.gid)
-
-    def run(self, *command: str, expect: int | None = 0, **env: str) -> subprocess.CompletedProcess:
-        base = {"PATH": f"{self.venv / 'bin'}:{os.defpath}", "HOME": str(self.home), "LANG": "C.UTF-8",
-                "XDG_CONFIG_HOME": str(self.home / ".config"), "PIP_CACHE_DIR": str(PIP_CACHE),
-                "PIP_FIND_LINKS": os.environ.get("PIP_FIND_LINKS", ""), "MPLBACKEND": "Agg"}
-        done = subprocess.run(command, cwd=self.home, env={**base, **env}, capture_output=True, text=True,
-                              timeout=900, user=self.uid, group=self.gid, extra_groups=[])
-        if expect is not None:
-            assert done.returncode == expect, f"{command}: {done.returncode}\n{done.stdout}\n{done.stderr}"
-        return done
-
-    def give(self, path: Path) -> Path:
-        """A copy of a file (and what lies beside it under the same stem) that the student owns."""
-        target = self.home / path.name
-        for source in path.parent.glob(f"{path.name}*"):
-            copy = self.home / source.name
-            copy.write_bytes(source.read_bytes())
-            os.chown(copy, self.uid, self.gid)
-        return target
 
 
 @pytest.fixture(scope="module")

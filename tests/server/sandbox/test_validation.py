@@ -48,6 +48,18 @@ def test_a_plain_scripted_policy_passes(torchscript_actor):
     assert report.ok, report.error
 
 
+def test_a_model_saved_for_cuda_is_validated_on_the_cpu_or_refused_naming_cuda(tmp_path):
+    """(tests/test_agents_gpu.py: every way a GPU's model comes, and its actions)"""
+    moved, _ = mf.torchscript_for_cuda(tmp_path / "moved.pt", "to-string")
+    report = validate_model(moved, "torchscript", LIMITS)
+    assert report.ok and report.obs_dim == 5, report.error
+    out_of_reach, _ = mf.torchscript_for_cuda(tmp_path / "helper.pt", "in-a-function")
+    report = validate_model(out_of_reach, "torchscript", LIMITS)
+    assert not report.ok
+    assert report.error.startswith("the model needs CUDA (a GPU) and the league runs models on the CPU: ")
+    assert "model.cpu() before torch.jit.script" in report.error
+
+
 # --------------------------------------------------------------------------- the probe set
 
 
