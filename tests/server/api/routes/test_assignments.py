@@ -355,18 +355,20 @@ def test_the_cli_creates_extends_lists_and_selects(league, clock, monkeypatch, c
 
 
 def test_an_assignments_board_is_shown_as_the_courses_board_visibility_allows(league):
-    """Members only: a visitor is asked to log in, a member sees the board; public: visitors see it too."""
+    """Members only (the default): a visitor is asked to log in, a member sees the board; public:
+    visitors see it too."""
     hw = create(league)
     with league.client(league.instructor_token) as instructor, league.client() as visitor:
         before = instructor.get("/api/settings/privacy").json()
-        instructor.put("/api/settings/privacy", json={**before, "board_visibility": "members"}).raise_for_status()
+        assert before["board_visibility"] == "members"  # a new course's
+        assert visitor.get(f"/api/assignments/{hw['id']}/board").status_code == 401
+        _, student = league.student()
+        assert student.get(f"/api/assignments/{hw['id']}/board").status_code == 200
+        instructor.put("/api/settings/privacy", json={**before, "board_visibility": "public"}).raise_for_status()
         try:
-            assert visitor.get(f"/api/assignments/{hw['id']}/board").status_code == 401
-            _, student = league.student()
-            assert student.get(f"/api/assignments/{hw['id']}/board").status_code == 200
+            assert visitor.get(f"/api/assignments/{hw['id']}/board").status_code == 200
         finally:
             instructor.put("/api/settings/privacy", json=before).raise_for_status()
-        assert visitor.get(f"/api/assignments/{hw['id']}/board").status_code == 200
 
 
 def test_a_championship_of_an_assignment_races_the_final_choices_not_the_active_submissions(league, clock):
