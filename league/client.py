@@ -267,12 +267,13 @@ def run_login(args: argparse.Namespace) -> int:
 def run_submit(args: argparse.Namespace) -> int:
     path = Path(args.file)
     with Api(connection(args)) as api:
+        assignment = args.assignment or only_open_assignment(api)
         upload = checked_upload(api, path) if not args.no_check else as_is(path)
         if upload is None:
             return EXIT_REJECTED
         data = {"name": args.name} if args.name else {}
-        if args.assignment:
-            data["assignment"] = args.assignment
+        if assignment:
+            data["assignment"] = assignment
         created = api.call("POST", "/api/submissions", files={"file": (upload.name, upload.data)}, data=data)
         print(f"submission {created['id']}: {created['status']}", file=sys.stderr)
         if not args.wait:
@@ -283,6 +284,26 @@ def run_submit(args: argparse.Namespace) -> int:
         if evaluation and evaluation["status"] == "done":  # the status answer links to its episodes
             evaluation["episodes"] = all_episodes(api, submission["links"]["episodes"])
     return report_submission(submission, args.json)
+
+
+def only_open_assignment(api: Api) -> str | None:
+    """The name of the only assignment open to the user's uploads (said on stderr); several: a usage
+    error listing them, before anything is checked or uploaded; none: None, the server says why."""
+    open_ = [a for a in api.get("/api/assignments") if a["state"] in ("open", "late")]
+    if len(open_) > 1:
+        names = ", ".join(a["name"] for a in open_)
+        raise ClientError(f"several assignments are open to you: {names}; say which with --assignment NAME, e.g. "
+                          f"league submit FILE --assignment {shell_word(open_[0]['name'])}", EXIT_USAGE)
+    if open_:
+        print(f"for the assignment {open_[0]['name']} (the only one open to you)", file=sys.stderr)
+        return open_[0]["name"]
+    return None
+
+
+def shell_word(text: str) -> str:
+    import shlex
+
+    return shlex.quote(text)
 
 
 def checked_upload(api: Api, path: Path) -> Upload | None:
@@ -605,7 +626,8 @@ def run_assignments(args: argparse.Namespace) -> int:
 
 def assignment_fields(args: argparse.Namespace) -> dict:
     fields = {"description": args.description, "seed": args.seed, "episodes": args.episodes,
-              "late_penalty": args.late_penalty, "daily_quota": args.daily_quota, "auto_publish": args.auto_publish}
+              "late_penalty": args.late_penalty, "daily_quota": args.daily_quota, "auto_publish": args.auto_publish,
+              "keep_open": args.keep_open}
     for name, text in (("opens_at", args.opens), ("due_at", args.due), ("late_until", args.late_until)):
         if text is not None:
             fields[name] = parse_time(text)
@@ -617,7 +639,8 @@ def list_assignments(assignments: list[dict], as_csv: bool) -> int:
     for a in assignments:
         final = a.get("final") or {}
         mine = f"{final.get('submission_id') or ''}{' (selected)' if final.get('selected') else ''}"
-        rows.append([a["id"], a["name"], a["state"], local_time(a["opens_at"]),
+        automatic = f" (automatic{', kept open' if a.get('keep_open') else ''})" if a.get("automatic") else ""
+        rows.append([a["id"], a["name"] + automatic, a["state"], local_time(a["opens_at"]),
                      local_time(a["my_due_at"]) + (" (extension)" if a["extended"] else ""),
                      time_left(a["my_due_at"], a["now"]), local_time(a["late_until"]), mine,
                      "yes" if a["published_at"] else "no"])
@@ -810,6 +833,7 @@ def add_commands(subparsers) -> None:
         "  league assignments edit NAME [any of those options]\n"
         "  league assignments extend NAME STUDENT --due T     (that student's own due time)\n"
         "  league assignments publish NAME                    (show the private board to the students)\n"
+        "  league assignments edit default --keep-open        (the automatic assignment stays open beside yours)\n"
         "Times without a zone are this machine's.")
     assignments.add_argument("action", nargs="?", default="list",
                              choices=["list", "create", "edit", "extend", "publish"])
@@ -824,6 +848,9 @@ def add_commands(subparsers) -> None:
     assignments.add_argument("--daily-quota", type=int, metavar="N", help="uploads per student per UTC day")
     assignments.add_argument("--auto-publish", action="store_true", default=None,
                              help="publish the private board once every final is evaluated")
+    assignments.add_argument("--keep-open", action=argparse.BooleanOptionalAction, default=None,
+                             help="edit default: the course's automatic assignment keeps taking uploads beside the "
+                                  "course's own assignments (by default it closes once there is one)")
     assignments.add_argument("--csv", action="store_true", help="print the list as CSV")
 
     select = command("select", "choose the submission that counts as your final one in its assignment", run_select,

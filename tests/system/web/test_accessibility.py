@@ -138,9 +138,8 @@ def course(web_server, agent_files, tmp_path_factory):
                         lambda r: r["status"] in ("done", "failed"), timeout=120)
         assert done["status"] == "done", done
         replay = client.get(f"/api/races/{done['race_ids'][0]}/replay").json()
-    # the public answers are cached (league/server/api/cache.py): until they show the round
-    with web_server.client() as public:
-        wait_for(lambda: public.get(f"/api/championships/{championship['id']}/standings").json()["items"], bool)
+    with web_server.client(student) as member:  # a member's answers (the default visibility) are not kept
+        assert member.get(f"/api/championships/{championship['id']}/standings").json()["items"]
     replay_path = tmp_path_factory.mktemp("a11y") / "heat.json"
     replay_path.write_text(json.dumps(replay))
     return SimpleNamespace(instructor=instructor, student=student, ready=ready, rejected=rejected,
@@ -153,8 +152,12 @@ def course(web_server, agent_files, tmp_path_factory):
 def test_axe_finds_nothing_on_the_leaderboard(web, course):
     audit = Audit(web)
     web.goto(f"/?championship={course.championship}")
+    web.page.wait_for_selector("#board-closed:not([hidden])")  # the members' boards (the default)
+    audit.check("logged out: asked to log in")
+    web.login(course.student)
+    web.goto(f"/?championship={course.championship}")
     web.page.wait_for_selector("#standings tbody tr[data-key]")
-    audit.check("logged out")
+    audit.check("as a student")
     web.login(course.instructor)
     web.goto(f"/?championship={course.championship}")
     web.page.wait_for_selector("#standings-csv:not([hidden])")
@@ -189,6 +192,7 @@ def test_axe_finds_nothing_on_the_submissions_page(web, course):
 
 def test_axe_finds_nothing_in_the_race_viewers(web, course):
     audit = Audit(web)
+    web.login(course.student)  # the races are the members' (the default)
     web.goto(f"/races/{course.race}?step=40")
     web.page.wait_for_selector("#viewer:not([hidden])")
     audit.check("a heat's replay")
@@ -387,7 +391,8 @@ def test_round_by_keyboard(web, web_server):
 
     round_line = f"[data-championship='{championship_id}'] li[data-round='1']"
     focused(web, round_line)
-    heats = web_server.client().get(f"/api/championships/{championship_id}/rounds/1").json()["heats_total"]
+    heats = web_server.client(web_server.instructor_token).get(
+        f"/api/championships/{championship_id}/rounds/1").json()["heats_total"]
     heats_text = f"{heats} heat{'s' if heats > 1 else ''}"
     wait_announced(web, "polite", f"Round 1 of {name} started: {heats_text} to race.")
     wait_announced(web, "polite",

@@ -75,7 +75,7 @@ def colors_on_track(server, race_url: str, step: int, apart: float = 0.05) -> li
     """The colours of the first cars that the race's replay shows still racing at `step`, but for
     those a later-drawn car covers (two students may race the same file: the same trajectory)."""
     race_id = race_url.split("?")[0].rstrip("/").rsplit("/", 1)[1]
-    cars = server.client().get(f"/api/races/{race_id}/replay").json()["cars"]
+    cars = server.client(server.instructor_token).get(f"/api/races/{race_id}/replay").json()["cars"]
     where = {i: (car["x"][step], car["y"][step]) for i, car in enumerate(cars) if len(car["x"]) > step + 1}
     covered = {i for i in where for j in where if j > i and math.dist(where[i], where[j]) < apart}
     return [color for i, color in enumerate(CAR_COLORS) if i in where and i not in covered]
@@ -560,11 +560,13 @@ def test_a_settings_change_shows_every_earlier_result_apart_as_stale(web, web_se
             changed = instructor.put("/api/settings/evaluation",
                                      json={**before, "seed": before["seed"] + 1, "episodes": 1000})
             assert changed.status_code == 200 and changed.json()["reevaluating"], changed.text
+            reader = student_token(web_server, unique("reader"))  # the board is the members' (the default)
+            web.login(reader)
             web.goto("/")
             stale = web.page.locator("#leaderboard tbody tr.apart")
             stale.first.wait_for()
-            # as the page (a visitor)
-            board = web_server.client().get("/api/leaderboard?page=1&size=50").json()["items"]
+            # as the page (that student)
+            board = web_server.client(reader).get("/api/leaderboard?page=1&size=50").json()["items"]
             assert board and all(row["stale"] and row["rank"] is None for row in board)
             assert stale.count() == web.page.locator("#leaderboard tbody tr").count() == len(board)
             assert stale.locator("td:first-child .badge.stale").count() == len(board)
@@ -715,7 +717,8 @@ def test_instructor_deletes_a_student_after_a_confirmation_and_reads_it_in_the_a
 def test_a_board_for_members_prompts_a_visitor_to_log_in_and_a_student_picks_a_display_name(web, web_server):
     token = student_token(web_server, unique("hana"))
     with web_server.client(web_server.instructor_token) as instructor:
-        assert instructor.put("/api/settings/privacy", json={"board_visibility": "members"}).status_code == 200
+        before = instructor.get("/api/settings/privacy").json()
+        assert before["board_visibility"] == "members"  # the default: nothing to set
         try:
             web.goto("/")
             prompt = web.page.locator("#board-closed")
@@ -742,7 +745,7 @@ def test_a_board_for_members_prompts_a_visitor_to_log_in_and_a_student_picks_a_d
             web.page.click("#display-form button[type=submit]")
             expect(web.page.locator("#display-message")).to_contain_text("Saved: visitors of public boards see")
         finally:
-            assert instructor.put("/api/settings/privacy", json={"board_visibility": "public"}).status_code == 200
+            assert instructor.put("/api/settings/privacy", json=before).status_code == 200
 
 
 def test_a_student_selects_a_final_submission_then_sees_the_private_result_and_grade(web, web_server, agent_files):
