@@ -15,7 +15,9 @@ from fastapi.testclient import TestClient
 from league.evaluation import episode_seeds, league_versions
 from league.server.app import create_app
 from league.server.db import crud
-from league.server.db.models import DONE, INSTRUCTOR, PRIVATE, READY, Assignment, Evaluation, Job, StudentAssignment, User
+from league.server.db.models import (
+    DONE, INSTRUCTOR, PRIVATE, READY, Assignment, Evaluation, Job, StudentAssignment, User,
+)
 from league.server.jobs.evaluate import EvaluationOutcome
 from league.server.results import settings_key
 
