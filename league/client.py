@@ -464,7 +464,7 @@ def run_championships(args: argparse.Namespace) -> int:
         if args.action == "create":
             return create_championship(api, args)
         championship = championship_id(api, args.championship)
-        if args.run:
+        if args.run_round:
             started = api.call("POST", f"/api/championships/{championship}/rounds")
             print(f"round {started['number']} started: {started['heats_total']} heats", file=sys.stderr)
             if args.no_wait:
@@ -907,7 +907,8 @@ def add_commands(subparsers) -> None:
     for switch, effect in ENV_SWITCHES.items():
         created.add_argument(f"--no-{switch.replace('_', '-')}", dest=switch, action="store_false", help=effect)
     rounds = championships.add_argument_group("rounds")
-    rounds.add_argument("--run", action="store_true", help="start the next round and watch it to the end")
+    rounds.add_argument("--run", dest="run_round", action="store_true",  # (`run`: the command's function)
+                        help="start the next round and watch it to the end")
     rounds.add_argument("--no-wait", action="store_true", help="with --run: print the round's number once started")
     rounds.add_argument("--timeout", type=float, default=3600, help="seconds --run watches at most (default 3600)")
     rounds.add_argument("--no-progress", action="store_true", help="hide the progress bar")

@@ -212,21 +212,71 @@ def _private_seed(server, assignment: dict) -> int:
         return instructor.get(f"/api/assignments/{assignment['id']}").json()["private_seed"]
 
 
-def test_standings_by_name_for_anyone_and_names_that_name_none_or_several(sqlite_server, tmp_path):
+def test_standings_by_name_for_members_and_names_that_name_none_or_several(sqlite_server, tmp_path):
     cup = unique("spring cup")
+    member = {"LEAGUE_TOKEN": student_token(sqlite_server, unique("member"))}  # the boards are the members'
     with sqlite_server.client(sqlite_server.instructor_token) as instructor:
         first = instructor.post("/api/championships", json={"name": cup}).json()["id"]
-        table = league("standings", cup, "--server", sqlite_server.url, config=tmp_path)  # public, no token
+        table = league("standings", cup, "--server", sqlite_server.url, config=tmp_path, **member)
         assert table.returncode == EXIT_OK, table.stderr
         assert table.stdout.split() == ["rank", "student", "agent", "id", "points", "wins", "heats", "rating"]
-        unknown = league("standings", "no such cup", "--server", sqlite_server.url, config=tmp_path)
+        visitor = league("standings", cup, "--server", sqlite_server.url, config=tmp_path)  # no token
+        assert visitor.returncode == EXIT_AUTH and "log in to see this" in visitor.stderr, visitor.stderr
+        unknown = league("standings", "no such cup", "--server", sqlite_server.url, config=tmp_path, **member)
         assert unknown.returncode == 2 and "no championship named 'no such cup'; the championships: " in unknown.stderr
         assert f"{first} ({cup})" in unknown.stderr  # what there is to ask for
         second = instructor.post("/api/championships", json={"name": cup}).json()["id"]
-    twice = league("standings", cup, "--server", sqlite_server.url, config=tmp_path)
+    twice = league("standings", cup, "--server", sqlite_server.url, config=tmp_path, **member)
     assert twice.returncode == 2
     assert twice.stderr == (f"league: error: 2 championships are named {cup!r}: "
                             f"give the id of one of {first}, {second}\n")
+
+
+def test_an_instructor_runs_a_championship_from_the_terminal_as_on_the_console(sqlite_server, models, tmp_path):
+    """`league championships create|rounds|standings`: created with the console's fields, a round run
+    and watched to its end with a bar of its heats, its standings read by a student (at the default
+    visibility, members); the same championship as the API shows."""
+    racer = unique("racer")
+    student = create_student(sqlite_server, racer)
+    uploaded = upload(student, models["onnx"], name="terminal car")
+    assert uploaded.status_code == 201, uploaded.text
+    assert wait_settled(student, uploaded.json()["id"], timeout=240)["status"] == "ready"
+    baseline_submission(sqlite_server)
+    teacher = {"LEAGUE_SERVER": sqlite_server.url, "LEAGUE_TOKEN": sqlite_server.instructor_token}
+    cup = unique("terminal cup")
+
+    created = league("championships", "create", cup, "--heat-size", "4", "--points", "10,5,2", "--seed", "3",
+                     "--no-obstacles", config=tmp_path, **teacher)
+    assert created.returncode == EXIT_OK, created.stderr
+    championship = int(created.stdout)
+    with sqlite_server.client(sqlite_server.instructor_token) as instructor:
+        shown = instructor.get(f"/api/championships/{championship}").json()
+    assert (shown["name"], shown["heat_size"], shown["points"], shown["seed"], shown["env_options"]["obstacles"],
+            shown["include_baselines"]) == (cup, 4, [10, 5, 2], 3, False, True)
+
+    ran = league("championships", "rounds", cup, "--run", config=tmp_path, **teacher)
+    assert ran.returncode == EXIT_OK, ran.stderr
+    with sqlite_server.client(sqlite_server.instructor_token) as instructor:
+        [over] = instructor.get(f"/api/championships/{championship}").json()["rounds"]
+    heats = f"{over['heats_total']}/{over['heats_total']} heats"
+    assert over["status"] == "done" and "round 1: done" in ran.stderr and heats in ran.stderr  # the bar's last state
+    assert ran.stdout == f"round 1 is over ({heats} done); races {' '.join(map(str, over['race_ids']))}\n"
+    listed = league("championships", "rounds", str(championship), "--csv", config=tmp_path, **teacher)
+    [line] = csv.DictReader(io.StringIO(listed.stdout))
+    assert (line["round"], line["status"], line["heats done"], line["races"]) == (
+        "1", "done", heats.removesuffix(" heats"), " ".join(map(str, over["race_ids"])))
+
+    reader = {"LEAGUE_SERVER": sqlite_server.url, "LEAGUE_TOKEN": student_token(sqlite_server, unique("reader"))}
+    standings = league("championships", "standings", cup, config=tmp_path, **reader)
+    assert standings.returncode == EXIT_OK, standings.stderr
+    assert racer in standings.stdout and "terminal car" in standings.stdout
+    overview = league("championships", "--csv", config=tmp_path, **reader)
+    assert [[c["championship"], c["rounds"], c["cars per heat"], c["assignment"], c["baselines"]]
+            for c in csv.DictReader(io.StringIO(overview.stdout)) if c["id"] == str(championship)] == [
+        [cup, "1", "4", "", "yes"]]
+    refused = league("championships", "rounds", cup, "--run", config=tmp_path, **reader)
+    assert (refused.returncode, refused.stderr) == (EXIT_AUTH, "league: error: the server refused: only instructors "
+                                                              "may do this\n")
 
 
 def test_a_bad_token_a_spent_quota_and_a_server_down_say_so(sqlite_server, models, tmp_path):
