@@ -299,6 +299,7 @@ def focus_ring_problems(web, limit: int = 60) -> list[str]:
 
 def test_every_control_shows_the_focus_ring(web, web_server, course):
     problems = {}
+    web.login(course.student)  # the boards and races are the members' (the default)
     web.goto("/")
     web.page.wait_for_selector("#leaderboard tbody tr[data-key]")
     problems["leaderboard"] = focus_ring_problems(web)
@@ -438,6 +439,7 @@ def test_revoke_by_keyboard_after_a_confirmation(web, web_server):
 
 def test_a_wide_table_scrolls_by_keyboard_on_a_phone(web, course):
     web.page.set_viewport_size(PHONE)
+    web.login(course.student)  # the races are the members' (the default)
     web.goto(f"/races/{course.race}?step=40")
     web.page.wait_for_selector("#viewer:not([hidden])")
     region = web.page.locator(".table-wrap:has(#classification)")
@@ -500,6 +502,7 @@ def test_the_instructor_reads_why_a_submission_was_rejected(web, web_server, cou
 
 
 def test_car_markers_carry_their_number_and_stand_out(web, course):
+    web.login(course.student)  # the races are the members' (the default)
     web.goto(f"/races/{course.race}?step=40")
     web.page.wait_for_selector("#viewer:not([hidden])")
     drawn = web.page.evaluate("""async () => {
