@@ -784,36 +784,32 @@ def test_instructor_deletes_a_student_after_a_confirmation_and_reads_it_in_the_a
 
 def test_a_board_for_members_prompts_a_visitor_to_log_in_and_a_student_picks_a_display_name(web, web_server):
     token = student_token(web_server, unique("hana"))
-    with web_server.client(web_server.instructor_token) as instructor:
-        before = instructor.get("/api/settings/privacy").json()
-        assert before["board_visibility"] == "members"  # the default: nothing to set
-        try:
-            web.goto("/")
-            prompt = web.page.locator("#board-closed")
-            prompt.wait_for()
-            assert prompt.inner_text().startswith("Log in to see the boards. The server says: log in to see this: "
-                                                  "the boards of course 'default' are shown to the course's students")
-            assert web.page.is_hidden("#leaderboard") and web.page.is_hidden("#standings")  # no empty tables
-            web.screenshot("board-login-prompt")
-            prompt.locator("a").click()
-            web.page.wait_for_url("**/login?next=%2F")
+    with web_server.client(web_server.instructor_token) as instructor:  # the default: nothing to set
+        assert instructor.get("/api/settings/privacy").json()["board_visibility"] == "members"
+    web.goto("/")
+    prompt = web.page.locator("#board-closed")
+    prompt.wait_for()
+    assert prompt.inner_text().startswith("Log in to see the boards. The server says: log in to see this: "
+                                          "the boards of course 'default' are shown to the course's students")
+    assert web.page.is_hidden("#leaderboard") and web.page.is_hidden("#standings")  # no empty tables
+    web.screenshot("board-login-prompt")
+    prompt.locator("a").click()
+    web.page.wait_for_url("**/login?next=%2F")
 
-            web.login(token)
-            web.goto("/")
-            web.page.locator("#leaderboard").wait_for()
-            assert web.page.is_hidden("#board-closed")
+    web.login(token)
+    web.goto("/")
+    web.page.locator("#leaderboard").wait_for()
+    assert web.page.is_hidden("#board-closed")
 
-            web.goto("/submissions")
-            expect(web.page.locator("#display-note")).to_contain_text("shown to its students and instructors only")
-            web.page.fill("#display-name", "Student 7")
-            web.page.click("#display-form button[type=submit]")
-            expect(web.page.locator("#display-message")).to_contain_text("Not saved: the display name 'Student 7' "
-                                                                         "looks like the pseudonym")
-            web.page.fill("#display-name", unique("Comet"))
-            web.page.click("#display-form button[type=submit]")
-            expect(web.page.locator("#display-message")).to_contain_text("Saved: visitors of public boards see")
-        finally:
-            assert instructor.put("/api/settings/privacy", json=before).status_code == 200
+    web.goto("/submissions")
+    expect(web.page.locator("#display-note")).to_contain_text("shown to its students and instructors only")
+    web.page.fill("#display-name", "Student 7")
+    web.page.click("#display-form button[type=submit]")
+    expect(web.page.locator("#display-message")).to_contain_text("Not saved: the display name 'Student 7' "
+                                                                 "looks like the pseudonym")
+    web.page.fill("#display-name", unique("Comet"))
+    web.page.click("#display-form button[type=submit]")
+    expect(web.page.locator("#display-message")).to_contain_text("Saved: visitors of public boards see")
 
 
 def test_a_student_selects_a_final_submission_then_sees_the_private_result_and_grade(web, web_server, agent_files):
