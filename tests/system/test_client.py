@@ -21,7 +21,7 @@ from league.evaluation import metrics_run
 
 from ..server.api_calls import create_student, unique, upload, wait_for, wait_settled
 from ..server.backends import TEST_SETTINGS
-from .servers import baseline_submission, free_port, student_token
+from .servers import baseline_submission, free_port, instructor_of_a_new_course, student_token
 from .students import league, student_env
 
 EPISODES, SEED = int(TEST_SETTINGS["LEAGUE_EVAL_EPISODES"]), int(TEST_SETTINGS["LEAGUE_EVAL_SEED"])
@@ -149,7 +149,9 @@ def test_an_assignment_is_graded_on_its_private_tracks_and_exported_from_the_ter
     from datetime import datetime, timedelta, timezone
 
     title, now = unique("Graded"), datetime.now(timezone.utc)
-    with sqlite_server.client(sqlite_server.instructor_token) as instructor:
+    # a course of its own: its assignment replaces the automatic one there, not in the course the other tests share
+    prof = instructor_of_a_new_course(sqlite_server)
+    with sqlite_server.client(prof) as instructor:
         created = instructor.post("/api/assignments", json={"name": title, "episodes": EPISODES,
                                                             "due_at": (now + timedelta(hours=1)).isoformat()})
         assert created.status_code == 201, created.text
@@ -165,17 +167,17 @@ def test_an_assignment_is_graded_on_its_private_tracks_and_exported_from_the_ter
             assert sent.status_code == 201, sent.text
             assert wait_settled(client, sent.json()["id"], timeout=180)["status"] == "ready"
     # the due time passes: the reaper closes it
-    with sqlite_server.client(sqlite_server.instructor_token) as instructor:
+    with sqlite_server.client(prof) as instructor:
         moved = instructor.patch(f"/api/assignments/{assignment['id']}",
                                  json={"due_at": (now - timedelta(minutes=1)).isoformat()})
         assert moved.status_code == 200, moved.text
     (tmp_path / "rubric.json").write_text(json.dumps({"kind": "formula", "max_points": 10,
                                                        "formula": "10 * completed"}))
-    env = {"LEAGUE_SERVER": sqlite_server.url, "LEAGUE_TOKEN": sqlite_server.instructor_token}
+    env = {"LEAGUE_SERVER": sqlite_server.url, "LEAGUE_TOKEN": prof}
     set_rubric = league("grades", title, "--set-rubric", str(tmp_path / "rubric.json"), config=tmp_path, **env)
     assert set_rubric.returncode == EXIT_OK and f"{title}: rubric set" in set_rubric.stderr, set_rubric.stderr
 
-    with sqlite_server.client(sqlite_server.instructor_token) as instructor:
+    with sqlite_server.client(prof) as instructor:
         wait_for(lambda: instructor.get(f"/api/assignments/{assignment['id']}/grades").json()["rows"],
                  lambda rows: sum(row["status"] == "graded" for row in rows) == 2, timeout=180, interval=0.2)
     table = league("grades", title, config=tmp_path, **env)
@@ -183,7 +185,7 @@ def test_an_assignment_is_graded_on_its_private_tracks_and_exported_from_the_ter
     rows = {row["name"]: row for row in csv.DictReader(io.StringIO(table.stdout)) if row["role"] == "student"}
     fast, slow = rows[students["fast"]["name"]], rows[students["slow"]["name"]]
     private_run = metrics_run(load_agent(models["onnx"]), episodes=EPISODES,
-                              seed=_private_seed(sqlite_server, assignment))
+                              seed=_private_seed(sqlite_server, prof, assignment))
     assert float(fast["completed"]) == pytest.approx(private_run.completed / EPISODES, abs=1e-4)
     assert float(fast["points"]) == pytest.approx(round(10 * private_run.completed / EPISODES, 2))
     assert {fast["rank"], slow["rank"]} <= {"1", "2"} and fast["late"] == slow["late"] == ""
@@ -200,15 +202,15 @@ def test_an_assignment_is_graded_on_its_private_tracks_and_exported_from_the_ter
     student = {"LEAGUE_SERVER": sqlite_server.url, "LEAGUE_TOKEN": students["fast"]["token"]}
     early = league("grades", title, config=tmp_path, **student)
     assert early.returncode == EXIT_REFUSED and f"the grades of {title} are not published" in early.stderr
-    with sqlite_server.client(sqlite_server.instructor_token) as instructor:
+    with sqlite_server.client(prof) as instructor:
         assert instructor.post(f"/api/assignments/{assignment['id']}/publish").status_code == 200
     mine = league("grades", title, config=tmp_path, **student)
     assert mine.returncode == EXIT_OK, mine.stderr
     assert mine.stdout.startswith(f"{title}: {float(fast['points']):g} / 10 points, rank {fast['rank']} of ")
 
 
-def _private_seed(server, assignment: dict) -> int:
-    with server.client(server.instructor_token) as instructor:
+def _private_seed(server, token: str, assignment: dict) -> int:
+    with server.client(token) as instructor:
         return instructor.get(f"/api/assignments/{assignment['id']}").json()["private_seed"]
 
 
@@ -295,7 +297,9 @@ def test_a_bad_token_a_spent_quota_and_a_server_down_say_so(sqlite_server, model
         assert done.returncode == EXIT_OK, done.stderr
     over = league("submit", str(models["heuristic_onnx"]), "--no-check", config=tmp_path, **env)
     assert over.returncode == EXIT_REFUSED
-    assert over.stderr.startswith("league: error: the server refused: quota reached: 4 submissions per 24 hours")
+    said, refused = over.stderr.splitlines()
+    assert said == "for the assignment default (the only one open to you)"  # named before the upload
+    assert refused.startswith("league: error: the server refused: quota reached: 4 submissions per 24 hours")
 
     down = f"http://127.0.0.1:{free_port()}"
     gone = league("submit", str(models["onnx"]), "--no-check", "--server", down, "--token", "lg_x", config=tmp_path)
