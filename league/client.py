@@ -1,5 +1,6 @@
 """The student's side of a league server from a terminal: `league login`, `check`, `submit`,
-`submissions`, `leaderboard`, `standings`, `race-server`; and the instructor's `integrity`.
+`submissions`, `leaderboard`, `standings`, `race-server`; and the instructor's `integrity`,
+`championships` and more (what the instructor console does, a command does too).
 
 A small client of the server's HTTP API (httpx). The server and token come from --server/--token,
 else LEAGUE_SERVER/LEAGUE_TOKEN, else what `league login` stored in the user's config directory
@@ -266,12 +267,13 @@ def run_login(args: argparse.Namespace) -> int:
 def run_submit(args: argparse.Namespace) -> int:
     path = Path(args.file)
     with Api(connection(args)) as api:
+        assignment = args.assignment or only_open_assignment(api)
         upload = checked_upload(api, path) if not args.no_check else as_is(path)
         if upload is None:
             return EXIT_REJECTED
         data = {"name": args.name} if args.name else {}
-        if args.assignment:
-            data["assignment"] = args.assignment
+        if assignment:
+            data["assignment"] = assignment
         created = api.call("POST", "/api/submissions", files={"file": (upload.name, upload.data)}, data=data)
         late = api.get(f"/api/submissions/{created['id']}")["late"]  # the upload's answer is {id, status} only
         print(f"submission {created['id']}: {created['status']}{LATE_NOTE if late else ''}", file=sys.stderr)
@@ -283,6 +285,26 @@ def run_submit(args: argparse.Namespace) -> int:
         if evaluation and evaluation["status"] == "done":  # the status answer links to its episodes
             evaluation["episodes"] = all_episodes(api, submission["links"]["episodes"])
     return report_submission(submission, args.json)
+
+
+def only_open_assignment(api: Api) -> str | None:
+    """The name of the only assignment open to the user's uploads (said on stderr); several: a usage
+    error listing them, before anything is checked or uploaded; none: None, the server says why."""
+    open_ = [a for a in api.get("/api/assignments") if a["state"] in ("open", "late")]
+    if len(open_) > 1:
+        names = ", ".join(a["name"] for a in open_)
+        raise ClientError(f"several assignments are open to you: {names}; say which with --assignment NAME, e.g. "
+                          f"league submit FILE --assignment {shell_word(open_[0]['name'])}", EXIT_USAGE)
+    if open_:
+        print(f"for the assignment {open_[0]['name']} (the only one open to you)", file=sys.stderr)
+        return open_[0]["name"]
+    return None
+
+
+def shell_word(text: str) -> str:
+    import shlex
+
+    return shlex.quote(text)
 
 
 def checked_upload(api: Api, path: Path) -> Upload | None:
@@ -431,6 +453,93 @@ def run_standings(args: argparse.Namespace) -> int:
     return EXIT_OK
 
 
+def run_championships(args: argparse.Namespace) -> int:
+    """The console's championship panel from a terminal: list, create, run a round and watch it, standings."""
+    if args.action == "list":
+        with Api(connection(args)) as api:
+            championships = api.get("/api/championships")
+        _print_table(["id", "championship", "rounds", "cars per heat", "assignment", "baselines"],
+                     [[c["id"], c["name"], len(c["rounds"]), c["heat_size"], c["assignment_id"] or "",
+                       "yes" if c["include_baselines"] else "no"] for c in championships], args.csv)
+        return EXIT_OK
+    if not args.championship:
+        raise ClientError(f"league championships {args.action} CHAMPIONSHIP: which championship?", EXIT_USAGE)
+    if args.action == "standings":
+        return run_standings(args)
+    with Api(connection(args)) as api:
+        if args.action == "create":
+            return create_championship(api, args)
+        championship = championship_id(api, args.championship)
+        if args.run_round:
+            started = api.call("POST", f"/api/championships/{championship}/rounds")
+            print(f"round {started['number']} started: {started['heats_total']} heats", file=sys.stderr)
+            if args.no_wait:
+                print(started["number"])
+                return EXIT_OK
+            watched = watch_round(api, championship, started["number"], args.timeout, progress=not args.no_progress)
+            return report_round(watched)
+        rounds = api.get(f"/api/championships/{championship}")["rounds"]
+    _print_table(["round", "status", "heats done", "races", "created"],
+                 [[r["number"], r["status"], f"{r['heats_done']}/{r['heats_total']}",
+                   " ".join(str(i) for i in r["race_ids"]), local_time(r["created_at"])] for r in rounds], args.csv)
+    return EXIT_OK
+
+
+def create_championship(api: Api, args: argparse.Namespace) -> int:
+    from league.cli import ENV_SWITCHES
+
+    body = {"name": args.championship, "include_baselines": not args.no_baselines,
+            "env_options": {switch: getattr(args, switch) for switch in ENV_SWITCHES}}
+    for field, value in (("heat_size", args.heat_size), ("seed", args.seed), ("points", args.points)):
+        if value is not None:
+            body[field] = value
+    if args.assignment:
+        body["assignment"] = find_assignment(api, args.assignment)["id"]
+    created = api.call("POST", "/api/championships", json=body)
+    print(f"championship {created['id']}: {created['name']} created "
+          f"(league championships rounds {created['id']} --run races its first round)", file=sys.stderr)
+    print(created["id"])
+    return EXIT_OK
+
+
+def watch_round(api: Api, championship: int, number: int, timeout: float, progress: bool = True) -> dict:
+    """Poll a round until it is over (done or failed), with a bar of its heats done."""
+    from tqdm import tqdm
+
+    deadline = time.monotonic() + timeout
+    path = f"/api/championships/{championship}/rounds/{number}"
+    with tqdm(total=None, disable=not progress, file=sys.stderr, unit="heat",
+              bar_format="{desc} {bar} {n}/{total} heats") as bar:
+        while True:
+            round_ = api.get(path)
+            bar.total = round_["heats_total"]
+            bar.set_description_str(f"round {number}: {round_['status']}")
+            bar.update(round_["heats_done"] - bar.n)
+            if round_["status"] in ("done", "failed"):
+                return round_
+            if time.monotonic() > deadline:
+                raise ClientError(f"round {number} is still {round_['status']} after {timeout:g} s "
+                                  f"({round_['heats_done']}/{round_['heats_total']} heats done); follow it with "
+                                  f"`league championships rounds {championship}`", EXIT_TIMEOUT)
+            time.sleep(1.0)
+
+
+def report_round(round_: dict) -> int:
+    heats = f"{round_['heats_done']}/{round_['heats_total']} heats done"
+    if round_["status"] == "failed":
+        print(f"round {round_['number']} failed ({heats}): the instructor console's Jobs table says why")
+        return EXIT_REJECTED
+    print(f"round {round_['number']} is over ({heats}); races {' '.join(str(i) for i in round_['race_ids'])}")
+    return EXIT_OK
+
+
+def points_table(text: str) -> list[int]:
+    try:
+        return [int(part) for part in text.replace(",", " ").split()]
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"{text!r}: whole numbers separated by commas, e.g. 25,18,15") from None
+
+
 def championship_id(api: Api, wanted: str) -> int:
     """The id of the championship `wanted` names: its id (digits) or its name (any case)."""
     if wanted.isdigit():
@@ -558,7 +667,8 @@ def describe_changes(before: dict, after: dict, fields: dict) -> str:
 
 def assignment_fields(args: argparse.Namespace) -> dict:
     fields = {"description": args.description, "seed": args.seed, "episodes": args.episodes,
-              "late_penalty": args.late_penalty, "daily_quota": args.daily_quota, "auto_publish": args.auto_publish}
+              "late_penalty": args.late_penalty, "daily_quota": args.daily_quota, "auto_publish": args.auto_publish,
+              "keep_open": args.keep_open}
     for name, text in (("opens_at", args.opens), ("due_at", args.due), ("late_until", args.late_until)):
         if text is not None:
             fields[name] = parse_time(text)
@@ -570,7 +680,8 @@ def list_assignments(assignments: list[dict], as_csv: bool) -> int:
     for a in assignments:
         final = a.get("final") or {}
         mine = f"{final.get('submission_id') or ''}{' (selected)' if final.get('selected') else ''}"
-        rows.append([a["id"], a["name"], a["state"], local_time(a["opens_at"]),
+        automatic = f" (automatic{', kept open' if a.get('keep_open') else ''})" if a.get("automatic") else ""
+        rows.append([a["id"], a["name"] + automatic, a["state"], local_time(a["opens_at"]),
                      local_time(a["my_due_at"]) + (" (extension)" if a["extended"] else ""),
                      upload_time_left(a), local_time(a["late_until"]), mine,
                      "yes" if a["published_at"] else "no"])
@@ -796,6 +907,7 @@ def add_commands(subparsers) -> None:
         "  league assignments edit NAME [any of those options]\n"
         "  league assignments extend NAME STUDENT --due T     (that student's own due time)\n"
         "  league assignments publish NAME                    (show the private board to the students)\n"
+        "  league assignments edit default --keep-open        (the automatic assignment stays open beside yours)\n"
         "Times without a zone are this machine's.")
     assignments.add_argument("action", nargs="?", default="list",
                              choices=["list", "create", "edit", "extend", "publish"])
@@ -810,6 +922,9 @@ def add_commands(subparsers) -> None:
     assignments.add_argument("--daily-quota", type=int, metavar="N", help="uploads per student per UTC day")
     assignments.add_argument("--auto-publish", action="store_true", default=None,
                              help="publish the private board once every final is evaluated")
+    assignments.add_argument("--keep-open", action=argparse.BooleanOptionalAction, default=None,
+                             help="edit default: the course's automatic assignment keeps taking uploads beside the "
+                                  "course's own assignments (by default it closes once there is one)")
     assignments.add_argument("--csv", action="store_true", help="print the list as CSV")
 
     select = command("select", "choose the submission that counts as your final one in its assignment", run_select,
@@ -843,6 +958,39 @@ def add_commands(subparsers) -> None:
     standings.add_argument("championship", metavar="CHAMPIONSHIP",
                            help="the championship's name (quoted if it has spaces) or its id")
     standings.add_argument("--csv", action="store_true", help="instructors: the grades, as CSV")
+
+    championships = command(
+        "championships", "championships: list them; instructors: create one, run a round and watch it",
+        run_championships,
+        "Without an action: the course's championships. Then, as on the instructor console:\n"
+        "  league championships create NAME [--heat-size 10] [--points 25,18,15] [--seed S]\n"
+        "                               [--assignment NAME] [--no-baselines] [--no-obstacles ...]\n"
+        "  league championships rounds CHAMPIONSHIP          (its rounds: status, heats done, races)\n"
+        "  league championships rounds CHAMPIONSHIP --run    (race the next round, and watch it to the end)\n"
+        "  league championships standings CHAMPIONSHIP [--csv]\n"
+        "CHAMPIONSHIP: its id or its name (quoted if it has spaces).")
+    championships.add_argument("action", nargs="?", default="list", choices=["list", "create", "rounds", "standings"])
+    championships.add_argument("championship", nargs="?", metavar="CHAMPIONSHIP",
+                               help="its id or name (create: the new one's name)")
+    created = championships.add_argument_group("create")
+    created.add_argument("--heat-size", type=int, metavar="N", help="cars per heat (default 10)")
+    created.add_argument("--points", type=points_table, metavar="P1,P2,...",
+                         help="points by finishing position in a heat (default 25,18,15,12,10,8,6,4,2,1)")
+    created.add_argument("--seed", type=int, help="draws the heats (default: drawn by the server)")
+    created.add_argument("--assignment", metavar="NAME",
+                         help="race each student's final submission of this assignment (default: active ones)")
+    created.add_argument("--no-baselines", action="store_true", help="the bundled baselines do not race")
+    from league.cli import ENV_SWITCHES
+
+    for switch, effect in ENV_SWITCHES.items():
+        created.add_argument(f"--no-{switch.replace('_', '-')}", dest=switch, action="store_false", help=effect)
+    rounds = championships.add_argument_group("rounds")
+    rounds.add_argument("--run", dest="run_round", action="store_true",  # (`run`: the command's function)
+                        help="start the next round and watch it to the end")
+    rounds.add_argument("--no-wait", action="store_true", help="with --run: print the round's number once started")
+    rounds.add_argument("--timeout", type=float, default=3600, help="seconds --run watches at most (default 3600)")
+    rounds.add_argument("--no-progress", action="store_true", help="hide the progress bar")
+    championships.add_argument("--csv", action="store_true", help="print CSV (standings: instructors, the grades)")
 
     integrity = command("integrity", "instructors: print the integrity report (submissions that look copied)",
                         run_integrity,

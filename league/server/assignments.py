@@ -50,6 +50,7 @@ class Window:
     due_at: datetime | None  # their own: an extension replaces the assignment's
     late_until: datetime | None  # only when after their due time
     extended: bool
+    retired: bool = False  # the automatic assignment, replaced by the instructors' own (`retired`)
 
     @property
     def closes_at(self) -> datetime | None:
@@ -57,6 +58,8 @@ class Window:
 
     def state(self, now: datetime) -> str:
         """upcoming, open, late or closed."""
+        if self.retired:
+            return "closed"
         if self.opens_at is not None and now < self.opens_at:
             return "upcoming"
         if self.due_at is None or now < self.due_at:
@@ -64,11 +67,26 @@ class Window:
         return "late" if self.late_until is not None and now < self.late_until else "closed"
 
 
-def window(assignment: Assignment, row: StudentAssignment | None) -> Window:
+def window(assignment: Assignment, row: StudentAssignment | None, retired: bool = False) -> Window:
+    """A student's times (`row`: their row of the assignment); `retired`: what `retired` says of it."""
     extension = row.extension_due_at if row is not None else None
     due = extension or assignment.due_at
     late = assignment.late_until if due is not None and assignment.late_until and assignment.late_until > due else None
-    return Window(assignment.opens_at, due, late, extension is not None)
+    return Window(assignment.opens_at, due, late, extension is not None, retired)
+
+
+def retired(session: Session, assignment: Assignment) -> bool:
+    """Whether the course's automatic assignment takes no more uploads: once the course has an
+    assignment of its instructors', it would take a student's `league submit` (and the web upload)
+    away from theirs, unless they keep it open on purpose (`keep_open`)."""
+    return assignment.automatic and not assignment.keep_open and crud.has_own_assignments(
+        session, course_id=assignment.course_id)
+
+
+def user_window(session: Session, assignment: Assignment, user: User) -> Window:
+    """The user's times in the assignment, as uploads follow them."""
+    return window(assignment, crud.student_assignment(session, assignment_id=assignment.id, user_id=user.id),
+                  retired(session, assignment))
 
 
 # --------------------------------------------------------------------------- uploads
@@ -85,16 +103,20 @@ def upload_assignment(session: Session, *, user: User, course: Course, wanted: s
             if assignment.name == wanted or (wanted.isdigit() and assignment.id == int(wanted)):
                 return assignment
         raise UploadRefused(404, f"no assignment {wanted!r} in your course (see `league assignments`)")
-    states = {a.id: window(a, crud.student_assignment(session, assignment_id=a.id, user_id=user.id)).state(now)
-              for a in assignments}
-    open_ = [a for a in assignments if states[a.id] in ("open", "late")]
+    open_ = open_assignments(session, user=user, assignments=assignments, now=now)
     if len(open_) == 1:
         return open_[0]
     if open_:
         raise UploadRefused(422, "several assignments are open: " + ", ".join(a.name for a in open_)
                             + ": name one (the form field `assignment`, or `league submit FILE --assignment NAME`)")
-    listed = "; ".join(f"{a.name}: {states[a.id]}" for a in assignments) or "the course has none"
+    listed = "; ".join(f"{a.name}: {user_window(session, a, user).state(now)}" for a in assignments) \
+        or "the course has none"
     raise UploadRefused(422, f"no assignment is open for uploads ({listed})")
+
+
+def open_assignments(session: Session, *, user: User, assignments: list[Assignment], now: datetime) -> list[Assignment]:
+    """Those of `assignments` that take the user's uploads now (on time or late)."""
+    return [a for a in assignments if user_window(session, a, user).state(now) in ("open", "late")]
 
 
 def check_upload(session: Session, *, assignment: Assignment, user: User, now: datetime) -> bool:
@@ -102,7 +124,11 @@ def check_upload(session: Session, *, assignment: Assignment, user: User, now: d
     if it is late. Instructors' uploads are never refused nor late."""
     if user.role != STUDENT:
         return False
-    times = window(assignment, crud.student_assignment(session, assignment_id=assignment.id, user_id=user.id))
+    times = user_window(session, assignment, user)
+    if times.retired:
+        own = [a.name for a in crud.course_assignments(session, course_id=assignment.course_id) if not a.automatic]
+        raise UploadRefused(403, f"{assignment.name} takes no more uploads: the course's assignments are "
+                                 f"{', '.join(own)} (`league submit FILE --assignment NAME`)")
     state = times.state(now)
     if state == "upcoming":
         raise UploadRefused(403, f"{assignment.name} opens for uploads at {iso(times.opens_at)}")

@@ -464,6 +464,8 @@ class AssignmentUpdate(BaseModel):
     late_penalty: float | None = Field(None, gt=0, le=1)
     daily_quota: int | None = Field(None, ge=1, le=10_000)
     auto_publish: bool | None = None
+    keep_open: bool | None = Field(None, description="the automatic assignment only: it keeps taking uploads beside "
+                                                     "the course's own assignments")
 
 
 class FinalOut(BaseModel):
@@ -499,6 +501,10 @@ class AssignmentOut(BaseModel):
     now: UtcTime = Field(description="the server's clock when answered (time left: my_due_at - now)")
     final: FinalOut | None = Field(None, description="yours (students)")
     rubric: dict[str, Any] | None = Field(None, description="how it is graded (league.server.grades); null: not set")
+    automatic: bool = Field(False, description="the course's automatic assignment (made with the course): closed to "
+                                               "uploads once the course has assignments of its instructors, unless "
+                                               "keep_open")
+    keep_open: bool = Field(False, description="the automatic assignment keeps taking uploads beside the others")
 
 
 class SelectionIn(BaseModel):

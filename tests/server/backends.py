@@ -29,9 +29,7 @@ TEST_SETTINGS = {
     "LEAGUE_REAPER_INTERVAL_S": "0.5",
     "LEAGUE_WORKER_HEARTBEAT_S": "0.5",
     "LEAGUE_WORKER_THREADS": "2",
-    # the tests read boards as visitors; tests/server/api/routes/test_privacy.py the rest
-    "LEAGUE_BOARD_VISIBILITY": "public",
-}
+}  # the board visibility is the default (members): a test reads boards logged in, or sets it itself
 
 
 def _postgres_available() -> str | None:

@@ -467,5 +467,38 @@ def test_finals_frozen_before_0018_stay_decided_and_published_results_are_kept_a
         assert not columns & {"final_decided_at", "final_candidates", "published_evaluation_id"}
         assert connection.execute(text("SELECT final_submission_id, final_evaluation_id FROM student_assignments")
                                   ).one() == (1, 7)
+
+
+# --------------------------------------------------------------------------- 0021: the automatic assignment
+
+
+def test_0021_marks_each_courses_automatic_assignment_and_keeps_open_those_beside_the_instructors_own(backend):
+    """0021 on a 0017 database: course 1 has its default and an assignment of its instructor's (the
+    default stays open, as before the upgrade), course 2 only its default (it will close when the
+    first one is made), course 3 no assignment named default first (nothing is automatic there)."""
+    _, database_url = backend
+    engine = engine_at(database_url, "0017")
+    now = datetime(2026, 11, 1)
+    with engine.begin() as connection:
+        for course_id in (1, 2, 3):
+            connection.execute(text("INSERT INTO courses (id, name, created_at, updated_at) "
+                                    "VALUES (:id, :name, :now, :now)"), {"id": course_id, "name": f"c{course_id}",
+                                                                         "now": now})
+        for assignment_id, course_id, name in ((1, 1, "default"), (2, 2, "default"), (3, 1, "hw1"), (4, 3, "hw"),
+                                               (5, 3, "default")):
+            connection.execute(text(
+                "INSERT INTO assignments (id, course_id, name, description, seed, episodes, env_options, private_seed, "
+                "auto_publish, created_at, updated_at) VALUES (:id, :course, :name, '', 3, 5, '{}', 77, false, "
+                ":now, :now)"), {"id": assignment_id, "course": course_id, "name": name, "now": now})
+    migrate(engine)
+    with engine.connect() as connection:
+        rows = connection.execute(text("SELECT id, automatic, keep_open FROM assignments ORDER BY id")).all()
+    assert [(i, bool(a), bool(k)) for i, a, k in rows] == [
+        (1, True, True), (2, True, False), (3, False, False), (4, False, False), (5, False, False)]
+    alembic(engine, "downgrade", "0017")
+    with engine.connect() as connection:
+        columns = {c["name"] for c in inspect(connection).get_columns("assignments")}
+        assert not {"automatic", "keep_open"} & columns
+        assert connection.execute(text("SELECT count(*) FROM assignments")).scalar_one() == 5
     migrate(engine)
     engine.dispose()

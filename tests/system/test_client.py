@@ -21,7 +21,7 @@ from league.evaluation import metrics_run
 
 from ..server.api_calls import create_student, unique, upload, wait_for, wait_settled
 from ..server.backends import TEST_SETTINGS
-from .servers import baseline_submission, free_port, student_token
+from .servers import baseline_submission, free_port, instructor_of_a_new_course, student_token
 from .students import league, student_env
 
 EPISODES, SEED = int(TEST_SETTINGS["LEAGUE_EVAL_EPISODES"]), int(TEST_SETTINGS["LEAGUE_EVAL_SEED"])
@@ -149,7 +149,9 @@ def test_an_assignment_is_graded_on_its_private_tracks_and_exported_from_the_ter
     from datetime import datetime, timedelta, timezone
 
     title, now = unique("Graded"), datetime.now(timezone.utc)
-    with sqlite_server.client(sqlite_server.instructor_token) as instructor:
+    # a course of its own: its assignment replaces the automatic one there, not in the course the other tests share
+    prof = instructor_of_a_new_course(sqlite_server)
+    with sqlite_server.client(prof) as instructor:
         created = instructor.post("/api/assignments", json={"name": title, "episodes": EPISODES,
                                                             "due_at": (now + timedelta(hours=1)).isoformat()})
         assert created.status_code == 201, created.text
@@ -165,19 +167,19 @@ def test_an_assignment_is_graded_on_its_private_tracks_and_exported_from_the_ter
             assert sent.status_code == 201, sent.text
             assert wait_settled(client, sent.json()["id"], timeout=180)["status"] == "ready"
     # the due time passes: the reaper closes it
-    with sqlite_server.client(sqlite_server.instructor_token) as instructor:
+    with sqlite_server.client(prof) as instructor:
         moved = instructor.patch(f"/api/assignments/{assignment['id']}",
                                  json={"due_at": (now - timedelta(minutes=1)).isoformat()})
         assert moved.status_code == 200, moved.text
     (tmp_path / "rubric.json").write_text(json.dumps({"kind": "formula", "max_points": 10,
                                                        "formula": "10 * completed"}))
-    env = {"LEAGUE_SERVER": sqlite_server.url, "LEAGUE_TOKEN": sqlite_server.instructor_token}
+    env = {"LEAGUE_SERVER": sqlite_server.url, "LEAGUE_TOKEN": prof}
     set_rubric = league("grades", title, "--set-rubric", str(tmp_path / "rubric.json"), config=tmp_path, **env)
     assert set_rubric.returncode == EXIT_OK, set_rubric.stderr
     assert set_rubric.stdout == (f'{title}: rubric set to {{"kind":"formula","max_points":10.0,"formula":"10 * '
                                  f'completed"}} (was none); `league grades {title!r}` prints the grades\n')
 
-    with sqlite_server.client(sqlite_server.instructor_token) as instructor:
+    with sqlite_server.client(prof) as instructor:
         wait_for(lambda: instructor.get(f"/api/assignments/{assignment['id']}/grades").json()["rows"],
                  lambda rows: sum(row["status"] == "graded" for row in rows) == 2, timeout=180, interval=0.2)
     table = league("grades", title, config=tmp_path, **env)
@@ -185,7 +187,7 @@ def test_an_assignment_is_graded_on_its_private_tracks_and_exported_from_the_ter
     rows = {row["name"]: row for row in csv.DictReader(io.StringIO(table.stdout)) if row["role"] == "student"}
     fast, slow = rows[students["fast"]["name"]], rows[students["slow"]["name"]]
     private_run = metrics_run(load_agent(models["onnx"]), episodes=EPISODES,
-                              seed=_private_seed(sqlite_server, assignment))
+                              seed=_private_seed(sqlite_server, prof, assignment))
     assert float(fast["completed"]) == pytest.approx(private_run.completed / EPISODES, abs=1e-4)
     assert float(fast["points"]) == pytest.approx(round(10 * private_run.completed / EPISODES, 2))
     assert {fast["rank"], slow["rank"]} <= {"1", "2"} and fast["late"] == slow["late"] == ""
@@ -202,7 +204,7 @@ def test_an_assignment_is_graded_on_its_private_tracks_and_exported_from_the_ter
     student = {"LEAGUE_SERVER": sqlite_server.url, "LEAGUE_TOKEN": students["fast"]["token"]}
     early = league("grades", title, config=tmp_path, **student)
     assert early.returncode == EXIT_REFUSED and f"the grades of {title} are not published" in early.stderr
-    with sqlite_server.client(sqlite_server.instructor_token) as instructor:
+    with sqlite_server.client(prof) as instructor:
         assert instructor.post(f"/api/assignments/{assignment['id']}/publish").status_code == 200
     mine = league("grades", title, config=tmp_path, **student)
     assert mine.returncode == EXIT_OK, mine.stderr
@@ -274,26 +276,76 @@ def test_time_left_is_rounded_down_and_the_last_minute_is_under_a_minute():
     assert upload_time_left({**assignment, "state": "closed"}) == "closed"
 
 
-def _private_seed(server, assignment: dict) -> int:
-    with server.client(server.instructor_token) as instructor:
+def _private_seed(server, token: str, assignment: dict) -> int:
+    with server.client(token) as instructor:
         return instructor.get(f"/api/assignments/{assignment['id']}").json()["private_seed"]
 
 
-def test_standings_by_name_for_anyone_and_names_that_name_none_or_several(sqlite_server, tmp_path):
+def test_standings_by_name_for_members_and_names_that_name_none_or_several(sqlite_server, tmp_path):
     cup = unique("spring cup")
+    member = {"LEAGUE_TOKEN": student_token(sqlite_server, unique("member"))}  # the boards are the members'
     with sqlite_server.client(sqlite_server.instructor_token) as instructor:
         first = instructor.post("/api/championships", json={"name": cup}).json()["id"]
-        table = league("standings", cup, "--server", sqlite_server.url, config=tmp_path)  # public, no token
+        table = league("standings", cup, "--server", sqlite_server.url, config=tmp_path, **member)
         assert table.returncode == EXIT_OK, table.stderr
         assert table.stdout.split() == ["rank", "student", "agent", "id", "points", "wins", "heats", "rating"]
-        unknown = league("standings", "no such cup", "--server", sqlite_server.url, config=tmp_path)
+        visitor = league("standings", cup, "--server", sqlite_server.url, config=tmp_path)  # no token
+        assert visitor.returncode == EXIT_AUTH and "log in to see this" in visitor.stderr, visitor.stderr
+        unknown = league("standings", "no such cup", "--server", sqlite_server.url, config=tmp_path, **member)
         assert unknown.returncode == 2 and "no championship named 'no such cup'; the championships: " in unknown.stderr
         assert f"{first} ({cup})" in unknown.stderr  # what there is to ask for
         second = instructor.post("/api/championships", json={"name": cup}).json()["id"]
-    twice = league("standings", cup, "--server", sqlite_server.url, config=tmp_path)
+    twice = league("standings", cup, "--server", sqlite_server.url, config=tmp_path, **member)
     assert twice.returncode == 2
     assert twice.stderr == (f"league: error: 2 championships are named {cup!r}: "
                             f"give the id of one of {first}, {second}\n")
+
+
+def test_an_instructor_runs_a_championship_from_the_terminal_as_on_the_console(sqlite_server, models, tmp_path):
+    """`league championships create|rounds|standings`: created with the console's fields, a round run
+    and watched to its end with a bar of its heats, its standings read by a student (at the default
+    visibility, members); the same championship as the API shows."""
+    racer = unique("racer")
+    student = create_student(sqlite_server, racer)
+    uploaded = upload(student, models["onnx"], name="terminal car")
+    assert uploaded.status_code == 201, uploaded.text
+    assert wait_settled(student, uploaded.json()["id"], timeout=240)["status"] == "ready"
+    baseline_submission(sqlite_server)
+    teacher = {"LEAGUE_SERVER": sqlite_server.url, "LEAGUE_TOKEN": sqlite_server.instructor_token}
+    cup = unique("terminal cup")
+
+    created = league("championships", "create", cup, "--heat-size", "4", "--points", "10,5,2", "--seed", "3",
+                     "--no-obstacles", config=tmp_path, **teacher)
+    assert created.returncode == EXIT_OK, created.stderr
+    championship = int(created.stdout)
+    with sqlite_server.client(sqlite_server.instructor_token) as instructor:
+        shown = instructor.get(f"/api/championships/{championship}").json()
+    assert (shown["name"], shown["heat_size"], shown["points"], shown["seed"], shown["env_options"]["obstacles"],
+            shown["include_baselines"]) == (cup, 4, [10, 5, 2], 3, False, True)
+
+    ran = league("championships", "rounds", cup, "--run", config=tmp_path, **teacher)
+    assert ran.returncode == EXIT_OK, ran.stderr
+    with sqlite_server.client(sqlite_server.instructor_token) as instructor:
+        [over] = instructor.get(f"/api/championships/{championship}").json()["rounds"]
+    heats = f"{over['heats_total']}/{over['heats_total']} heats"
+    assert over["status"] == "done" and "round 1: done" in ran.stderr and heats in ran.stderr  # the bar's last state
+    assert ran.stdout == f"round 1 is over ({heats} done); races {' '.join(map(str, over['race_ids']))}\n"
+    listed = league("championships", "rounds", str(championship), "--csv", config=tmp_path, **teacher)
+    [line] = csv.DictReader(io.StringIO(listed.stdout))
+    assert (line["round"], line["status"], line["heats done"], line["races"]) == (
+        "1", "done", heats.removesuffix(" heats"), " ".join(map(str, over["race_ids"])))
+
+    reader = {"LEAGUE_SERVER": sqlite_server.url, "LEAGUE_TOKEN": student_token(sqlite_server, unique("reader"))}
+    standings = league("championships", "standings", cup, config=tmp_path, **reader)
+    assert standings.returncode == EXIT_OK, standings.stderr
+    assert racer in standings.stdout and "terminal car" in standings.stdout
+    overview = league("championships", "--csv", config=tmp_path, **reader)
+    assert [[c["championship"], c["rounds"], c["cars per heat"], c["assignment"], c["baselines"]]
+            for c in csv.DictReader(io.StringIO(overview.stdout)) if c["id"] == str(championship)] == [
+        [cup, "1", "4", "", "yes"]]
+    refused = league("championships", "rounds", cup, "--run", config=tmp_path, **reader)
+    assert (refused.returncode, refused.stderr) == (EXIT_AUTH, "league: error: the server refused: only instructors "
+                                                              "may do this\n")
 
 
 def test_a_bad_token_a_spent_quota_and_a_server_down_say_so(sqlite_server, models, tmp_path):
@@ -312,7 +364,9 @@ def test_a_bad_token_a_spent_quota_and_a_server_down_say_so(sqlite_server, model
         assert done.returncode == EXIT_OK, done.stderr
     over = league("submit", str(models["heuristic_onnx"]), "--no-check", config=tmp_path, **env)
     assert over.returncode == EXIT_REFUSED
-    assert over.stderr.startswith("league: error: the server refused: quota reached: 4 submissions per 24 hours")
+    said, refused = over.stderr.splitlines()
+    assert said == "for the assignment default (the only one open to you)"  # named before the upload
+    assert refused.startswith("league: error: the server refused: quota reached: 4 submissions per 24 hours")
 
     down = f"http://127.0.0.1:{free_port()}"
     gone = league("submit", str(models["onnx"]), "--no-check", "--server", down, "--token", "lg_x", config=tmp_path)

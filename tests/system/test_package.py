@@ -67,6 +67,7 @@ def test_an_installed_server_started_elsewhere_registers_the_bundled_baselines(i
     env = outside_env()
     env.update(TEST_SETTINGS, LEAGUE_EVAL_EPISODES="1", LEAGUE_DATA_DIR=str(elsewhere / "data"),
                LEAGUE_CPU_SLOTS_DIR=str(tmp_path / "cpu-slots"),
+               LEAGUE_BOARD_VISIBILITY="public",  # the board is read below as a visitor, with no account
                # the dependencies come through a .pth path, which sandboxes may not read (by design,
                # sandbox/child.py read_roots): here they run without Landlock
                LEAGUE_SANDBOX_REQUIRE_ISOLATION="false")

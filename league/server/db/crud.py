@@ -49,7 +49,7 @@ def get_or_create_course(session: Session, *, name: str, evaluation: dict[str, A
         session.add(course)
         session.flush()
         create_assignment(session, course=course, name=DEFAULT_ASSIGNMENT, seed=evaluation["seed"],
-                          episodes=evaluation["episodes"], env_options=evaluation["env_options"])
+                          episodes=evaluation["episodes"], env_options=evaluation["env_options"], automatic=True)
     return course
 
 
@@ -83,6 +83,12 @@ def all_assignments(session: Session) -> list[Assignment]:
 
 def course_assignments(session: Session, *, course_id: int) -> list[Assignment]:
     return list(session.scalars(select(Assignment).where(Assignment.course_id == course_id).order_by(Assignment.id)))
+
+
+def has_own_assignments(session: Session, *, course_id: int) -> bool:
+    """Whether the course has an assignment its instructors made (not its automatic one)."""
+    return session.scalar(select(Assignment.id).where(Assignment.course_id == course_id,
+                                                      Assignment.automatic.is_(False)).limit(1)) is not None
 
 
 def default_assignment(session: Session, *, course_id: int) -> Assignment | None:

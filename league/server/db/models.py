@@ -116,6 +116,10 @@ class Assignment(Base):
     published_at: Mapped[datetime | None] = mapped_column(default=None)
     # the grading rubric (league.server.grades.read_rubric reads it); None until the instructor sets one
     rubric: Mapped[dict[str, Any] | None] = mapped_column(JSON, default=None)
+    # the course's automatic assignment (made with the course, named "default"): it takes no more uploads
+    # once the course has an assignment of its instructors', unless they keep it open (assignments.retired)
+    automatic: Mapped[bool] = mapped_column(default=False, server_default=text("false"))
+    keep_open: Mapped[bool] = mapped_column(default=False, server_default=text("false"))
     created_at: Mapped[datetime] = mapped_column(default=utcnow)
     updated_at: Mapped[datetime] = mapped_column(default=utcnow, onupdate=utcnow)
 

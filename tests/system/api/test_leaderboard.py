@@ -24,8 +24,8 @@ def test_the_leaderboard_shows_each_students_best_agent_and_the_baselines(league
         outsider = upload_ready(other, models["heuristic_onnx"])
     baseline = baseline_submission(league_server)  # no waiting: the default cache shows finished evaluations at once
 
-    with league_server.client() as anonymous:  # a public board: visitors see it too (test_privacy.py: as whom)
-        assert anonymous.get("/api/leaderboard").headers["cache-control"] == "public, no-cache"
+    with league_server.client() as anonymous:  # the members' board (the default): test_privacy.py, public ones
+        assert anonymous.get("/api/leaderboard").status_code == 401
     response = student.get("/api/leaderboard", params={"size": 100})  # a member: real names, for them only
     assert response.status_code == 200, response.text
     assert response.headers["cache-control"] == "private, no-cache"

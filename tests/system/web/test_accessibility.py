@@ -139,9 +139,8 @@ def course(web_server, agent_files, tmp_path_factory):
                         lambda r: r["status"] in ("done", "failed"), timeout=120)
         assert done["status"] == "done", done
         replay = client.get(f"/api/races/{done['race_ids'][0]}/replay").json()
-    # the public answers are cached (league/server/api/cache.py): until they show the round
-    with web_server.client() as public:
-        wait_for(lambda: public.get(f"/api/championships/{championship['id']}/standings").json()["items"], bool)
+    with web_server.client(student) as member:  # a member's answers (the default visibility) are not kept
+        assert member.get(f"/api/championships/{championship['id']}/standings").json()["items"]
     replay_path = tmp_path_factory.mktemp("a11y") / "heat.json"
     replay_path.write_text(json.dumps(replay))
     return SimpleNamespace(instructor=instructor, student=student, ready=ready, rejected=rejected,
@@ -154,8 +153,12 @@ def course(web_server, agent_files, tmp_path_factory):
 def test_axe_finds_nothing_on_the_leaderboard(web, course):
     audit = Audit(web)
     web.goto(f"/?championship={course.championship}")
+    web.page.wait_for_selector("#board-closed:not([hidden])")  # the members' boards (the default)
+    audit.check("logged out: asked to log in")
+    web.login(course.student)
+    web.goto(f"/?championship={course.championship}")
     web.page.wait_for_selector("#standings tbody tr[data-key]")
-    audit.check("logged out")
+    audit.check("as a student")
     web.login(course.instructor)
     web.goto(f"/?championship={course.championship}")
     web.page.wait_for_selector("#standings-csv:not([hidden])")
@@ -190,6 +193,7 @@ def test_axe_finds_nothing_on_the_submissions_page(web, course):
 
 def test_axe_finds_nothing_in_the_race_viewers(web, course):
     audit = Audit(web)
+    web.login(course.student)  # the races are the members' (the default)
     web.goto(f"/races/{course.race}?step=40")
     web.page.wait_for_selector("#viewer:not([hidden])")
     audit.check("a heat's replay")
@@ -301,6 +305,7 @@ def focus_ring_problems(web, limit: int = 60) -> list[str]:
 
 def test_every_control_shows_the_focus_ring(web, web_server, course):
     problems = {}
+    web.login(course.student)  # the boards and races are the members' (the default)
     web.goto("/")
     web.page.wait_for_selector("#leaderboard tbody tr[data-key]")
     problems["leaderboard"] = focus_ring_problems(web)
@@ -393,7 +398,8 @@ def test_round_by_keyboard(web, web_server):
 
     round_line = f"[data-championship='{championship_id}'] li[data-round='1']"
     focused(web, round_line)
-    heats = web_server.client().get(f"/api/championships/{championship_id}/rounds/1").json()["heats_total"]
+    heats = web_server.client(web_server.instructor_token).get(
+        f"/api/championships/{championship_id}/rounds/1").json()["heats_total"]
     heats_text = f"{heats} heat{'s' if heats > 1 else ''}"
     wait_announced(web, "polite", f"Round 1 of {name} started: {heats_text} to race.")
     wait_announced(web, "polite",
@@ -473,6 +479,7 @@ def test_publish_by_keyboard_after_a_confirmation_and_the_focus_on_the_outcome(w
 
 def test_a_wide_table_scrolls_by_keyboard_on_a_phone(web, course):
     web.page.set_viewport_size(PHONE)
+    web.login(course.student)  # the races are the members' (the default)
     web.goto(f"/races/{course.race}?step=40")
     web.page.wait_for_selector("#viewer:not([hidden])")
     region = web.page.locator(".table-wrap:has(#classification)")
@@ -535,6 +542,7 @@ def test_the_instructor_reads_why_a_submission_was_rejected(web, web_server, cou
 
 
 def test_car_markers_carry_their_number_and_stand_out(web, course):
+    web.login(course.student)  # the races are the members' (the default)
     web.goto(f"/races/{course.race}?step=40")
     web.page.wait_for_selector("#viewer:not([hidden])")
     drawn = web.page.evaluate("""async () => {

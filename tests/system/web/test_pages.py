@@ -75,7 +75,7 @@ def colors_on_track(server, race_url: str, step: int, apart: float = 0.05) -> li
     """The colours of the first cars that the race's replay shows still racing at `step`, but for
     those a later-drawn car covers (two students may race the same file: the same trajectory)."""
     race_id = race_url.split("?")[0].rstrip("/").rsplit("/", 1)[1]
-    cars = server.client().get(f"/api/races/{race_id}/replay").json()["cars"]
+    cars = server.client(server.instructor_token).get(f"/api/races/{race_id}/replay").json()["cars"]
     where = {i: (car["x"][step], car["y"][step]) for i, car in enumerate(cars) if len(car["x"]) > step + 1}
     covered = {i for i in where for j in where if j > i and math.dist(where[i], where[j]) < apart}
     return [color for i, color in enumerate(CAR_COLORS) if i in where and i not in covered]
@@ -567,11 +567,13 @@ def test_a_settings_change_shows_every_earlier_result_apart_as_stale(web, web_se
             changed = instructor.put("/api/settings/evaluation",
                                      json={**before, "seed": before["seed"] + 1, "episodes": 1000})
             assert changed.status_code == 200 and changed.json()["reevaluating"], changed.text
+            reader = student_token(web_server, unique("reader"))  # the board is the members' (the default)
+            web.login(reader)
             web.goto("/")
             stale = web.page.locator("#leaderboard tbody tr.apart")
             stale.first.wait_for()
-            # as the page (a visitor)
-            board = web_server.client().get("/api/leaderboard?page=1&size=50").json()["items"]
+            # as the page (that student)
+            board = web_server.client(reader).get("/api/leaderboard?page=1&size=50").json()["items"]
             assert board and all(row["stale"] and row["rank"] is None for row in board)
             assert stale.count() == web.page.locator("#leaderboard tbody tr").count() == len(board)
             assert stale.locator("td:first-child .badge.stale").count() == len(board)
@@ -596,8 +598,13 @@ def tie_break(row: dict, above: dict | None) -> str | None:
 
 
 def test_instructor_runs_a_round_opens_a_replay_and_the_standings_break_ties(web, web_server, agent_files):
-    for speed in ("0.2", "0.25"):
-        ready_submission(web_server, student_token(web_server, unique("racer")), agent_files[f"driver_{speed}"])
+    """The console's championship path at the default board visibility (members: issue 30, the panel
+    read its championships without the token), then a student sees the standings."""
+    racers = [student_token(web_server, unique("racer")) for _ in range(2)]
+    for token, speed in zip(racers, ("0.2", "0.25")):
+        ready_submission(web_server, token, agent_files[f"driver_{speed}"])
+    with web_server.client(web_server.instructor_token) as instructor:
+        assert instructor.get("/api/settings/privacy").json()["board_visibility"] == "members"
     web.login(web_server.instructor_token)
 
     web.page.click("#new-championship summary")
@@ -607,6 +614,7 @@ def test_instructor_runs_a_round_opens_a_replay_and_the_standings_break_ties(web
     web.page.fill("#champ-seed", "11")  # reproducible heats (the track is drawn secretly)
     web.page.fill("#champ-points", "10, 10")  # every heat's first two level on points: ties to break
     web.page.click("#championship-form button[type=submit]")
+    expect(web.page.locator("#championships-message")).to_have_text(f"Created the championship “{championship}”.")
     card = web.page.locator("[data-championship]", has_text=championship)
     championship_id = card.get_attribute("data-championship")
     card.locator("button", has_text="Run round 1").click()
@@ -660,6 +668,68 @@ def test_instructor_runs_a_round_opens_a_replay_and_the_standings_break_ties(web
         served = web_server.client(web_server.instructor_token).get(path).text
         assert list(csv.DictReader(io.StringIO(saved))) == list(csv.DictReader(io.StringIO(served)))
         assert saved.startswith("rank,student,agent,submission_id,")
+
+    web.login(racers[0])  # a student of the course: the standings, at the default visibility
+    web.goto(f"/?championship={championship_id}")
+    web.page.wait_for_selector(f"#standings tbody tr[data-key='{rows[0]['submission_id']}']")
+    assert web.page.is_hidden("#board-closed")
+
+
+def test_the_automatic_assignment_closes_once_the_instructor_makes_one_and_the_upload_asks_which(
+        web, web_server, agent_files):
+    """Issue 30: the console says what becomes of the automatic assignment and keeps it open on request;
+    with several open the student's upload names one (a picker with nothing chosen, no upload sent
+    before they choose); with one open there is nothing to choose."""
+    token = instructor_of_a_new_course(web_server)
+    with web_server.client(token) as instructor:
+        student = instructor.post("/api/users", json={"name": unique("picker")}).json()
+        [automatic] = instructor.get("/api/assignments").json()
+    web.login(token)
+    web.goto("/instructor")
+    line = web.page.locator(f"#assignments tr[data-assignment='{automatic['id']}']")
+    expect(line).to_contain_text("(automatic: takes uploads until you create an assignment)")
+    web.page.fill("#assignment-name", "Sprint")
+    web.page.click("#assignment-form button[type=submit]")
+    expect(web.page.locator("#assignment-message")).to_have_text(
+        "Created Sprint. The automatic assignment default no longer takes uploads (tick “Keep open” on its line "
+        "to keep it).")
+    expect(line).to_contain_text("(automatic: closed to uploads: your assignments replaced it)")
+    web.page.check(f"#keep-open-{automatic['id']}")
+    expect(web.page.locator("#assignment-message")).to_have_text(
+        "default keeps taking uploads beside your assignments.")
+    expect(line).to_contain_text("(automatic: kept open beside your assignments)")
+    with web_server.client(token) as instructor:
+        listed = {a["name"]: a for a in instructor.get("/api/assignments").json()}
+    assert listed["default"]["keep_open"] is True
+    web.screenshot("console-automatic-assignment-kept-open")
+
+    web.login(student["token"])
+    web.goto("/submissions")
+    picker = web.page.locator("#upload-assignment")
+    expect(picker).to_be_visible()
+    expect(picker).to_have_value("")
+    assert picker.locator("option").all_inner_texts() == ["Choose the assignment…", "default", "Sprint"]
+    web.drop_file("#drop-zone", agent_files["driver_0.25"])
+    web.page.click("#upload-button")
+    expect(web.page.locator("#upload-message")).to_have_text(
+        "Several assignments are open (default, Sprint): choose the one this upload is for.")
+    expect(picker).to_be_focused()
+    with web_server.client(student["token"]) as client:
+        assert client.get("/api/submissions").json() == []  # nothing was sent
+    picker.select_option(label="Sprint")
+    with web.page.expect_response(lambda r: r.url.endswith("/api/submissions") and r.request.method == "POST") as sent:
+        web.page.click("#upload-button")
+    assert sent.value.status == 201
+    with web_server.client(student["token"]) as client:
+        [mine] = client.get("/api/submissions").json()
+    assert mine["assignment_id"] == listed["Sprint"]["id"]
+    expect(picker).to_have_value(str(listed["Sprint"]["id"]))  # the choice stays, shown, for the next upload
+
+    with web_server.client(token) as instructor:  # closed again: one is open, the server takes it
+        assert instructor.patch(f"/api/assignments/{automatic['id']}", json={"keep_open": False}).status_code == 200
+    web.page.reload()
+    web.page.locator("#assignments tbody tr", has_text="Sprint").wait_for()
+    expect(picker).to_be_hidden()
 
 
 def test_student_starts_a_friendly_race_against_the_baselines(web, web_server, agent_files):
@@ -721,35 +791,32 @@ def test_instructor_deletes_a_student_after_a_confirmation_and_reads_it_in_the_a
 
 def test_a_board_for_members_prompts_a_visitor_to_log_in_and_a_student_picks_a_display_name(web, web_server):
     token = student_token(web_server, unique("hana"))
-    with web_server.client(web_server.instructor_token) as instructor:
-        assert instructor.put("/api/settings/privacy", json={"board_visibility": "members"}).status_code == 200
-        try:
-            web.goto("/")
-            prompt = web.page.locator("#board-closed")
-            prompt.wait_for()
-            assert prompt.inner_text().startswith("Log in to see the boards. The server says: log in to see this: "
-                                                  "the boards of course 'default' are shown to the course's students")
-            assert web.page.is_hidden("#leaderboard") and web.page.is_hidden("#standings")  # no empty tables
-            web.screenshot("board-login-prompt")
-            prompt.locator("a").click()
-            web.page.wait_for_url("**/login?next=%2F")
+    with web_server.client(web_server.instructor_token) as instructor:  # the default: nothing to set
+        assert instructor.get("/api/settings/privacy").json()["board_visibility"] == "members"
+    web.goto("/")
+    prompt = web.page.locator("#board-closed")
+    prompt.wait_for()
+    assert prompt.inner_text().startswith("Log in to see the boards. The server says: log in to see this: "
+                                          "the boards of course 'default' are shown to the course's students")
+    assert web.page.is_hidden("#leaderboard") and web.page.is_hidden("#standings")  # no empty tables
+    web.screenshot("board-login-prompt")
+    prompt.locator("a").click()
+    web.page.wait_for_url("**/login?next=%2F")
 
-            web.login(token)
-            web.goto("/")
-            web.page.locator("#leaderboard").wait_for()
-            assert web.page.is_hidden("#board-closed")
+    web.login(token)
+    web.goto("/")
+    web.page.locator("#leaderboard").wait_for()
+    assert web.page.is_hidden("#board-closed")
 
-            web.goto("/submissions")
-            expect(web.page.locator("#display-note")).to_contain_text("shown to its students and instructors only")
-            web.page.fill("#display-name", "Student 7")
-            web.page.click("#display-form button[type=submit]")
-            expect(web.page.locator("#display-message")).to_contain_text("Not saved: the display name 'Student 7' "
-                                                                         "looks like the pseudonym")
-            web.page.fill("#display-name", unique("Comet"))
-            web.page.click("#display-form button[type=submit]")
-            expect(web.page.locator("#display-message")).to_contain_text("Saved: visitors of public boards see")
-        finally:
-            assert instructor.put("/api/settings/privacy", json={"board_visibility": "public"}).status_code == 200
+    web.goto("/submissions")
+    expect(web.page.locator("#display-note")).to_contain_text("shown to its students and instructors only")
+    web.page.fill("#display-name", "Student 7")
+    web.page.click("#display-form button[type=submit]")
+    expect(web.page.locator("#display-message")).to_contain_text("Not saved: the display name 'Student 7' "
+                                                                 "looks like the pseudonym")
+    web.page.fill("#display-name", unique("Comet"))
+    web.page.click("#display-form button[type=submit]")
+    expect(web.page.locator("#display-message")).to_contain_text("Saved: visitors of public boards see")
 
 
 def test_a_student_selects_a_final_submission_then_sees_the_private_result_and_grade(web, web_server, agent_files):

@@ -14,7 +14,7 @@ from league.server.api.deps import (
     SessionsDep, SettingsDep, board_course, board_names, check_env_options, csv_response, user_course,
 )
 from league.server.assignments import (
-    UploadRefused, final_choices, private_visible, publish, select_final, window,
+    UploadRefused, final_choices, private_visible, publish, select_final, user_window,
 )
 from league.server.db import crud
 from league.server.db.models import PRIVATE, PUBLIC, STUDENT, Assignment, Evaluation, User
@@ -48,7 +48,7 @@ def assignment_out(session: SessionDep, assignment: Assignment, user: User, cloc
     always); a student's own times and final."""
     now = clock.now()
     row = crud.student_assignment(session, assignment_id=assignment.id, user_id=user.id)
-    times, visible = window(assignment, row), private_visible(assignment, user)
+    times, visible = user_window(session, assignment, user), private_visible(assignment, user)
     final = None
     if user.role == STUDENT:
         chosen = final_choices(session, assignment, [user.id])[user.id]
@@ -58,7 +58,7 @@ def assignment_out(session: SessionDep, assignment: Assignment, user: User, cloc
                          evaluation=EvaluationOut.model_validate(evaluation) if evaluation else None)
     return AssignmentOut(
         **{name: getattr(assignment, name) for name in ("id", "name", "description", *SETTINGS, *TIMES,
-                                                        "published_at", "rubric")},
+                                                        "published_at", "rubric", "automatic", "keep_open")},
         private_seed=assignment.private_seed if visible else None, my_due_at=times.due_at,
         my_closes_at=times.closes_at, extended=times.extended, state=times.state(now), now=now, final=final)
 
@@ -118,6 +118,12 @@ def update_assignment(assignment_id: Id, body: AssignmentUpdate, clock: ClockDep
         raise HTTPException(status.HTTP_422_UNPROCESSABLE_CONTENT, error.errors()[0]["msg"]) from None
     if "name" in sent:
         check_name_free(session, assignment.course_id, sent["name"], other_than=assignment.id)
+    if sent.get("keep_open") is not None:
+        if not assignment.automatic:
+            raise HTTPException(status.HTTP_422_UNPROCESSABLE_CONTENT,
+                                f"keep_open is the course's automatic assignment's only: {assignment.name} takes "
+                                "uploads by its own times")
+        assignment.keep_open = sent["keep_open"]
     for name in ("name", "description", *TIMES):
         if name in sent and (sent[name] is not None or name in TIMES):
             setattr(assignment, name, sent[name] if name != "auto_publish" else bool(sent[name]))

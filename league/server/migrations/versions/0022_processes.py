@@ -3,7 +3,7 @@ version and heartbeat, so that `league migrate` can refuse while processes of an
 and /api/health counts the workers only. Existing rows are workers (the only processes it held).
 
 Revision ID: 0022
-Revises: 0020
+Revises: 0021
 Create Date: 2026-11-28 09:00:00
 """
 from alembic import op
@@ -11,7 +11,7 @@ import sqlalchemy as sa
 
 
 revision = '0022'
-down_revision = '0020'
+down_revision = '0021'
 branch_labels = None
 depends_on = None
 

@@ -15,7 +15,9 @@ from fastapi.testclient import TestClient
 from league.evaluation import episode_seeds, league_versions
 from league.server.app import create_app
 from league.server.db import crud
-from league.server.db.models import DONE, PRIVATE, READY, Assignment, Evaluation, Job, StudentAssignment, User
+from league.server.db.models import (
+    DONE, INSTRUCTOR, PRIVATE, READY, Assignment, Evaluation, Job, StudentAssignment, User,
+)
 from league.server.jobs.evaluate import EvaluationOutcome
 from league.server.results import settings_key
 
@@ -134,11 +136,81 @@ def test_the_daily_quota_counts_per_utc_day_and_says_when_it_resets(league, cloc
 def test_without_an_assignment_named_an_upload_goes_to_the_only_open_one(league, clock):
     clock.set(datetime(2040, 1, 1, tzinfo=timezone.utc))  # every earlier test's assignment is closed
     _, student = league.student()
+    first, second = create(league), create(league)  # open for good (no due time)
     several = upload(student)
-    assert several.status_code == 422 and several.json()["detail"].startswith("several assignments are open: default")
+    assert several.status_code == 422 and several.json()["detail"].startswith("several assignments are open: ")
+    assert first["name"] in several.json()["detail"] and second["name"] in several.json()["detail"]
+    assert "default" not in several.json()["detail"]  # the automatic one closed when the first hw was made
     unknown = upload(student, "no such homework")
     assert (unknown.status_code, unknown.json()["detail"]) == (
         404, "no assignment 'no such homework' in your course (see `league assignments`)")
+
+
+def test_the_automatic_assignment_closes_once_the_instructor_makes_one_unless_kept_open(league, monkeypatch,
+                                                                                          capsys, tmp_path):
+    """Issue 30: a new course's `default` takes uploads until its instructor creates an assignment; then
+    an upload without an assignment goes to theirs (API and `league submit`), and `default` refuses
+    students, unless the instructor keeps it open; then several are open and the upload must name one."""
+    from league import client as cli_client
+    from league.cli import main
+
+    course = unique("course")
+    _, prof_token = league.user("prof", role=INSTRUCTOR, course_name=course)
+    _, student_token = league.user("stu", course_name=course)
+    with league.client(prof_token) as prof, league.client(student_token) as student:
+        [automatic] = student.get("/api/assignments").json()
+        assert (automatic["name"], automatic["automatic"], automatic["keep_open"], automatic["state"]) == (
+            "default", True, False, "open")
+        alone = upload(student)
+        assert alone.status_code == 201, alone.text
+        sprint = prof.post("/api/assignments", json={"name": "Sprint", "episodes": 4}).json()
+        assert (sprint["automatic"], sprint["keep_open"]) == (False, False)
+        assert {a["name"]: a["state"] for a in student.get("/api/assignments").json()} == {
+            "default": "closed", "Sprint": "open"}
+        to_sprint = upload(student)
+        assert to_sprint.status_code == 201, to_sprint.text
+        refused = upload(student, "default")
+        assert (refused.status_code, refused.json()["detail"]) == (
+            403, "default takes no more uploads: the course's assignments are Sprint "
+                 "(`league submit FILE --assignment NAME`)")
+        assert upload(prof, "default").status_code == 201  # an instructor's upload is never refused
+        assert prof.patch(f"/api/assignments/{sprint['id']}", json={"keep_open": True}).status_code == 422
+        assert student.patch(f"/api/assignments/{automatic['id']}", json={"keep_open": True}).status_code == 403
+        kept = prof.patch(f"/api/assignments/{automatic['id']}", json={"keep_open": True})
+        assert kept.status_code == 200 and kept.json()["keep_open"] is True
+        assert student.get(f"/api/assignments/{automatic['id']}").json()["state"] == "open"
+        several = upload(student)
+        assert (several.status_code, several.json()["detail"]) == (
+            422, "several assignments are open: default, Sprint: name one (the form field `assignment`, or "
+                 "`league submit FILE --assignment NAME`)")
+        assert upload(student, "default").status_code == 201
+        mine = {s["id"]: s["assignment_id"] for s in student.get("/api/submissions").json()}
+    assert (mine[alone.json()["id"]], mine[to_sprint.json()["id"]]) == (automatic["id"], sprint["id"])
+
+    # `league submit` without --assignment: the list and the flag to use, before anything is uploaded
+    monkeypatch.setattr(cli_client.Api, "__init__",
+                        lambda self, conn, timeout=60: setattr(self, "conn", conn) or setattr(
+                            self, "http", league.client(conn.token)))
+    monkeypatch.setenv("LEAGUE_SERVER", "http://testserver")
+    monkeypatch.setenv("LEAGUE_TOKEN", student_token)
+    model = tmp_path / "agent.onnx"
+    model.write_bytes(b"not really onnx")
+    capsys.readouterr()
+    assert main(["submit", str(model), "--no-check"]) == cli_client.EXIT_USAGE
+    assert capsys.readouterr().err == ("league: error: several assignments are open to you: default, Sprint; say "
+                                       "which with --assignment NAME, e.g. league submit FILE --assignment default\n")
+    assert len(mine) == len(league.client(student_token).get("/api/submissions").json())  # nothing uploaded
+    monkeypatch.setenv("LEAGUE_TOKEN", prof_token)
+    assert main(["assignments", "edit", "default", "--no-keep-open"]) == 0
+    assert main(["assignments", "--csv"]) == 0
+    listing = capsys.readouterr().out
+    assert '"default (automatic)","closed"' in listing and '"Sprint","open"' in listing
+    monkeypatch.setenv("LEAGUE_TOKEN", student_token)
+    assert main(["submit", str(model), "--no-check"]) == 0
+    said = capsys.readouterr()
+    assert "for the assignment Sprint (the only one open to you)" in said.err
+    with league.client(student_token) as student:
+        assert student.get(f"/api/submissions/{int(said.out)}").json()["assignment_id"] == sprint["id"]
 
 
 def private_outcome(assignment: dict, completed: int, mean_return: float) -> EvaluationOutcome:
@@ -355,18 +427,20 @@ def test_the_cli_creates_extends_lists_and_selects(league, clock, monkeypatch, c
 
 
 def test_an_assignments_board_is_shown_as_the_courses_board_visibility_allows(league):
-    """Members only: a visitor is asked to log in, a member sees the board; public: visitors see it too."""
+    """Members only (the default): a visitor is asked to log in, a member sees the board; public:
+    visitors see it too."""
     hw = create(league)
     with league.client(league.instructor_token) as instructor, league.client() as visitor:
         before = instructor.get("/api/settings/privacy").json()
-        instructor.put("/api/settings/privacy", json={**before, "board_visibility": "members"}).raise_for_status()
+        assert before["board_visibility"] == "members"  # a new course's
+        assert visitor.get(f"/api/assignments/{hw['id']}/board").status_code == 401
+        _, student = league.student()
+        assert student.get(f"/api/assignments/{hw['id']}/board").status_code == 200
+        instructor.put("/api/settings/privacy", json={**before, "board_visibility": "public"}).raise_for_status()
         try:
-            assert visitor.get(f"/api/assignments/{hw['id']}/board").status_code == 401
-            _, student = league.student()
-            assert student.get(f"/api/assignments/{hw['id']}/board").status_code == 200
+            assert visitor.get(f"/api/assignments/{hw['id']}/board").status_code == 200
         finally:
             instructor.put("/api/settings/privacy", json=before).raise_for_status()
-        assert visitor.get(f"/api/assignments/{hw['id']}/board").status_code == 200
 
 
 def test_a_championship_of_an_assignment_races_the_final_choices_not_the_active_submissions(league, clock):

@@ -22,7 +22,9 @@ def test_only_instructors_create_championships_and_start_rounds(app_league):
         championship = create(instructor).json()
         round_by_student = student.post(f"/api/championships/{championship['id']}/rounds")
         round_by_nobody = anonymous.post(f"/api/championships/{championship['id']}/rounds")
-        shown = anonymous.get(f"/api/championships/{championship['id']}").json()
+        shown = student.get(f"/api/championships/{championship['id']}").json()  # members see it (the default)
+        hidden = anonymous.get(f"/api/championships/{championship['id']}")
+    assert hidden.status_code == 401
     assert by_student.status_code == round_by_student.status_code == 403
     assert by_student.json() == round_by_student.json() == {"detail": "only instructors may do this"}
     assert by_nobody.status_code == round_by_nobody.status_code == 401
@@ -30,14 +32,15 @@ def test_only_instructors_create_championships_and_start_rounds(app_league):
 
 
 def test_an_instructor_creates_a_championship_with_the_defaults(app_league):
-    with app_league.client(app_league.instructor_token) as instructor, app_league.client() as anonymous:
+    member = create_student(app_league, unique("member"))  # the boards are the members' (the default)
+    with app_league.client(app_league.instructor_token) as instructor, member:
         response = instructor.post("/api/championships", json={"name": "  Spring cup  "})
         seeded = create(instructor, seed=77, heat_size=4, points=[3, 2, 1], include_baselines=False,
                         env_options={"obstacles": False})
-        listing = anonymous.get("/api/championships")
-        shown = anonymous.get(f"/api/championships/{response.json()['id']}")
-        standings = anonymous.get(f"/api/championships/{response.json()['id']}/standings")
-        no_round = anonymous.get(f"/api/championships/{response.json()['id']}/rounds/1")
+        listing = member.get("/api/championships")
+        shown = member.get(f"/api/championships/{response.json()['id']}")
+        standings = member.get(f"/api/championships/{response.json()['id']}/standings")
+        no_round = member.get(f"/api/championships/{response.json()['id']}/rounds/1")
     assert response.status_code == 201, response.text
     created = response.json()
     assert {k: created[k] for k in ("name", "env_options", "heat_size", "points", "include_baselines", "rounds")} == {
@@ -53,7 +56,7 @@ def test_an_instructor_creates_a_championship_with_the_defaults(app_league):
     assert listing.status_code == 200 and created["id"] in ids and seeded.json()["id"] in ids
     assert ids == sorted(ids)
     assert standings.status_code == 200 and standings.json() == {"items": [], "total": 0}
-    assert standings.headers["cache-control"].startswith("public")
+    assert standings.headers["cache-control"].startswith("private")  # real names: a member's answer
     assert no_round.status_code == 404
     assert no_round.json() == {"detail": f"championship {created['id']} has no round 1"}
 

@@ -18,12 +18,12 @@ from ...api_calls import unique
 def test_the_leaderboard_is_paginated(app_league):
     for completed in (3, 2, 1):  # at least three rows, whatever else the board holds
         app_league.submission(app_league.student("paged")[0], completed=completed)
-    with app_league.client() as anonymous:
-        full = anonymous.get("/api/leaderboard", params={"size": 100}).json()
-        first = anonymous.get("/api/leaderboard", params={"size": 1}).json()
-        second = anonymous.get("/api/leaderboard", params={"size": 1, "page": 2}).json()
-        assert anonymous.get("/api/leaderboard", params={"size": 101}).status_code == 422
-        assert anonymous.get("/api/leaderboard", params={"page": 0}).status_code == 422
+    with app_league.student("reader")[1] as member:  # the board is the members' (the default)
+        full = member.get("/api/leaderboard", params={"size": 100}).json()
+        first = member.get("/api/leaderboard", params={"size": 1}).json()
+        second = member.get("/api/leaderboard", params={"size": 1, "page": 2}).json()
+        assert member.get("/api/leaderboard", params={"size": 101}).status_code == 422
+        assert member.get("/api/leaderboard", params={"page": 0}).status_code == 422
     assert first["total"] == second["total"] == full["total"] >= 3
     assert first["items"] == full["items"][:1]
     assert second["items"] == full["items"][1:2]
@@ -107,7 +107,8 @@ def test_colliding_ids_and_a_long_cache_period_every_change_shows_on_the_next_re
 
     from ..in_process import evaluation_outcome, in_process_league
 
-    with in_process_league(kind, tmp_path, bootstrap=False, public_cache_s=60, public_cache_max_age_s=60) as league:
+    with in_process_league(kind, tmp_path, bootstrap=False, public_cache_s=60, public_cache_max_age_s=60,
+                           board_visibility="public") as league:  # visitors' answers are the ones kept
         with league.sessions.begin() as session:  # the instructor is user 1
             course = crud.first_course(session)
             baselines, _ = crud.create_user(session, name="baselines", role=BASELINE, course=None, with_token=False)
@@ -180,7 +181,8 @@ def test_uploads_and_validations_keep_the_state_stamp_an_evaluation_changes_it(k
 
     from ..in_process import evaluation_outcome, in_process_league
 
-    with in_process_league(kind, tmp_path, bootstrap=False, public_cache_s=60, public_cache_max_age_s=60) as league:
+    with in_process_league(kind, tmp_path, bootstrap=False, public_cache_s=60, public_cache_max_age_s=60,
+                           board_visibility="public") as league:  # visitors' answers are the ones kept
         def stamp() -> tuple:
             with league.sessions() as session:
                 return crud.public_state_stamp(session)

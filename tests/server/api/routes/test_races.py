@@ -67,9 +67,9 @@ def test_a_failed_race_has_no_replay_and_says_why(app_league):
         session.add(race)
         session.flush()
         race_id = race.id
-    with app_league.client() as anonymous:
-        assert anonymous.get(f"/api/races/{race_id}").json()["status"] == "failed"
-        response = anonymous.get(f"/api/races/{race_id}/replay")
+    with app_league.student("reader")[1] as member:  # races are the members' (the default)
+        assert member.get(f"/api/races/{race_id}").json()["status"] == "failed"
+        response = member.get(f"/api/races/{race_id}/replay")
     assert response.status_code == 409
     assert response.json() == {"detail": f"race {race_id} failed, so it has no replay: "
                                          "the race could not be completed: gave up after 3 attempts"}

@@ -23,9 +23,11 @@ export async function setUpAssignments() {
     }
     try {
       const created = await api("/api/assignments", { method: "POST", json: body });
-      say($("assignment-message"), `Created ${created.name}.`, "success");
       $("assignment-form").reset();
-      await refresh();
+      const assignments = await refresh();
+      const automatic = assignments.find((a) => a.automatic && !a.keep_open);
+      say($("assignment-message"), `Created ${created.name}.` + (automatic ? ` The automatic assignment ` +
+        `${automatic.name} no longer takes uploads (tick “Keep open” on its line to keep it).` : ""), "success");
     } catch (error) {
       say($("assignment-message"), `Not created: ${error.message}`, "error");
     }
@@ -33,19 +35,48 @@ export async function setUpAssignments() {
   await refresh();
 }
 
+/** The list (returned): the automatic assignment's line says whether it takes uploads, with its switch. */
 async function refresh() {
   const assignments = await api("/api/assignments");
+  const ownOnes = assignments.some((a) => !a.automatic);
   replaceKeepingFocus($("assignments").tBodies[0], ...assignments.map((a) => {
     const action = a.published_at
       ? element("span", { className: "muted", text: "published", attrs: { "data-focus-key": `published-${a.id}` } })
       : element("button", { className: "secondary small", text: "Publish",
         attrs: { type: "button", "aria-label": `Publish ${a.name}`, "data-focus-key": `publish-${a.id}` } });
     if (!a.published_at) onClick(action, () => publish(a, action));
-    return element("tr", {}, element("td", { text: a.name }), element("td", { text: zonedTime(a.opens_at) }),
+    return element("tr", { attrs: { "data-assignment": a.id } }, nameCell(a, ownOnes),
+      element("td", { text: zonedTime(a.opens_at) }),
       element("td", { text: zonedTime(a.due_at) }), element("td", { text: zonedTime(a.late_until) }),
       element("td", { text: String(a.seed) }), element("td", { text: String(a.private_seed ?? "–") }),
       element("td", { text: zonedTime(a.published_at) }), element("td", {}, action));
   }));
+  return assignments;
+}
+
+function nameCell(assignment, ownOnes) {
+  if (!assignment.automatic) return element("td", { text: assignment.name });
+  const box = element("input", { attrs: { type: "checkbox", id: `keep-open-${assignment.id}`,
+    "data-focus-key": `keep-open-${assignment.id}` } });
+  box.checked = assignment.keep_open;
+  box.addEventListener("change", () => keepOpen(assignment, box));
+  const uploads = !ownOnes ? "takes uploads until you create an assignment"
+    : assignment.keep_open ? "kept open beside your assignments" : "closed to uploads: your assignments replaced it";
+  return element("td", {}, element("span", { text: assignment.name }),
+    element("span", { className: "small muted", attrs: { "data-uploads": "" }, text: ` (automatic: ${uploads})` }),
+    element("label", { className: "checks small", attrs: { for: box.id } }, box, "Keep open"));
+}
+
+async function keepOpen(assignment, box) {
+  try {
+    await api(`/api/assignments/${assignment.id}`, { method: "PATCH", json: { keep_open: box.checked } });
+    say($("assignment-message"), box.checked ? `${assignment.name} keeps taking uploads beside your assignments.`
+      : `${assignment.name} takes no more uploads once the course has assignments of yours.`, "success");
+  } catch (error) {
+    box.checked = !box.checked;
+    say($("assignment-message"), `Not changed: ${error.message}`, "error");
+  }
+  await refresh();
 }
 
 /** Publish once the dialog is confirmed; the focus then goes to the row's "published", or back to the button. */

@@ -15,15 +15,22 @@ export async function setUpChampionships() {
   const options = new EnvOptionsFields($("champ-options"), "champ");
   $("new-championship").addEventListener("toggle", () => $("new-championship").open && fillAssignments());
   onSubmit($("championship-form"), async () => {
+    let created;
     try {
-      const created = await api("/api/championships", { method: "POST", json: championshipBody(options) });
-      $("championship-form").reset();
-      $("new-championship").open = false;
-      say($("championships-message"), `Created the championship “${created.name}”.`, "success");
+      created = await api("/api/championships", { method: "POST", json: championshipBody(options) });
+    } catch (error) {
+      say($("championships-message"), `Not created: ${error.message}`, "error");
+      return;
+    }
+    $("championship-form").reset();
+    $("new-championship").open = false;
+    say($("championships-message"), `Created the championship “${created.name}”.`, "success");
+    try { // created whatever the list says next: a failure here must not read as "not created" (and a second click)
       await refreshChampionships();
       focusOn(document.querySelector(`[data-focus-key="championship-${created.id}"]`));
     } catch (error) {
-      say($("championships-message"), `Not created: ${error.message}`, "error");
+      say($("championships-message"), `Created the championship “${created.name}”, but the list could not be ` +
+        `read again: ${error.message}`, "error");
     }
   });
   await refreshChampionships();
@@ -58,13 +65,13 @@ async function fillAssignments() {
 }
 
 async function refreshChampionships() {
-  const list = await api("/api/championships", { auth: false });
+  const list = await api("/api/championships");
   const championships = Array.isArray(list) ? list : list.items || [];
   if (!championships.length) {
     $("championships").replaceChildren(element("p", { className: "muted", text: "No championship yet: create one above." }));
     return;
   }
-  const details = await Promise.all(championships.map((c) => api(`/api/championships/${c.id}`, { auth: false })));
+  const details = await Promise.all(championships.map((c) => api(`/api/championships/${c.id}`)));
   replaceKeepingFocus($("championships"), ...details.sort((a, b) => b.id - a.id).map(championshipCard));
   for (const championship of details) {
     for (const round of championship.rounds || []) {
@@ -110,17 +117,24 @@ function fillRound(item, round) {
 
 async function runRound(championship, button) {
   button.disabled = true;
+  let round;
   try {
-    const round = await api(`/api/championships/${championship.id}/rounds`, { method: "POST" });
-    say($("championships-message"), `Round ${round.number} of ${championship.name} started: ` +
-      `${count(round.heats_total, "heat")} to race.`, "success");
-    watchRound(championship.id, round.number, championship.name); // before the refresh watches it unnamed
-    await refreshChampionships();
-    focusOn(document.querySelector(`[data-focus-key="round-${championship.id}-${round.number}"]`));
+    round = await api(`/api/championships/${championship.id}/rounds`, { method: "POST" });
   } catch (error) {
     say($("championships-message"), `The round did not start: ${error.message}`, "error");
     button.disabled = false;
     button.focus(); // it lost the focus while disabled
+    return;
+  }
+  say($("championships-message"), `Round ${round.number} of ${championship.name} started: ` +
+    `${count(round.heats_total, "heat")} to race.`, "success");
+  watchRound(championship.id, round.number, championship.name); // before the refresh watches it unnamed
+  try {
+    await refreshChampionships();
+    focusOn(document.querySelector(`[data-focus-key="round-${championship.id}-${round.number}"]`));
+  } catch (error) { // started all the same: the watch above says how it goes
+    say($("championships-message"), `Round ${round.number} started, but the championships could not be read ` +
+      `again: ${error.message}`, "error");
   }
 }
 
@@ -133,7 +147,7 @@ function watchRound(championshipId, number, name = null) {
   if (watched.has(key)) return;
   let said = 0; // heats done when last said
   const poller = new Poller(async () => {
-    const round = await api(`/api/championships/${championshipId}/rounds/${number}`, { auth: false });
+    const round = await api(`/api/championships/${championshipId}/rounds/${number}`);
     const item = document.querySelector(`[data-championship="${championshipId}"] [data-round="${number}"]`);
     if (item) fillRound(item, round);
     if (name && (round.heats_done !== said || round.status === "done" || round.status === "failed")) {

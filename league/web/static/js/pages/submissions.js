@@ -59,10 +59,12 @@ async function refreshAssignments() {
   const picker = $("upload-assignment");
   const open = assignments.filter((a) => a.state === "open" || a.state === "late");
   const kept = picker.value;
-  picker.replaceChildren(...open.map((a) => element("option", { text: `${a.name}${a.state === "late" ? " (late)" : ""}`,
-    attrs: { value: a.id } })));
-  if (open.some((a) => String(a.id) === kept)) picker.value = kept;
-  picker.closest(".field").hidden = open.length < 2; // one open: the server takes it, nothing to choose
+  // several open: the student picks one (never a silent first choice); one open: the server takes it
+  picker.replaceChildren(element("option", { text: "Choose the assignment…", attrs: { value: "" } }),
+    ...open.map((a) => element("option", { text: `${a.name}${a.state === "late" ? " (late)" : ""}`,
+      attrs: { value: a.id } })));
+  picker.value = open.some((a) => String(a.id) === kept) ? kept : "";
+  picker.closest(".field").hidden = open.length < 2;
   const grades = await Promise.all(assignments.map(myGrade));
   replaceKeepingFocus($("assignments").tBodies[0], ...assignments.map((a, k) => element("tr", {},
     element("td", { text: a.name, attrs: { title: a.description || "" } }), element("td", {}, badge(a.state)),
@@ -346,11 +348,18 @@ onSubmit($("upload-form"), async () => {
       "limit: upload a smaller model file.", "error");
     return;
   }
+  const picking = !$("upload-assignment").closest(".field").hidden;
+  if (picking && !$("upload-assignment").value) {
+    const names = [...$("upload-assignment").options].filter((o) => o.value).map((o) => o.text);
+    say(message, `Several assignments are open (${names.join(", ")}): choose the one this upload is for.`, "error");
+    $("upload-assignment").focus();
+    return;
+  }
   const form = new FormData();
   form.append("file", chosenFile, chosenFile.name);
   const name = $("submission-name").value.trim();
   if (name) form.append("name", name);
-  if (!$("upload-assignment").closest(".field").hidden) form.append("assignment", $("upload-assignment").value);
+  if (picking) form.append("assignment", $("upload-assignment").value);
   $("upload-button").disabled = true;
   say(message, `Uploading ${chosenFile.name}…`, "info");
   try {
@@ -361,7 +370,9 @@ onSubmit($("upload-form"), async () => {
     lastUpload = { id: created.id, filename: chosenFile.name, validated: false };
     shownEvaluation = null;
     chosenFile = null;
+    const picked = $("upload-assignment").value; // the student's choice stays, shown, for their next upload
     $("upload-form").reset();
+    $("upload-assignment").value = picked;
     $("chosen-file").textContent = "";
     await poller.poll();
   } catch (error) {
