@@ -25,7 +25,7 @@ from league.server.app import catch_up
 from league.server.db import crud
 from league.server.db.models import (
     PRIVATE, READY, STUDENT, Assignment, Base, Championship, Evaluation, Job, Race, StudentAssignment, Submission,
-    User,
+    SubmissionProbe, User,
 )
 from league.server.rounds import create_race
 from league.server.storage import BlobStore
@@ -148,6 +148,8 @@ def build_course(league, clock) -> dict:
                "bob": evaluated_submission(league, session, users["bob"], assignment, *model_file(store, "bob"))}
         # the rows a student never makes through the API, but which name them all the same
         crud.create_user(session, name=unique("made-by-dora"), role=STUDENT, course=course, created_by=users["dora"])
+        session.add(SubmissionProbe(submission_id=ids["dora"][1], probe_key="secret-test",  # a secret probe
+                                    actions=bytes(64 * 2 * 4)))
         secrets_ = [users["dora"].name, users["dora"].email, users["dora"].student_id, users["dora"].display_name,
                     *(session.get(Submission, i).name for i in ids["dora"])]
         dora = users["dora"].id
@@ -274,5 +276,6 @@ def test_a_student_with_a_row_of_every_kind_is_erased_after_due_times_publicatio
             with league.client(token) as client:
                 for url in sorted(urls):
                     response = client.get(url)
-                    assert response.status_code < 500, (url, response.text)
+                    degraded = url == "/api/health" and response.json()["status"] == "degraded"  # no worker here
+                    assert response.status_code < 500 or degraded, (url, response.text)
                     assert not [s for s in course["secrets"] if s in response.text], url

@@ -12,6 +12,7 @@ from sqlalchemy.orm import Session, sessionmaker
 import league
 from league.spreadsheet import csv_text
 from league.server.api.cache import ResponseCache
+from league.server.api.watch import ProcessWatch
 from league.server.clock import Clock
 from league.server.config import Settings
 from league.server.db import crud
@@ -76,6 +77,14 @@ ClockDep = Annotated[Clock, Depends(get_clock)]
 QueueDep = Annotated[JobQueue, Depends(get_queue)]
 StoreDep = Annotated[BlobStore, Depends(get_store)]
 CacheDep = Annotated[ResponseCache, Depends(get_cache)]
+
+
+async def get_watch(request: Request) -> ProcessWatch:
+    """This API process's watch (league.server.api.watch): its row in the workers table, the schema under it."""
+    return request.app.state.watch
+
+
+WatchDep = Annotated[ProcessWatch, Depends(get_watch)]
 
 
 UNKNOWN_TOKEN = "unknown token (replaced by a new one, or mistyped): ask your instructor for your current token"

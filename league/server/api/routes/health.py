@@ -1,10 +1,10 @@
 """Liveness for load balancers, monitoring and tests."""
 from __future__ import annotations
 
-from fastapi import APIRouter, Request, Response, status
+from fastapi import APIRouter, Response, status
 
 import league
-from league.server.api.deps import SessionDep, SettingsDep
+from league.server.api.deps import SessionDep, SettingsDep, WatchDep
 from league.server.db.session import head_revision
 from league.server.jobs.leases import queue_depth
 from league.server.jobs.registry import is_alive, workers
@@ -17,7 +17,7 @@ router = APIRouter(tags=["health"])
 @router.get("/health", response_model=Health, responses={503: {"model": Health, "description": "no worker is "
                                                                                                 "alive, or the "
                                                                                                 "schema changed"}})
-def read_health(request: Request, session: SessionDep, settings: SettingsDep, response: Response) -> Health:
+def read_health(watch: WatchDep, session: SessionDep, settings: SettingsDep, response: Response) -> Health:
     """The database answers; the queued jobs and the workers with their last heartbeat; how sandboxes
     are isolated here. 503 when no worker was heard from in the last worker_silent_after_s seconds,
     whether or not jobs wait ("degraded": an upload would wait for good), or when the database's schema
@@ -27,7 +27,7 @@ def read_health(request: Request, session: SessionDep, settings: SettingsDep, re
     listed = [WorkerOut(host=worker.host, pid=worker.pid, version=worker.version, started_at=worker.started_at,
                         heartbeat_at=worker.heartbeat_at, alive=is_alive(worker, settings.worker_silent_after_s))
               for worker in registered]
-    state, reason = "ok", request.app.state.watch.problem
+    state, reason = "ok", watch.problem
     if reason:
         state = "outdated"
     elif not any(worker.alive for worker in listed):
