@@ -52,6 +52,20 @@ def beat_as(connection, version: str, seconds_ago: float, pid: int = 4321) -> No
                             "VALUES ('old-box', :pid, :version, :at, :at)"), {"pid": pid, "version": version, "at": at})
 
 
+def test_this_release_has_its_changelog_section_and_release_row_with_the_schema_it_needs():
+    """The release procedure's facts (docs/RELEASING.md): the version being released has a CHANGELOG section
+    naming the schema revision it needs, and a row in RELEASING.md's table with that revision."""
+    import re
+
+    version, schema = importlib.metadata.version("microracer-league"), head_revision()
+    changelog = (REPO / "CHANGELOG.md").read_text()
+    section = re.search(rf"^## \[{re.escape(version)}\].*?(?=^## )", changelog, re.M | re.S)
+    assert section, f"CHANGELOG.md has no section ## [{version}]"
+    assert f"**Schema revision {schema}**" in section[0] and "### Upgrade notes" in section[0]
+    releases = (REPO / "docs" / "RELEASING.md").read_text()
+    assert re.search(rf"^\| {re.escape(version)} \| {schema} \|", releases, re.M), "docs/RELEASING.md's table"
+
+
 @pytest.mark.parametrize("kind", BACKENDS)
 def test_migrate_refuses_while_processes_of_another_version_run_and_goes_down_and_up(kind, tmp_path):
     with fresh_backend(kind, tmp_path) as database_url:
