@@ -559,6 +559,7 @@ def torchscript_from_onnx(source: Path, path: Path) -> Path:
         warnings.simplefilter("ignore")  # tracing warns of the Python control flow it records once
         traced = torch.jit.trace(Rebuilt().eval(), torch.zeros(1, obs_dim))
     traced.save(str(path))
+    return path
 
 
 # How students' GPU-trained models come out (a traced device is the CPU's respelt as a GPU's trace
