@@ -71,7 +71,9 @@ def timed(client, path: str, token: str, repeats: int) -> list[float]:
         begin = time.perf_counter()
         response = client.get(path, headers={"Authorization": f"Bearer {token}"})
         times.append((time.perf_counter() - begin) * 1000)
-        assert response.status_code == 200, response.text
+        # /api/health: 503 "degraded" here, where no worker runs; its answer is what is timed
+        assert response.status_code == 200 or (path == "/api/health" and response.json()["status"] == "degraded"), \
+            response.text
     return times
 
 

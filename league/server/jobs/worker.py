@@ -38,11 +38,15 @@ class Periodic:
     (the reaper is what recovers from outages)."""
 
     def __init__(self, name: str, interval_s: float, work: Callable[[], None]):
-        self.interval_s, self.work = interval_s, work
+        self.name, self.interval_s, self.work = name, interval_s, work
         self._stop = threading.Event()
         self._thread = threading.Thread(target=self._loop, name=name, daemon=True)
 
     def start(self) -> None:
+        """Start the thread (again after a stop: an app's lifespan may run more than once)."""
+        if self._thread.ident is not None:
+            self._stop = threading.Event()
+            self._thread = threading.Thread(target=self._loop, name=self.name, daemon=True)
         self._thread.start()
 
     def stop(self) -> None:
