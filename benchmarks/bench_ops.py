@@ -98,7 +98,9 @@ def wait(condition, timeout_s: float, what: str) -> float:
 
 
 def serves_worker(api: subprocess.Popen) -> int | None:
-    children = Path(f"/proc/{api.pid}/task/{api.pid}/children").read_text().split()
+    """The pid of `league serve`'s worker (started by its supervising thread: each thread lists its own children)."""
+    tasks = Path(f"/proc/{api.pid}/task").iterdir()
+    children = [pid for task in tasks for pid in (task / "children").read_text().split()]
     return next((int(pid) for pid in children if b"worker" in Path(f"/proc/{pid}/cmdline").read_bytes().split(b"\0")),
                 None)
 
@@ -113,6 +115,8 @@ def measure_restart(kind: str) -> RestartTime:
             with league.client() as instructor:
                 token = enrol(instructor, ["ann"])[0]
             model = testing.onnx_heuristic(folder / "ann.onnx")
+            wait(lambda: httpx.get(f"{league.url}/api/health", timeout=5).json()["status"] == "ok", 120,
+                 "serve's worker beating")
             first = serves_worker(league.api)
             os.kill(first, signal.SIGKILL)
             killed = time.monotonic()
