@@ -22,7 +22,6 @@ from league.server.api.routes import api_router
 from league.server.api.routes.tracks import MAX_TRACK_BYTES
 from league.server.api.watch import ProcessWatch, SchemaGuard, database_error
 from league.server import metrics
-from league.server.logs import AccessLog
 from league.server.bootstrap import bootstrap
 from league.server.config import Settings, load_settings
 from league.server.db.session import check_schema, revision_of
@@ -81,7 +80,6 @@ def create_app(settings: Settings | None = None, league_: League | None = None) 
     app.add_exception_handler(DBAPIError, database_error)
     mount_web(app, settings)
     metrics.install(app, league_.sessions, settings.worker_silent_after_s)
-    app.add_middleware(AccessLog)  # outermost: its line has the status of every answer, the limits' included
     app.add_middleware(BodyLimits, default=Limit.of(64 * KB), limits=body_limits(settings),
                        read_timeout_s=settings.request_body_timeout_s)
     app.add_middleware(SchemaGuard, watch=app.state.watch)

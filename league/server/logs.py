@@ -3,9 +3,10 @@
 `log_format = text`: "2026-11-25T19:30:01.123+00:00 INFO league.server.jobs: job 12 (evaluate) done ...";
 `json`: one object a line, {"at", "level", "logger", "message"} and the line's fields (`extra=`):
 job lines carry job_id, kind, submission_id, race_id, user_id, outcome, duration_s; a refused upload
-user_id, reason, size; each answer of the API one access line (`AccessLog`: method, path, status,
-duration_ms, user_id, client). Nothing logs a token: accounts are named by id, and the access lines
-hold no query string and no header (tokens travel in the Authorization header).
+user_id, reason, size; each answer of the API one access line (`log_access`, from the metrics' answer
+timer: method, path, status, duration_ms, user_id, client). Nothing logs a token: accounts are named
+by id, and the access lines hold no query string and no header (tokens travel in the Authorization
+header).
 
 `log_file`: the lines go to that file, rotated by size (the standard library's RotatingFileHandler);
 one process writes each file, so `league serve`'s worker writes its own (`worker_log_file`).
@@ -55,7 +56,7 @@ def iso_time(created: float) -> str:
 def log_config(log_format: str, level: str, log_file: Path | None = None, max_bytes: int = 0,
                backups: int = 0) -> dict[str, Any]:
     """A logging.config dict for the root logger and uvicorn's (uvicorn's `log_config`), one format, on
-    stderr or in a rotated file. uvicorn's own access lines are left out: `AccessLog` writes richer ones."""
+    stderr or in a rotated file. uvicorn's own access lines are left out: `log_access` writes richer ones."""
     formatter = {"()": JsonFormatter if log_format == "json" else TextFormatter}
     handler = {"class": "logging.StreamHandler", "formatter": "league", "stream": "ext://sys.stderr"}
     if log_file is not None:
@@ -88,30 +89,9 @@ def worker_log_file(log_file: Path) -> Path:
     return log_file.with_name(f"{log_file.stem}-worker{log_file.suffix}")
 
 
-class AccessLog:
-    """ASGI middleware: one line per answer with its latency, status and user (the id the token's
-    dependency left in the request's state; none for a visitor), never the query string or a header."""
-
-    def __init__(self, app):
-        self.app = app
-
-    async def __call__(self, scope, receive, send):
-        if scope["type"] != "http":
-            return await self.app(scope, receive, send)
-        started, answered = time.perf_counter(), {"status": 500}
-
-        async def sending(message):
-            if message["type"] == "http.response.start":
-                answered["status"] = message["status"]
-            await send(message)
-
-        try:
-            await self.app(scope, receive, sending)
-        finally:
-            log_access(scope, answered["status"], time.perf_counter() - started)
-
-
 def log_access(scope, status: int, seconds: float) -> None:
+    """One answer's access line: its latency, status and user (the id the token's dependency left in the
+    request's state; none for a visitor), never the query string or a header."""
     if not access_log.isEnabledFor(logging.INFO):
         return
     user_id = scope.get("state", {}).get("user_id")

@@ -38,6 +38,7 @@ from league.server.db.models import (
 from league.server.db.session import head_revision
 from league.server.jobs import registry
 from league.server.jobs.leases import queue_depth
+from league.server.logs import log_access
 
 # job durations (seconds): a validation takes seconds, an evaluation of 100 episodes minutes, a race about one
 JOB_BUCKETS = (1, 2, 5, 10, 20, 30, 60, 120, 300, 600, 1200, 1800, 3600)
@@ -197,7 +198,8 @@ def workers(session: Session, silent_after_s: float) -> Iterator:
 
 
 class RequestLatency:
-    """ASGI middleware: the API's answer times by method, route template and status."""
+    """ASGI middleware: the API's answer times by method, route template and status, each answer also
+    written to the access log (league.server.logs.log_access): one measure for both."""
 
     def __init__(self, app, histogram: Histogram):
         self.app, self.histogram = app, histogram
@@ -215,8 +217,9 @@ class RequestLatency:
         try:
             await self.app(scope, receive, sending)
         finally:
-            self.histogram.labels(scope["method"], route_template(scope),
-                                  str(answered["status"])).observe(time.perf_counter() - started)
+            seconds = time.perf_counter() - started
+            self.histogram.labels(scope["method"], route_template(scope), str(answered["status"])).observe(seconds)
+            log_access(scope, answered["status"], seconds)
 
 
 def route_template(scope) -> str:

@@ -103,7 +103,7 @@ def get_current_user(request: Request, session: SessionDep,
         raise unauthorized(UNKNOWN_TOKEN)
     if not user.active:
         raise unauthorized("this account was revoked")
-    request.state.user_id = user.id  # for the access log (league.server.logs.AccessLog)
+    request.state.user_id = user.id  # for the access log (league.server.logs.log_access)
     # End the lookup's transaction: its connection goes back to the pool. A route that opens a
     # session of its own (an upload) would otherwise hold two at once, and a burst of such requests
     # can take the whole pool and wait on itself until the pool's timeout.
