@@ -377,3 +377,53 @@ def test_a_bad_token_a_spent_quota_and_a_server_down_say_so(sqlite_server, model
     nothing = league("submissions", config=tmp_path)  # no login, no variables
     assert nothing.returncode == 2
     assert "no server: run `league login --server URL`" in nothing.stderr
+
+
+def test_every_console_action_has_a_command_jobs_audit_rerun_privacy(sqlite_server, models, tmp_path):
+    """What the console's Jobs, Audit, Re-run and Privacy panels do, from a terminal with the saved
+    login (beside `league championships`, `assignments`, `grades`, `integrity`): each answer the API's."""
+    teacher = {"LEAGUE_SERVER": sqlite_server.url, "LEAGUE_TOKEN": sqlite_server.instructor_token}
+    student = create_student(sqlite_server, unique("clerk"))
+    uploaded = upload(student, models["onnx"], name="audited car")
+    assert uploaded.status_code == 201, uploaded.text
+    submission_id = uploaded.json()["id"]
+    assert wait_settled(student, submission_id, timeout=240)["status"] == "ready"
+
+    listed = league("jobs", "--csv", "--limit", "1000", config=tmp_path, **teacher)
+    assert listed.returncode == EXIT_OK, listed.stderr
+    rows = list(csv.DictReader(io.StringIO(listed.stdout)))
+    assert {(row["kind"], row["submission"]) for row in rows} >= {("validate", str(submission_id)),
+                                                                   ("evaluate", str(submission_id))}
+    with sqlite_server.client(sqlite_server.instructor_token) as instructor:
+        assert [int(row["id"]) for row in rows] == [job["id"] for job in instructor.get(
+            "/api/jobs", params={"limit": 1000}).json()]
+
+    rerun = league("rerun", str(submission_id), config=tmp_path, **teacher)
+    assert rerun.returncode == EXIT_OK, rerun.stderr
+    assert rerun.stderr.strip() == f"1 evaluation queued again: submissions {submission_id}"
+    queued = league("jobs", "--status", "queued", "--csv", config=tmp_path, **teacher)
+    waiting = [row for row in csv.DictReader(io.StringIO(queued.stdout)) if row["submission"] == str(submission_id)]
+    if waiting:  # (unless the worker took it already)
+        cancelled = league("jobs", "--cancel", waiting[0]["id"], config=tmp_path, **teacher)
+        assert cancelled.returncode == EXIT_OK, cancelled.stderr
+        assert cancelled.stderr.startswith(f"job {waiting[0]['id']} (evaluate) cancelled")
+    nothing = league("rerun", config=tmp_path, **teacher)
+    assert nothing.returncode == EXIT_USAGE and "give a SUBMISSION id or --all" in nothing.stderr
+
+    shown = league("privacy", config=tmp_path, **teacher)
+    assert shown.stdout == "members\n"  # the default
+    changed = league("privacy", "--board-visibility", "public", config=tmp_path, **teacher)
+    assert changed.stderr.strip() == "board visibility: public (was members)"
+    with sqlite_server.client() as visitor:
+        assert visitor.get("/api/leaderboard").status_code == 200
+    back = league("privacy", "--board-visibility", "members", config=tmp_path, **teacher)
+    assert back.returncode == EXIT_OK, back.stderr
+    refused = league("privacy", "--board-visibility", "public", config=tmp_path, LEAGUE_SERVER=sqlite_server.url,
+                     LEAGUE_TOKEN=student.headers["authorization"].removeprefix("Bearer "))
+    assert refused.returncode != EXIT_OK and "only instructors" in refused.stderr
+
+    audit = league("audit", "--csv", config=tmp_path, **teacher)
+    actions = [row["action"] for row in csv.DictReader(io.StringIO(audit.stdout))]
+    assert "evaluation.rerun" in actions and actions.count("settings.privacy") >= 2
+    table = league("audit", "--size", "5", config=tmp_path, **teacher)
+    assert table.returncode == EXIT_OK and "settings.privacy" in table.stdout
