@@ -35,10 +35,7 @@ from _league import run_script
 from league.agents import export_onnx, export_torchscript, load_agent
 from league.server.config import BUNDLED_BASELINES, Settings
 from league.server.integrity import Candidate, behaviour_distances, integrity_report
-from league.testing import (
-    onnx_extra_identity_layer, onnx_probe_aware, onnx_scaled_last_layer, onnx_scaled_outputs, onnx_weight_noise,
-    thesis_driver, torchscript_from_onnx,
-)
+from league.testing import disguised_copies, thesis_driver
 from league.validation.probes import (
     PROBES, SECRET_PROBES, observations_key, probe_actions_bytes, probe_actions_from_bytes, probe_key,
     probe_observations, secret_probe_observations,
@@ -47,15 +44,7 @@ from league.validation.probes import (
 SPEEDS = (0.21, 0.25, 0.29, 0.37)  # the drivers' target speeds in (a)
 PRIVATE = {"seed": 2_718_281_828, "episodes": 20, "env_options": {}}  # an assignment's private tracks in (a)
 OLD_TOLERANCE = 1e-3  # the max-abs report's
-VARIANTS = {
-    "last layer x 1.03": lambda src, out: onnx_scaled_last_layer(src, out.with_suffix(".onnx"), 1.03),
-    "outputs x 0.98": lambda src, out: onnx_scaled_outputs(src, out.with_suffix(".onnx"), 0.98),
-    "outputs x 0.9 + 0.05": lambda src, out: onnx_scaled_outputs(src, out.with_suffix(".onnx"), 0.9, 0.05),
-    "weights + N(0, 1e-6)": lambda src, out: onnx_weight_noise(src, out.with_suffix(".onnx"), 1e-6),
-    "extra identity layer": lambda src, out: onnx_extra_identity_layer(src, out.with_suffix(".onnx")),
-    "TorchScript re-export": lambda src, out: torchscript_from_onnx(src, out.with_suffix(".pt")),
-    "probe-aware": lambda src, out: onnx_probe_aware(src, out.with_suffix(".onnx"), probe_observations(20)),
-}
+VARIANTS = disguised_copies()
 
 
 @dataclass

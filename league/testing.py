@@ -20,6 +20,7 @@ import pickle
 import warnings
 import zipfile
 from pathlib import Path
+from collections.abc import Callable
 from typing import Any
 
 import numpy as np
@@ -560,6 +561,22 @@ def torchscript_from_onnx(source: Path, path: Path) -> Path:
         traced = torch.jit.trace(Rebuilt().eval(), torch.zeros(1, obs_dim))
     traced.save(str(path))
     return path
+
+
+def disguised_copies() -> dict[str, Callable[[Path, Path], Path]]:
+    """Each way a student might disguise a copy of an ONNX policy: name -> make(source, path) (the suffix
+    is the variant's own). The integrity tests and benchmarks/bench_integrity.py take this one table."""
+    from league.validation.probes import probe_observations
+
+    return {
+        "last layer x 1.03": lambda src, out: onnx_scaled_last_layer(src, out.with_suffix(".onnx"), 1.03),
+        "outputs x 0.98": lambda src, out: onnx_scaled_outputs(src, out.with_suffix(".onnx"), 0.98),
+        "outputs x 0.9 + 0.05": lambda src, out: onnx_scaled_outputs(src, out.with_suffix(".onnx"), 0.9, 0.05),
+        "weights + N(0, 1e-6)": lambda src, out: onnx_weight_noise(src, out.with_suffix(".onnx"), 1e-6),
+        "extra identity layer": lambda src, out: onnx_extra_identity_layer(src, out.with_suffix(".onnx")),
+        "TorchScript re-export": lambda src, out: torchscript_from_onnx(src, out.with_suffix(".pt")),
+        "probe-aware": lambda src, out: onnx_probe_aware(src, out.with_suffix(".onnx"), probe_observations(20)),
+    }
 
 
 # How students' GPU-trained models come out (a traced device is the CPU's respelt as a GPU's trace

@@ -18,10 +18,7 @@ from league.server.config import BUNDLED_BASELINES, Settings
 from league.server.integrity import (
     BASELINE_COPY, Candidate, behaviour_distances, bundled_digests, integrity_report,
 )
-from league.testing import (
-    onnx_extra_identity_layer, onnx_probe_aware, onnx_scaled_last_layer, onnx_scaled_outputs, onnx_weight_noise,
-    thesis_driver, torchscript_from_onnx,
-)
+from league.testing import disguised_copies, thesis_driver
 from league.validation.probes import (
     observations_key, probe_actions_bytes, probe_key, probe_observations, secret_probe_observations,
 )
@@ -31,15 +28,7 @@ PRIVATE = {"seed": 3_141_592_653, "episodes": 20, "env_options": {}}  # an assig
 BASELINES = sorted(BUNDLED_BASELINES.glob("*.onnx"))
 ids = itertools.count(1)
 
-VARIANTS = {
-    "last layer x 1.03": lambda source, path: onnx_scaled_last_layer(source, path.with_suffix(".onnx"), 1.03),
-    "outputs x 0.98": lambda source, path: onnx_scaled_outputs(source, path.with_suffix(".onnx"), 0.98),
-    "outputs x 0.9 + 0.05": lambda source, path: onnx_scaled_outputs(source, path.with_suffix(".onnx"), 0.9, 0.05),
-    "weights + N(0, 1e-6)": lambda source, path: onnx_weight_noise(source, path.with_suffix(".onnx"), 1e-6),
-    "TorchScript re-export": lambda source, path: torchscript_from_onnx(source, path.with_suffix(".pt")),
-    "extra identity layer": lambda source, path: onnx_extra_identity_layer(source, path.with_suffix(".onnx")),
-    "probe-aware": lambda source, path: onnx_probe_aware(source, path.with_suffix(".onnx"), probe_observations(20)),
-}
+VARIANTS = disguised_copies()
 
 
 def candidate(owner: str, path: Path, *, baseline: bool = False, name: str = "agent") -> Candidate:
