@@ -12,7 +12,7 @@ are the layers VALID, FREE and ROAD (one allocation per track).
 """
 import numpy as np
 cimport numpy as cnp
-from libc.math cimport atan2, cos, sin, fabs, fmod, copysign, isnan, M_PI, NAN
+from libc.math cimport atan2, cos, sin, fabs, fmod, copysign, hypot, isnan, M_PI, NAN
 from libc.stdlib cimport malloc, free
 from libc.string cimport memset
 
@@ -108,54 +108,63 @@ def periodic_spline(const double[::1] x, const double[:, ::1] y):
     cdef Py_ssize_t n = x.shape[0], dim = y.shape[1], m = n - 2, i, j, r
     if n < 4 or y.shape[0] != n:
         raise ValueError(f"a periodic spline needs n >= 4 points and n values, got {n} and {y.shape[0]}")
-    dx_array, slope_array, s_array = np.empty(n - 1), np.empty((n - 1, dim)), np.empty((n, dim))
-    scratch = np.empty((2, 3, m))  # the tridiagonal matrix, once per solve (gtsv overwrites it)
-    rhs = np.zeros((2, m, dim))
     c_array = np.empty((4, n - 1, dim))
-    cdef double[::1] dx = dx_array
-    cdef double[:, ::1] slope = slope_array, s = s_array
-    cdef double[:, :, ::1] a = scratch, b = rhs, c = c_array
+    cdef double* c = <double*>cnp.PyArray_DATA(c_array)
+    cdef Py_ssize_t cs = (n - 1) * dim  # c[p, i, j] is c[p * cs + i * dim + j]
+    # One scratch block (a track's splines are small): dx (n-1), slope (n-1, dim), s (n, dim),
+    # the tridiagonal matrix once per solve (2, 3, m; gtsv overwrites it), the right-hand sides (2, m, dim).
+    cdef double* dx = <double*>malloc(((n - 1) + (n - 1) * dim + n * dim + 6 * m + 2 * m * dim) * sizeof(double))
+    if dx == NULL:
+        raise MemoryError()
+    cdef double* slope = dx + (n - 1)
+    cdef double* s = slope + (n - 1) * dim
+    cdef double* a = s + n * dim  # a[r, row, i] is a[(r * 3 + row) * m + i]
+    cdef double* b = a + 6 * m  # b[r, i, j] is b[(r * m + i) * dim + j]
     cdef double s_last, t
     for i in range(n - 1):
         dx[i] = x[i + 1] - x[i]
         if not dx[i] > 0:
+            free(dx)
             raise ValueError("the spline's x must be a strictly increasing sequence")
         for j in range(dim):
-            slope[i, j] = (y[i + 1, j] - y[i, j]) / dx[i]
+            slope[i * dim + j] = (y[i + 1, j] - y[i, j]) / dx[i]
     with nogil:
+        memset(b, 0, 2 * m * dim * sizeof(double))
         # The (n-1)-unknown periodic system, condensed to (n-2) unknowns and solved for two
         # right-hand sides: b1 (row 0 of rhs) and b2 = -(the removed column) (row 1).
         for i in range(m):
             for r in range(2):
-                a[r, 1, i] = 2 * (dx[n - 2] + dx[0]) if i == 0 else 2 * (dx[i - 1] + dx[i])  # diagonal
-                a[r, 0, i] = (dx[n - 2] if i == 0 else dx[i - 1]) if i < m - 1 else 0.0  # du[i] = A[i, i+1]
-                a[r, 2, i] = dx[i + 1] if i < m - 1 else 0.0  # dl[i] = A[i+1, i]
+                a[(r * 3 + 1) * m + i] = 2 * (dx[n - 2] + dx[0]) if i == 0 else 2 * (dx[i - 1] + dx[i])  # diagonal
+                a[(r * 3 + 0) * m + i] = (dx[n - 2] if i == 0 else dx[i - 1]) if i < m - 1 else 0.0  # du[i]
+                a[(r * 3 + 2) * m + i] = dx[i + 1] if i < m - 1 else 0.0  # dl[i] = A[i+1, i]
             for j in range(dim):
                 if i == 0:
-                    b[0, i, j] = 3 * (dx[0] * slope[n - 2, j] + dx[n - 2] * slope[0, j])
+                    b[i * dim + j] = 3 * (dx[0] * slope[(n - 2) * dim + j] + dx[n - 2] * slope[j])
                 else:
-                    b[0, i, j] = 3 * (dx[i] * slope[i - 1, j] + dx[i - 1] * slope[i, j])
+                    b[i * dim + j] = 3 * (dx[i] * slope[(i - 1) * dim + j] + dx[i - 1] * slope[i * dim + j])
         for j in range(dim):
-            b[1, 0, j] = -dx[0]
-            b[1, m - 1, j] = -dx[n - 4]
+            b[(m + 0) * dim + j] = -dx[0]
+            b[(m + m - 1) * dim + j] = -dx[n - 4]
         for r in range(2):
-            solve_tridiagonal(m, dim, &a[r, 2, 0], &a[r, 1, 0], &a[r, 0, 0], &b[r, 0, 0])
+            solve_tridiagonal(m, dim, &a[(r * 3 + 2) * m], &a[(r * 3 + 1) * m], &a[r * 3 * m], &b[r * m * dim])
         for j in range(dim):
-            s_last = ((3 * (dx[n - 2] * slope[n - 3, j] + dx[n - 3] * slope[n - 2, j])
-                       - dx[n - 3] * b[0, 0, j] - dx[n - 2] * b[0, m - 1, j])
-                      / (2 * (dx[n - 2] + dx[n - 3]) + dx[n - 3] * b[1, 0, j] + dx[n - 2] * b[1, m - 1, j]))
+            s_last = ((3 * (dx[n - 2] * slope[(n - 3) * dim + j] + dx[n - 3] * slope[(n - 2) * dim + j])
+                       - dx[n - 3] * b[j] - dx[n - 2] * b[(m - 1) * dim + j])
+                      / (2 * (dx[n - 2] + dx[n - 3]) + dx[n - 3] * b[m * dim + j]
+                         + dx[n - 2] * b[(m + m - 1) * dim + j]))
             for i in range(m):
-                s[i, j] = b[0, i, j] + s_last * b[1, i, j]
-            s[n - 2, j] = s_last
-            s[n - 1, j] = s[0, j]
+                s[i * dim + j] = b[i * dim + j] + s_last * b[(m + i) * dim + j]
+            s[(n - 2) * dim + j] = s_last
+            s[(n - 1) * dim + j] = s[j]
         # Hermite form (scipy's CubicHermiteSpline) -> power basis on each interval.
         for i in range(n - 1):
             for j in range(dim):
-                t = (s[i, j] + s[i + 1, j] - 2 * slope[i, j]) / dx[i]
-                c[0, i, j] = t / dx[i]
-                c[1, i, j] = (slope[i, j] - s[i, j]) / dx[i] - t
-                c[2, i, j] = s[i, j]
-                c[3, i, j] = y[i, j]
+                t = (s[i * dim + j] + s[(i + 1) * dim + j] - 2 * slope[i * dim + j]) / dx[i]
+                c[i * dim + j] = t / dx[i]
+                c[cs + i * dim + j] = (slope[i * dim + j] - s[i * dim + j]) / dx[i] - t
+                c[2 * cs + i * dim + j] = s[i * dim + j]
+                c[3 * cs + i * dim + j] = y[i, j]
+    free(dx)
     return c_array
 
 
@@ -243,6 +252,45 @@ def evaluate_spline(const double[::1] x, const double[:, :, ::1] c, t, int nu=0,
             tk = x[0] + remainder(ts[k] - x[0], 2 * M_PI) if polar else ts[k]
             interval = evaluate_one(x, c, tk, nu, interval, &view[k, 0])
     return out.reshape(points.shape + (c.shape[2],))
+
+
+def offset_points(const double[::1] x, const double[:, :, ::1] c, const double[::1] t,
+                  const double[:, ::1] offsets, bint polar=False):
+    """Points at distances `offsets` along the unit normal (-y', x') of a 2-D periodic spline:
+    out[m, k] = spline(t[k]) + normal(t[k]) * offsets[k or 0, m], shape (offsets' columns, len(t), 2).
+
+    numpy's operations in numpy's order (the normal is (-dy, dx) / hypot(dx, dy), numpy's hypot
+    being the C library's), so borders and obstacles are those the numpy code gave, bit for bit.
+    polar: as evaluate_spline's."""
+    cdef Py_ssize_t n = t.shape[0], width = offsets.shape[1], k, m, row_step = 1 if offsets.shape[0] > 1 else 0
+    if c.shape[2] != 2 or offsets.shape[0] not in (1, n):
+        raise ValueError("offset_points needs a 2-D spline and one row of offsets or one per point")
+    out = np.empty((width, n, 2))
+    cdef double[:, :, ::1] view = out
+    cdef double point[2]
+    cdef double slope[2]
+    cdef double tk, h, nx, ny
+    cdef Py_ssize_t interval = 0
+    with nogil:
+        for k in range(n):
+            tk = x[0] + remainder(t[k] - x[0], 2 * M_PI) if polar else t[k]
+            evaluate_one(x, c, tk, 0, interval, point)
+            interval = evaluate_one(x, c, tk, 1, interval, slope)
+            h = hypot(slope[0], slope[1])
+            nx, ny = -slope[1] / h, slope[0] / h
+            for m in range(width):
+                view[m, k, 0] = point[0] + nx * offsets[k * row_step, m]
+                view[m, k, 1] = point[1] + ny * offsets[k * row_step, m]
+    return out
+
+
+def strictly_increasing(const double[::1] values):
+    """numpy's bool(np.all(values[1:] > values[:-1]))."""
+    cdef Py_ssize_t k
+    for k in range(1, values.shape[0]):
+        if not values[k] > values[k - 1]:
+            return False
+    return True
 
 
 def unwrap(const double[::1] angles):
@@ -333,16 +381,26 @@ cdef void trace_road(unsigned char* grid, double x0, double y0, double x1, doubl
 
 cdef void trace_obstacle(unsigned char* grid, double x0, double y0, double x1, double y1, int half,
                          unsigned char* tiles) noexcept nogil:
-    """The DDA line of an obstacle segment, a (2*half+1)^2 square marked BLOCKED at each step."""
+    """The DDA line of an obstacle segment, a (2*half+1)^2 square marked BLOCKED at each step.
+    The squares' union is, on each row, one run of cells (the line moves at most one cell per
+    step along each axis): the steps widen each row's run, then each run is marked once."""
     cdef int i0 = to_cell(x0), j0 = to_cell(y0), i1 = to_cell(x1), j1 = to_cell(y1)
     cdef int steps = max(abs(i1 - i0), abs(j1 - j0)), s, i = i0, j = j0, a, b
+    cdef int top = max(min(i0, i1) - half, 0), bottom = min(max(i0, i1) + half + 1, GRID)
+    cdef int low[GRID]
+    cdef int high[GRID]
     mark_tiles(tiles, min(i0, i1) - half, max(i0, i1) + half, min(j0, j1) - half, max(j0, j1) + half)
+    for a in range(top, bottom):
+        low[a], high[a] = GRID, 0
     for s in range(steps + 1):
         if steps:
             line_cell(i0, j0, i1 - i0, j1 - j0, steps, s, &i, &j)
         for a in range(max(i - half, 0), min(i + half + 1, GRID)):
-            for b in range(max(j - half, 0), min(j + half + 1, GRID)):
-                grid[a * GRID + b] |= BLOCKED
+            low[a] = min(low[a], max(j - half, 0))
+            high[a] = max(high[a], min(j + half + 1, GRID))
+    for a in range(top, bottom):
+        for b in range(low[a], high[a]):
+            grid[a * GRID + b] |= BLOCKED
 
 
 cdef struct Runs:

@@ -52,16 +52,17 @@ class Track:
         return PeriodicSpline(self.control_theta, self.control_points)
 
     @cached_property
-    def _borders(self) -> tuple[np.ndarray, np.ndarray]:
+    def _borders(self) -> np.ndarray:
+        """(2, samples, 2): the inner and outer border points, half a width either side of the mid-line."""
         theta = _border_samples(len(self.control_theta))
-        mid = self.midline(theta)
-        normal = _unit_normals(self.midline(theta, 1))
-        return mid + normal * self.width / 2, mid - normal * self.width / 2
+        half = self.width / 2
+        return _read_only(lidar.offset_points(self.midline.x, self.midline.c, theta, np.array([[half, -half]])))
 
     @cached_property
-    def _border_angles(self) -> tuple[np.ndarray, np.ndarray]:
-        """The border points' polar angles, unwrapped."""
-        return tuple(lidar.unwrap(np.arctan2(points[:, 1], points[:, 0])) for points in self._borders)
+    def _border_angles(self) -> np.ndarray:
+        """(2, samples): the border points' polar angles, unwrapped."""
+        borders = self._borders
+        return np.array([lidar.unwrap(phi) for phi in np.arctan2(borders[..., 1], borders[..., 0])])
 
     @cached_property
     def inner(self) -> PeriodicSpline:
@@ -367,14 +368,9 @@ def _on_chord(direction, a, b) -> np.ndarray:
 
 
 # -- borders -------------------------------------------------------------------------------
-def _unit_normals(derivative: np.ndarray) -> np.ndarray:
-    dx, dy = derivative[..., 0], derivative[..., 1]
-    return np.stack([-dy, dx], axis=-1) / np.hypot(dx, dy)[..., None]
-
-
 def _borders_are_star_shaped(track: Track) -> bool:
     """Each border must be a function of its polar angle (strictly increasing angles)."""
-    return all(bool(np.all(phi[1:] > phi[:-1])) for phi in track._border_angles)
+    return all(lidar.strictly_increasing(phi) for phi in track._border_angles)
 
 
 def _polar_spline(phi: np.ndarray, points: np.ndarray) -> PeriodicSpline:
@@ -402,13 +398,13 @@ def _draw_obstacles(rng: np.random.Generator, track: Track, count: int) -> np.nd
     slots = count + 2
     u = rng.uniform(2 * np.pi / (2 * slots), 2 * np.pi / slots, size=slots)
     phi = (_slot_starts(slots) + u)[1:count + 1]
-    sides = rng.choice([0.85, 0.15], size=count) * track.width
-    ends = []
-    for angles in (phi, phi - OBSTACLE_LENGTH):
-        border = track.outer(angles, polar=True)
-        inward = _unit_normals(track.outer(angles, 1, polar=True))
-        ends.append(border + inward * sides[:, None])
-    return np.stack(ends, axis=1)
+    sides = OBSTACLE_SIDES[rng.integers(0, 2, size=count)] * track.width  # rng.choice(OBSTACLE_SIDES): its draws
+    angles = np.stack([phi, phi - OBSTACLE_LENGTH], axis=1).ravel()  # each obstacle's two ends
+    outer = track.outer
+    return lidar.offset_points(outer.x, outer.c, angles, np.repeat(sides, 2)[:, None], True).reshape(count, 2, 2)
+
+
+OBSTACLE_SIDES = np.array([0.85, 0.15])  # an obstacle's offset from the outer border, in track widths
 
 
 @lru_cache(maxsize=N_OBSTACLES_RANGE[1] + 2)

@@ -135,7 +135,7 @@ class MicroRacerVectorEnv(EnvRendering, VectorEnv):
 
     def step(self, actions, moving=None):
         cars, mode = self.cars, self.autoreset_mode
-        moving = np.ones(self.num_envs, dtype=bool) if moving is None else np.asarray(moving, dtype=bool)
+        moving = self._mask if moving is None else np.asarray(moving, dtype=bool)  # (all: the read-only mask)
         if mode == AutoresetMode.DISABLED and (self._needs_reset & moving).any():
             raise RuntimeError(f"sub-envs {np.flatnonzero(self._needs_reset).tolist()} are done: reset them with "
                                "reset(options={'reset_mask': mask}) before stepping (autoreset_mode DISABLED)")
@@ -160,7 +160,7 @@ class MicroRacerVectorEnv(EnvRendering, VectorEnv):
         if mode == AutoresetMode.SAME_STEP:
             self._needs_reset = np.zeros(self.num_envs, dtype=bool)
         else:
-            self._needs_reset = np.where(moving, done, self._needs_reset)
+            self._needs_reset = done if moving is self._mask else np.where(moving, done, self._needs_reset)
         infos = self._infos(truncated & ~restart)
         if final is not None:
             _add_final(infos, *final, done, self.info_keys)

@@ -370,6 +370,23 @@ def test_the_track_cache_is_bounded_and_serves_every_evaluation():
         set_track_cache_size(TRACK_CACHE_SIZE)
 
 
+def test_an_evaluation_is_the_same_bit_for_bit_with_and_without_the_track_cache():
+    """Issue 33: every evaluation of an assignment shares its tracks (a worker's cache); its results
+    are those of drawing every track again, to the last bit."""
+    options = {"n_obstacles": 8, "track_width": 0.05}
+    try:
+        set_track_cache_size(0)  # none kept: each episode draws its track
+        drawn = metrics_run("heuristic", episodes=12, seed=33, **options).to_dict()
+        set_track_cache_size(TRACK_CACHE_SIZE)
+        first = metrics_run("heuristic", episodes=12, seed=33, **options).to_dict()
+        shared = metrics_run("heuristic", episodes=12, seed=33, **options).to_dict()
+        assert track_cache_info().hits == 12  # the second run drew none
+    finally:
+        set_track_cache_size(TRACK_CACHE_SIZE)
+    assert drawn == first == shared
+    assert len({e["steps"] for e in drawn["episodes"]}) > 1  # different tracks, compared episode by episode
+
+
 def test_long_runs_go_in_lockstep_chunks_with_the_same_results(monkeypatch):
     expected = metrics_run("heuristic", episodes=7, seed=4)
     monkeypatch.setattr(evaluation, "LOCKSTEP_EPISODES", 3)  # bounds the maps alive at once

@@ -214,6 +214,20 @@ def test_tracks_are_bit_for_bit_those_of_the_scipy_reference(options):
         np.testing.assert_array_equal(track.grid, reference.grid(inner, outer, obstacles, expected["width"]))
 
 
+def test_many_tracks_are_bit_for_bit_those_of_the_scipy_reference():
+    """Issue 33's faster reset (borders, obstacles and splines in the compiled core, obstacle squares
+    marked by rows): the same tracks and maps as the plain numpy + scipy generator, over many seeds
+    of episode starts (the seeds evaluations use), every option on."""
+    from league.evaluation import episode_seeds
+
+    for seed in episode_seeds(33, 150):
+        expected, inner, outer = reference.track_dict(np.random.default_rng(seed))
+        track = generate_track(np.random.default_rng(seed))
+        assert track.to_dict() == expected, seed
+        obstacles = np.array(expected["obstacles"]).reshape(-1, 2, 2)
+        assert np.array_equal(track.grid, reference.grid(inner, outer, obstacles, expected["width"])), seed
+
+
 def test_the_grid_of_a_tracks_own_map_is_its_grid():
     for seed in range(3):
         track = generate_track(np.random.default_rng(seed))

@@ -24,6 +24,7 @@ from dotenv import dotenv_values
 from pydantic import Field, PrivateAttr, SecretStr, ValidationError, field_validator, model_validator
 from pydantic_settings import BaseSettings, SettingsConfigDict
 
+from league.constants import TRACK_CACHE_SIZE
 from league.validation.limits import MAX_UPLOAD_MB, SandboxLimits
 
 MB = 1024 * 1024
@@ -178,6 +179,11 @@ class Settings(BaseSettings):
                                description="directory the workers of one machine share to split its CPUs; "
                                            "empty: each worker splits only its own CPUs between its threads",
                                json_schema_extra={"shown_default": "$TMPDIR/league-cpu-slots"})
+    track_cache_size: int = Field(TRACK_CACHE_SIZE, ge=0, le=4096,
+                                  description="episode starts (track and map, ~1.7 MB each) a worker keeps for "
+                                              "the next evaluations on the same seeds: every submission of "
+                                              "an assignment is evaluated on the same tracks; hold its "
+                                              "public and private episodes, of every open assignment")
     job_nice: int = Field(10, ge=0, le=19, description="CPU priority (nice) of job threads and their sandboxes: "
                                                        "the API stays responsive while they race")
     heartbeat_interval_s: float = Field(5.0, gt=0, le=3600,

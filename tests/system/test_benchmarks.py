@@ -63,6 +63,7 @@ def test_toolkit(tmp_path):
                     f.torchscript_fixed_after_s)
     assert f.onnx_fixed_path in ("row by row", "free batch")
     assert (tmp_path / "race.gif").stat().st_size == round(f.gif_kib * 1024)
+    bench_toolkit.report(f)  # prints every figure
 
 
 def test_baselines_loop():

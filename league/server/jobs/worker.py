@@ -28,6 +28,7 @@ from league.server.jobs.queue import JobQueue
 from league.server.jobs.runner import WorkerContext, prepare_job_thread, reap, release_active, run_next
 from league.server.sandbox.process import ForkServer, sandbox_isolation
 from league.server.storage import BlobStore
+from league.track import set_track_cache_size
 
 log = logging.getLogger("league.server.worker")
 SIGNAL_CHECK_S = 0.5  # the main thread wakes this often to act on a signal
@@ -94,6 +95,7 @@ class Worker:
     def start(self) -> None:
         """Register, then start the heartbeat, the reaper, the listener (PostgreSQL) and the job threads."""
         self.worker_id = registry.register(self.context.sessions)
+        set_track_cache_size(self.context.settings.track_cache_size)  # the job threads share the tracks
         self.beat.start()
         self.reaper.start()
         if self.context.queue.notifies:

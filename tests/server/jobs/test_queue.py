@@ -8,6 +8,7 @@ from collections import Counter
 
 import pytest
 
+from league.constants import TRACK_CACHE_SIZE
 from league.server.config import Settings
 from league.server.db import crud
 from league.server.db.models import DONE, Job, WorkerProcess
@@ -16,6 +17,7 @@ from league.server.jobs.queue import JobQueue
 from league.server.jobs.runner import WorkerContext
 from league.server.jobs.worker import Worker
 from league.server.storage import BlobStore
+from league.track import set_track_cache_size, track_cache_info
 
 from ..api_calls import wait_for
 
@@ -125,3 +127,21 @@ def test_a_worker_is_listed_while_it_runs(league):
     worker.stop()
     with sessions() as session:
         assert session.get(WorkerProcess, worker.worker_id) is None
+
+
+def test_a_worker_keeps_as_many_episode_starts_as_its_setting_says(backend, tmp_path):
+    """Its job threads share one track cache (issue 33): sized by LEAGUE_TRACK_CACHE_SIZE."""
+    _, database_url = backend
+    settings = Settings(_env_file=None, data_dir=tmp_path / "data", database_url=database_url, bootstrap=False,
+                        cpu_placement=False, track_cache_size=7)
+    engine = make_engine(database_url)
+    migrate(engine)
+    worker = Worker(WorkerContext(settings, make_sessionmaker(engine), JobQueue(engine), BlobStore(settings.data_dir),
+                                  handlers={}), threads=1, prepare_thread=lambda settings: None)
+    try:
+        worker.start()
+        assert track_cache_info().maxsize == 7
+    finally:
+        worker.stop()
+        set_track_cache_size(TRACK_CACHE_SIZE)
+        engine.dispose()
