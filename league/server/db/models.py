@@ -356,6 +356,15 @@ class Job(Base):
     finished_at: Mapped[datetime | None] = mapped_column(default=None)
 
 
+# the queued jobs in the order of their ids, per priority and kind (validations, evaluations), and per
+# priority for the other kinds: a claim reads the first ones (league.server.jobs.leases.first_turns),
+# never every queued job
+QUEUED_OTHER_KIND = (Job.status == QUEUED) & Job.kind.not_in((VALIDATE, EVALUATE))
+Index("ix_jobs_queued_kind", Job.priority, Job.kind, Job.id,
+      postgresql_where=Job.status == QUEUED, sqlite_where=Job.status == QUEUED)
+Index("ix_jobs_queued_other", Job.priority, Job.id, postgresql_where=QUEUED_OTHER_KIND, sqlite_where=QUEUED_OTHER_KIND)
+
+
 class Championship(Base):
     """A term's competition: rounds of heats on new tracks, points by a table, OpenSkill ratings."""
 
