@@ -74,7 +74,7 @@ class NoOp:
 
 
 def fill(database_url: str, owners: int, jobs: int) -> None:
-    """The schema, `owners` students, and `jobs` queued no-op jobs owned by them in turn."""
+    """The schema, `owners` students, and `jobs` queued no-op jobs owned by them in turn; analysed."""
     from sqlalchemy import insert
 
     from league.server.db.models import Job, User
@@ -87,6 +87,9 @@ def fill(database_url: str, owners: int, jobs: int) -> None:
             session.execute(insert(User), [{"name": f"student{k:05d}", "role": "student"} for k in range(owners)])
             first = session.query(User.id).order_by(User.id).first()[0]
             session.execute(insert(Job), [{"kind": NOOP, "owner_id": first + k % owners} for k in range(jobs)])
+        with engine.connect() as connection:  # the statistics a live database has (autovacuum keeps them)
+            connection.exec_driver_sql("ANALYZE")
+            connection.commit()
     finally:
         engine.dispose()
 

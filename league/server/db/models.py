@@ -333,7 +333,8 @@ class Job(Base):
 
     __tablename__ = "jobs"
     __table_args__ = (Index("ix_jobs_status_heartbeat", "status", "heartbeat_at"),
-                      Index("ix_jobs_status_owner", "status", "owner_id"),
+                      # an owner's jobs by status, in their turns' order (leases.first_turns)
+                      Index("ix_jobs_status_owner_turn", "status", "owner_id", "priority", "id"),
                       Index("ix_jobs_kind_finished", "kind", "finished_at"))  # the state stamp
 
     id: Mapped[int] = mapped_column(primary_key=True)

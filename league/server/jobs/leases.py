@@ -23,7 +23,7 @@ from collections.abc import Mapping
 from datetime import datetime, timedelta
 from typing import Any
 
-from sqlalchemy import ColumnElement, and_, case, func, or_, select, update
+from sqlalchemy import ColumnElement, and_, case, func, literal, or_, select, update
 from sqlalchemy.orm import Session, aliased, sessionmaker
 
 from league.server.db.models import (
@@ -43,10 +43,9 @@ def claim_next(sessions: sessionmaker[Session], handlers: Mapping[str, Any], *, 
     another's first job by one job at most; at equal rank validations go first, then evaluations,
     then races, then the oldest."""
     while candidates := fairest_queued(sessions):
-        for job_id in candidates:
-            job = claim(sessions, handlers, job_id=job_id, attempt_id=attempt_id)
-            if job is not None:
-                return job
+        job = claim_first(sessions, handlers, job_ids=candidates, attempt_id=attempt_id)
+        if job is not None:
+            return job
         # every candidate went to another worker meanwhile (many claim at once): look again
     return None
 
@@ -61,30 +60,41 @@ def first_turns(session: Session, limit: int) -> list[int]:
     """The fairest queued jobs when at least `limit` of them take their owner's first turn (rank 1: no
     job of their owner and priority running or queued before them) in the first priority waiting, as
     at a deadline: validations, then evaluations, then the rest, each read in the order of their ids
-    from ix_jobs_queued_kind until `limit` passed, each checked by its owner's few jobs. Else []
-    (ranked_queued answers)."""
+    from ix_jobs_queued_kind or ix_jobs_queued_other until `limit` passed, each checked by its owner's
+    few jobs (ix_jobs_status_owner_turn). Else [] (ranked_queued answers).
+
+    Its constants are written into the SQL, not bound: the plan of a prepared statement, which
+    PostgreSQL reuses instead of planning each claim, may then read the partial indexes."""
     earlier = aliased(Job)
+    queued, running = inline(QUEUED), inline(RUNNING)
 
     def is_private_test(job: Any) -> ColumnElement[bool]:  # private_test() without a join: ids stay in order
-        return select(Evaluation.id).where(Evaluation.id == job.evaluation_id, Evaluation.track == PRIVATE).exists()
+        return select(Evaluation.id).where(Evaluation.id == job.evaluation_id,
+                                           Evaluation.track == inline(PRIVATE)).exists()
 
     def before_it(same_owner: ColumnElement[bool]) -> ColumnElement[bool]:
         """A job of its owner and priority is running, or queued before it (two lookups by owner)."""
         ahead = select(earlier.id).where(same_owner, earlier.priority == Job.priority, ~is_private_test(earlier))
-        return or_(ahead.where(earlier.status == RUNNING).exists(),
-                   ahead.where(earlier.status == QUEUED, earlier.id < Job.id).exists())
+        return or_(ahead.where(earlier.status == running).exists(),
+                   ahead.where(earlier.status == queued, earlier.id < Job.id).exists())
 
     waits = or_(and_(Job.owner_id.is_not(None), before_it(earlier.owner_id == Job.owner_id)),
                 and_(Job.owner_id.is_(None), before_it(earlier.owner_id.is_(None))))
-    first_priority = select(func.min(Job.priority)).where(Job.status == QUEUED).scalar_subquery()
+    first_priority = select(func.min(Job.priority)).where(Job.status == queued).scalar_subquery()
     ids: list[int] = []
-    for kinds in (Job.kind == VALIDATE, Job.kind == EVALUATE, Job.kind.not_in((VALIDATE, EVALUATE))):
+    validate, evaluate = inline(VALIDATE), inline(EVALUATE)
+    for kinds in (Job.kind == validate, Job.kind == evaluate, and_(Job.kind != validate, Job.kind != evaluate)):
         ids += session.scalars(select(Job.id).where(
-            Job.status == QUEUED, Job.priority == first_priority, kinds, or_(is_private_test(Job), ~waits)
-        ).order_by(Job.id).limit(limit - len(ids)))
+            Job.status == queued, Job.priority == first_priority, kinds, or_(is_private_test(Job), ~waits)
+        ).order_by(Job.id).limit(inline(limit - len(ids))))
         if len(ids) == limit:
             return ids
     return []
+
+
+def inline(value: Any) -> ColumnElement[Any]:
+    """A constant written into the statement (bound at compile time, not execution)."""
+    return literal(value, literal_execute=True)
 
 
 def ranked_queued(session: Session, limit: int) -> list[int]:
@@ -104,16 +114,25 @@ def ranked_queued(session: Session, limit: int) -> list[int]:
 def claim(sessions: sessionmaker[Session], handlers: Mapping[str, Any], *, job_id: int,
           attempt_id: str) -> Job | None:
     """Take a queued job for this attempt; None if it is not queued (done, failed, running elsewhere)."""
+    return claim_first(sessions, handlers, job_ids=[job_id], attempt_id=attempt_id)
+
+
+def claim_first(sessions: sessionmaker[Session], handlers: Mapping[str, Any], *, job_ids: list[int],
+                attempt_id: str) -> Job | None:
+    """Take the first of `job_ids` still queued for this attempt, in one transaction; None if none is.
+    On PostgreSQL one statement finds and locks it, skipping the jobs other workers are taking (no
+    transaction per candidate, no queueing behind their row locks)."""
     now = utcnow()
     with sessions.begin() as session:
-        if session.get_bind().dialect.name == "postgresql" and session.scalar(
-                select(Job.id).where(Job.id == job_id, Job.status == QUEUED).with_for_update(skip_locked=True)) is None:
-            return None  # taken, or being taken by another worker: do not queue behind its row lock
-        taken = session.execute(
+        if session.get_bind().dialect.name == "postgresql":
+            in_order = case({job_id: place for place, job_id in enumerate(job_ids)}, value=Job.id)
+            job_ids = list(session.scalars(select(Job.id).where(Job.id.in_(job_ids), Job.status == QUEUED).order_by(
+                in_order).limit(1).with_for_update(skip_locked=True)))
+        job_id = next((job_id for job_id in job_ids if session.execute(
             update(Job).where(Job.id == job_id, Job.status == QUEUED)
             .values(status=RUNNING, worker_id=attempt_id, attempts=Job.attempts + 1, started_at=now, heartbeat_at=now)
-        ).rowcount
-        if not taken:
+        ).rowcount), None)
+        if job_id is None:
             return None
         job = session.get(Job, job_id, populate_existing=True)
         if job.kind not in handlers:  # a row another version wrote: failed with the reason, not left waiting
