@@ -23,7 +23,7 @@ from collections.abc import Mapping
 from datetime import datetime, timedelta
 from typing import Any
 
-from sqlalchemy import ColumnElement, and_, case, func, literal, or_, select, update
+from sqlalchemy import ColumnElement, and_, case, func, or_, select, update
 from sqlalchemy.orm import Session, aliased, sessionmaker
 
 from league.server.db.models import (
@@ -61,40 +61,29 @@ def first_turns(session: Session, limit: int) -> list[int]:
     job of their owner and priority running or queued before them) in the first priority waiting, as
     at a deadline: validations, then evaluations, then the rest, each read in the order of their ids
     from ix_jobs_queued_kind or ix_jobs_queued_other until `limit` passed, each checked by its owner's
-    few jobs (ix_jobs_status_owner_turn). Else [] (ranked_queued answers).
-
-    Its constants are written into the SQL, not bound: the plan of a prepared statement, which
-    PostgreSQL reuses instead of planning each claim, may then read the partial indexes."""
+    few jobs (ix_jobs_status_owner_turn). Else [] (ranked_queued answers)."""
     earlier = aliased(Job)
-    queued, running = inline(QUEUED), inline(RUNNING)
 
     def is_private_test(job: Any) -> ColumnElement[bool]:  # private_test() without a join: ids stay in order
-        return select(Evaluation.id).where(Evaluation.id == job.evaluation_id,
-                                           Evaluation.track == inline(PRIVATE)).exists()
+        return select(Evaluation.id).where(Evaluation.id == job.evaluation_id, Evaluation.track == PRIVATE).exists()
 
     def before_it(same_owner: ColumnElement[bool]) -> ColumnElement[bool]:
         """A job of its owner and priority is running, or queued before it (two lookups by owner)."""
         ahead = select(earlier.id).where(same_owner, earlier.priority == Job.priority, ~is_private_test(earlier))
-        return or_(ahead.where(earlier.status == running).exists(),
-                   ahead.where(earlier.status == queued, earlier.id < Job.id).exists())
+        return or_(ahead.where(earlier.status == RUNNING).exists(),
+                   ahead.where(earlier.status == QUEUED, earlier.id < Job.id).exists())
 
     waits = or_(and_(Job.owner_id.is_not(None), before_it(earlier.owner_id == Job.owner_id)),
                 and_(Job.owner_id.is_(None), before_it(earlier.owner_id.is_(None))))
-    first_priority = select(func.min(Job.priority)).where(Job.status == queued).scalar_subquery()
+    first_priority = select(func.min(Job.priority)).where(Job.status == QUEUED).scalar_subquery()
     ids: list[int] = []
-    validate, evaluate = inline(VALIDATE), inline(EVALUATE)
-    for kinds in (Job.kind == validate, Job.kind == evaluate, and_(Job.kind != validate, Job.kind != evaluate)):
+    for kinds in (Job.kind == VALIDATE, Job.kind == EVALUATE, Job.kind.not_in((VALIDATE, EVALUATE))):
         ids += session.scalars(select(Job.id).where(
-            Job.status == queued, Job.priority == first_priority, kinds, or_(is_private_test(Job), ~waits)
-        ).order_by(Job.id).limit(inline(limit - len(ids))))
+            Job.status == QUEUED, Job.priority == first_priority, kinds, or_(is_private_test(Job), ~waits)
+        ).order_by(Job.id).limit(limit - len(ids)))
         if len(ids) == limit:
             return ids
     return []
-
-
-def inline(value: Any) -> ColumnElement[Any]:
-    """A constant written into the statement (bound at compile time, not execution)."""
-    return literal(value, literal_execute=True)
 
 
 def ranked_queued(session: Session, limit: int) -> list[int]:
