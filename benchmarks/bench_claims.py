@@ -216,8 +216,8 @@ def measure_depth(args: argparse.Namespace, depth: int, path: str) -> Depth:
         fill(url, args.owners, depth)
         wall, claimed, seconds, misses, cpu = measure(url, path, args.processes, min(args.claims, depth))
         found = audit(url, claimed)
-    return Depth(depth=depth, path=path, claimed=len(claimed), double_claims=len(claimed) - len(set(claimed)), wall_s=wall,
-                 misses=misses, claim_ms=percentiles_ms(seconds), database_cpu_s=cpu, failures=found)
+    return Depth(depth=depth, path=path, claimed=len(claimed), double_claims=len(claimed) - len(set(claimed)),
+                 wall_s=wall, misses=misses, claim_ms=percentiles_ms(seconds), database_cpu_s=cpu, failures=found)
 
 
 def report(figures: Depth) -> None:
@@ -225,9 +225,9 @@ def report(figures: Depth) -> None:
     cpu = ("" if math.isnan(f.database_cpu_s) else
            f"; PostgreSQL CPU {1000 * f.database_cpu_s / max(1, f.claimed):.2f} ms per job ({f.database_cpu_s:.1f} s "
            f"in all)")
-    print(f"  queue of {f.depth} jobs, {f.path:>11}: {f.claimed} claimed and completed in {f.wall_s:.2f} s: {f.jobs_per_s:.0f} "
-          f"jobs/s; {f.misses} claims found no job while jobs were queued; a claim p50 {f.claim_ms['p50']:.1f} ms, "
-          f"p99 {f.claim_ms['p99']:.1f} ms{cpu}; double claims: {f.double_claims}"
+    print(f"  queue of {f.depth} jobs, {f.path:>11}: {f.claimed} claimed and completed in {f.wall_s:.2f} s: "
+          f"{f.jobs_per_s:.0f} jobs/s; {f.misses} claims found no job while jobs were queued; a claim p50 "
+          f"{f.claim_ms['p50']:.1f} ms, p99 {f.claim_ms['p99']:.1f} ms{cpu}; double claims: {f.double_claims}"
           f"{'' if not f.failures else '; FAILED: ' + '; '.join(f.failures)}", flush=True)
 
 
