@@ -34,7 +34,7 @@ from pathlib import Path
 
 from _league import database, machine, percentiles_ms, run_script
 
-NOOP = "noop"
+NOOP = "noop"  # the default kind of the jobs (the NoOp handler runs whatever kind they have)
 PATHS = ("first-turns", "ranking")
 TARGET_CPU_MS = 5.0  # PostgreSQL CPU per claim at 10,000 queued: one core serves 200 claims/s
 
@@ -73,7 +73,7 @@ class NoOp:
         pass
 
 
-def fill(database_url: str, owners: int, jobs: int) -> None:
+def fill(database_url: str, owners: int, jobs: int, kind: str = NOOP) -> None:
     """The schema, `owners` students, and `jobs` queued no-op jobs owned by them in turn; analysed."""
     from sqlalchemy import insert
 
@@ -86,7 +86,7 @@ def fill(database_url: str, owners: int, jobs: int) -> None:
         with make_sessionmaker(engine).begin() as session:
             session.execute(insert(User), [{"name": f"student{k:05d}", "role": "student"} for k in range(owners)])
             first = session.query(User.id).order_by(User.id).first()[0]
-            session.execute(insert(Job), [{"kind": NOOP, "owner_id": first + k % owners} for k in range(jobs)])
+            session.execute(insert(Job), [{"kind": kind, "owner_id": first + k % owners} for k in range(jobs)])
         with engine.connect() as connection:  # the statistics a live database has (autovacuum keeps them)
             connection.exec_driver_sql("ANALYZE")
             connection.commit()
@@ -94,7 +94,7 @@ def fill(database_url: str, owners: int, jobs: int) -> None:
         engine.dispose()
 
 
-def claimer(database_url: str, path: str, start, release, done, claims: int, results) -> None:
+def claimer(database_url: str, path: str, kind: str, start, release, done, claims: int, results) -> None:
     """One worker process: claim and complete until `claims` jobs are done in all; reports
     (claimed ids, each claim's seconds, claims that found no job though jobs were queued)."""
     from league.server.db.session import make_engine, make_sessionmaker
@@ -104,7 +104,7 @@ def claimer(database_url: str, path: str, start, release, done, claims: int, res
         leases.first_turns = lambda session, limit: []
 
     engine = make_engine(database_url)
-    sessions, handlers = make_sessionmaker(engine), {NOOP: NoOp()}
+    sessions, handlers = make_sessionmaker(engine), {kind: NoOp()}
     with sessions() as session:  # connected before the start: the connection is not timed
         session.connection()
     claimed, seconds, misses, in_a_row = [], [], 0, 0
@@ -147,14 +147,14 @@ def postgres_cpu_s() -> float:
     return total / tick
 
 
-def measure(database_url: str, path: str, processes: int,
+def measure(database_url: str, path: str, kind: str, processes: int,
             claims: int) -> tuple[float, list[int], list[float], int, float]:
     """Wall seconds, the claimed ids, each claim's seconds, misses, and the PostgreSQL processes' CPU
     seconds meanwhile (NaN on SQLite)."""
     postgres = database_url.startswith("postgresql")
     context = multiprocessing.get_context("spawn")
     start, release, done, results = context.Event(), context.Event(), context.Value("i", 0), context.Queue()
-    workers = [context.Process(target=claimer, args=(database_url, path, start, release, done, claims, results))
+    workers = [context.Process(target=claimer, args=(database_url, path, kind, start, release, done, claims, results))
                for _ in range(processes)]
     for worker in workers:
         worker.start()
@@ -208,13 +208,16 @@ def parse(argv: list[str] | None) -> argparse.Namespace:
     parser.add_argument("--backend", choices=["postgres", "sqlite"], default="postgres")
     parser.add_argument("--paths", choices=PATHS, nargs="+", default=list(PATHS),
                         help="the claim as it is (first-turns), the one it replaced (ranking)")
+    parser.add_argument("--kind", default=NOOP, help="the jobs' kind: a claim looks for validations, then "
+                                                     "evaluations, then the other kinds (e.g. validate, as "
+                                                     "a deadline's uploads)")
     return parser.parse_args(argv)
 
 
 def measure_depth(args: argparse.Namespace, depth: int, path: str) -> Depth:
     with tempfile.TemporaryDirectory(prefix="league-claims-") as tmp, database(args.backend, Path(tmp)) as url:
-        fill(url, args.owners, depth)
-        wall, claimed, seconds, misses, cpu = measure(url, path, args.processes, min(args.claims, depth))
+        fill(url, args.owners, depth, args.kind)
+        wall, claimed, seconds, misses, cpu = measure(url, path, args.kind, args.processes, min(args.claims, depth))
         found = audit(url, claimed)
     return Depth(depth=depth, path=path, claimed=len(claimed), double_claims=len(claimed) - len(set(claimed)),
                  wall_s=wall, misses=misses, claim_ms=percentiles_ms(seconds), database_cpu_s=cpu, failures=found)
@@ -234,7 +237,7 @@ def report(figures: Depth) -> None:
 def main(argv: list[str] | None = None) -> int:
     args = parse(argv)
     where = "PostgreSQL" if args.backend == "postgres" else "SQLite"
-    print(f"{machine()}; {args.processes} processes claiming no-op jobs of {args.owners} students "
+    print(f"{machine()}; {args.processes} processes claiming no-op jobs (kind {args.kind}) of {args.owners} students "
           f"(leases.claim_next + complete) on {where}", flush=True)
     failures = []
     for depth in args.depths:
