@@ -1,6 +1,6 @@
 """Benchmark of the league server: sandboxed evaluations, and status answers under load.
 
-    python benchmarks/bench_server.py [--episodes 100] [--uploads 20] [--rate 200] [--seconds 10]
+    python benchmarks/bench_server.py [--episodes 100] [--uploads 20] [--rate 200] [--seconds 10] [--parts a b c d e f]
     python benchmarks/bench_server.py --status-trees OLD_CHECKOUT .   # (d) of `league serve`, per source tree
     python benchmarks/bench_server.py --torchscript-trees OLD_CHECKOUT . [--settle 20]   # (f), per source tree
 
@@ -370,7 +370,9 @@ def main(argv: list[str] | None = None) -> None:
     parser.add_argument("--rate", type=float, default=200.0, help="GET requests per second")
     parser.add_argument("--seconds", type=float, default=10.0, help="length of the GET load")
     parser.add_argument("--uploads", type=int, default=20, help="uploads at once in (c)")
-    parser.add_argument("--only-jobs", action="store_true", help="only (e)")
+    parser.add_argument("--parts", nargs="+", choices=list("abcdef"), default=list("abcdef"),
+                        help="the parts to run ((b) and (c) run together, after (a))")
+    parser.add_argument("--only-jobs", action="store_true", help="only (e): --parts e")
     parser.add_argument("--status-trees", type=Path, nargs="+", metavar="TREE",
                         help="only (d) with `league serve`, run from each of these source trees in turn")
     parser.add_argument("--torchscript-trees", type=Path, nargs="+", metavar="TREE",
@@ -392,18 +394,22 @@ def main(argv: list[str] | None = None) -> None:
                 report_status(statuses[-1])
             print("    p99: " + ", ".join(f"{status.root}: {status.ms['p99']:.1f} ms" for status in statuses))
             return
-        if not args.only_jobs:
+        parts = {"e"} if args.only_jobs else set(args.parts)
+        if parts & {"a", "b", "c"}:  # (b) compares with (a)'s plain loop
             evaluation = bench_evaluation(model, args.episodes)
             report_evaluation(evaluation)
+        if parts & {"b", "c"}:
             report_worker(bench_worker_on_one_cpu(model, args.episodes, args.uploads), evaluation.plain_s)
+        if "d" in parts:
             report_status(bench_status(model, args.rate, args.seconds, embedded=False))
             report_status(bench_status(model, args.rate, args.seconds, embedded=True))
-        placed = bench_evaluation_job(model, args.episodes, placement=True)
-        report_job(placed)
-        unplaced = bench_evaluation_job(model, args.episodes, placement=False)
-        report_job(unplaced)
-        print(f"    CPU placement makes the evaluation job {unplaced.seconds / placed.seconds:.1f}x faster")
-        if not args.only_jobs:
+        if "e" in parts:
+            placed = bench_evaluation_job(model, args.episodes, placement=True)
+            report_job(placed)
+            unplaced = bench_evaluation_job(model, args.episodes, placement=False)
+            report_job(unplaced)
+            print(f"    CPU placement makes the evaluation job {unplaced.seconds / placed.seconds:.1f}x faster")
+        if "f" in parts:
             report_torchscript(bench_first_torchscript(scripted, args.episodes, args.settle))
 
 

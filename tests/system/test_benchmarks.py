@@ -101,11 +101,12 @@ def test_metrics():
     assert all(len(times) == 2 and positive(*times) for times in f.ms.values())
 
 
-def test_claims_on_sqlite():
+@pytest.mark.parametrize("path", bench_claims.PATHS)
+def test_claims_on_sqlite(path):
     args = bench_claims.parse(["--backend", "sqlite", "--processes", "2", "--owners", "5", "--depths", "12",
                                "--claims", "10"])
-    f = bench_claims.measure_depth(args, 12)
-    assert f.failures == [] and (f.depth, f.claimed, f.double_claims) == (12, 10, 0)
+    f = bench_claims.measure_depth(args, 12, path)
+    assert f.failures == [] and (f.depth, f.path, f.claimed, f.double_claims) == (12, path, 10, 0)
     assert positive(f.wall_s, f.jobs_per_s, *f.claim_ms.values()) and f.misses >= 0
     assert math.isnan(f.database_cpu_s)  # SQLite runs inside the claimers
 

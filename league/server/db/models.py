@@ -333,7 +333,8 @@ class Job(Base):
 
     __tablename__ = "jobs"
     __table_args__ = (Index("ix_jobs_status_heartbeat", "status", "heartbeat_at"),
-                      Index("ix_jobs_status_owner", "status", "owner_id"),
+                      # an owner's jobs by status, in their turns' order (leases.first_turns)
+                      Index("ix_jobs_status_owner_turn", "status", "owner_id", "priority", "id"),
                       Index("ix_jobs_kind_finished", "kind", "finished_at"))  # the state stamp
 
     id: Mapped[int] = mapped_column(primary_key=True)
@@ -354,6 +355,15 @@ class Job(Base):
     started_at: Mapped[datetime | None] = mapped_column(default=None)
     heartbeat_at: Mapped[datetime | None] = mapped_column(default=None)
     finished_at: Mapped[datetime | None] = mapped_column(default=None)
+
+
+# the queued jobs in the order of their ids, per priority and kind (validations, evaluations), and per
+# priority for the other kinds: a claim reads the first ones (league.server.jobs.leases.first_turns),
+# never every queued job
+QUEUED_OTHER_KIND = (Job.status == QUEUED) & Job.kind.not_in((VALIDATE, EVALUATE))
+Index("ix_jobs_queued_kind", Job.priority, Job.kind, Job.id,
+      postgresql_where=Job.status == QUEUED, sqlite_where=Job.status == QUEUED)
+Index("ix_jobs_queued_other", Job.priority, Job.id, postgresql_where=QUEUED_OTHER_KIND, sqlite_where=QUEUED_OTHER_KIND)
 
 
 class Championship(Base):

@@ -36,6 +36,9 @@ class DatabaseError(Exception):
     """A database a command cannot use as it is; the message says what to do."""
 
 
+SQLITE_POOL_SIZE = 20
+
+
 def make_engine(url: str) -> Engine:
     if make_url(url).get_backend_name() == "sqlite":
         return _sqlite_engine(url)
@@ -46,7 +49,9 @@ def _sqlite_engine(url: str) -> Engine:
     database = make_url(url).database
     if database and database != ":memory:":
         create_private_file(Path(database))
-    engine = create_engine(url, connect_args={"timeout": 30, "check_same_thread": False})
+    # a pool as deep as the requests answered at once: beyond the default 5, each request opened, set up
+    # (the pragmas above) and closed a connection of its own, which a status load at 200/s paid often
+    engine = create_engine(url, pool_size=SQLITE_POOL_SIZE, connect_args={"timeout": 30, "check_same_thread": False})
 
     @event.listens_for(engine, "connect")
     def _pragmas(dbapi_connection, _record):  # WAL: the API reads while a worker writes

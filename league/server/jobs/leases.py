@@ -23,12 +23,12 @@ from collections.abc import Mapping
 from datetime import datetime, timedelta
 from typing import Any
 
-from sqlalchemy import case, func, select, update
-from sqlalchemy.orm import Session, sessionmaker
+from sqlalchemy import ColumnElement, and_, case, func, or_, select, update
+from sqlalchemy.orm import Session, aliased, sessionmaker
 
 from league.server.db.models import (
     CANCELLED, CANNOT_SUCCEED, DONE, ERROR, EVALUATE, FAILED, QUEUED, RUNNING, UNKNOWN_KIND, VALIDATE, WORKER_LOST,
-    Evaluation, Job, private_test, utcnow,
+    PRIVATE, Evaluation, Job, private_test, utcnow,
 )
 
 log = logging.getLogger("league.server.jobs")
@@ -43,15 +43,51 @@ def claim_next(sessions: sessionmaker[Session], handlers: Mapping[str, Any], *, 
     another's first job by one job at most; at equal rank validations go first, then evaluations,
     then races, then the oldest."""
     while candidates := fairest_queued(sessions):
-        for job_id in candidates:
-            job = claim(sessions, handlers, job_id=job_id, attempt_id=attempt_id)
-            if job is not None:
-                return job
+        job = claim_first(sessions, handlers, job_ids=candidates, attempt_id=attempt_id)
+        if job is not None:
+            return job
         # every candidate went to another worker meanwhile (many claim at once): look again
     return None
 
 
 def fairest_queued(sessions: sessionmaker[Session], limit: int = CANDIDATES) -> list[int]:
+    """The ids of the `limit` fairest queued jobs, in claim order (claim_next's)."""
+    with sessions() as session:
+        return first_turns(session, limit) or ranked_queued(session, limit)
+
+
+def first_turns(session: Session, limit: int) -> list[int]:
+    """The fairest queued jobs when at least `limit` of them take their owner's first turn (rank 1: no
+    job of their owner and priority running or queued before them) in the first priority waiting, as
+    at a deadline: validations, then evaluations, then the rest, each read in the order of their ids
+    from ix_jobs_queued_kind or ix_jobs_queued_other until `limit` passed, each checked by its owner's
+    few jobs (ix_jobs_status_owner_turn). Else [] (ranked_queued answers)."""
+    earlier = aliased(Job)
+
+    def is_private_test(job: Any) -> ColumnElement[bool]:  # private_test() without a join: ids stay in order
+        return select(Evaluation.id).where(Evaluation.id == job.evaluation_id, Evaluation.track == PRIVATE).exists()
+
+    def before_it(same_owner: ColumnElement[bool]) -> ColumnElement[bool]:
+        """A job of its owner and priority is running, or queued before it (two lookups by owner)."""
+        ahead = select(earlier.id).where(same_owner, earlier.priority == Job.priority, ~is_private_test(earlier))
+        return or_(ahead.where(earlier.status == RUNNING).exists(),
+                   ahead.where(earlier.status == QUEUED, earlier.id < Job.id).exists())
+
+    waits = or_(and_(Job.owner_id.is_not(None), before_it(earlier.owner_id == Job.owner_id)),
+                and_(Job.owner_id.is_(None), before_it(earlier.owner_id.is_(None))))
+    first_priority = select(func.min(Job.priority)).where(Job.status == QUEUED).scalar_subquery()
+    ids: list[int] = []
+    for kinds in (Job.kind == VALIDATE, Job.kind == EVALUATE, Job.kind.not_in((VALIDATE, EVALUATE))):
+        ids += session.scalars(select(Job.id).where(
+            Job.status == QUEUED, Job.priority == first_priority, kinds, or_(is_private_test(Job), ~waits)
+        ).order_by(Job.id).limit(limit - len(ids)))
+        if len(ids) == limit:
+            return ids
+    return []
+
+
+def ranked_queued(session: Session, limit: int) -> list[int]:
+    """The fairest queued jobs by ranking every queued and running one (the order's definition)."""
     active = Job.status.in_((QUEUED, RUNNING))
     # a final's private test takes no turn of its owner's: alone in its partition (ids from -2 down)
     turn_of = case((private_test(), -1 - Job.id), else_=func.coalesce(Job.owner_id, -1))
@@ -60,24 +96,32 @@ def fairest_queued(sessions: sessionmaker[Session], limit: int = CANDIDATES) -> 
     kind_order = case((Job.kind == VALIDATE, 0), (Job.kind == EVALUATE, 1), else_=2)
     ranked = select(Job.id, Job.status, Job.priority, rank.label("rank"), kind_order.label("kind_order")).outerjoin(
         Evaluation, Job.evaluation_id == Evaluation.id).where(active).subquery()
-    with sessions() as session:
-        return list(session.scalars(select(ranked.c.id).where(ranked.c.status == QUEUED).order_by(
-            ranked.c.priority, ranked.c.rank, ranked.c.kind_order, ranked.c.id).limit(limit)))
+    return list(session.scalars(select(ranked.c.id).where(ranked.c.status == QUEUED).order_by(
+        ranked.c.priority, ranked.c.rank, ranked.c.kind_order, ranked.c.id).limit(limit)))
 
 
 def claim(sessions: sessionmaker[Session], handlers: Mapping[str, Any], *, job_id: int,
           attempt_id: str) -> Job | None:
     """Take a queued job for this attempt; None if it is not queued (done, failed, running elsewhere)."""
+    return claim_first(sessions, handlers, job_ids=[job_id], attempt_id=attempt_id)
+
+
+def claim_first(sessions: sessionmaker[Session], handlers: Mapping[str, Any], *, job_ids: list[int],
+                attempt_id: str) -> Job | None:
+    """Take the first of `job_ids` still queued for this attempt, in one transaction; None if none is.
+    On PostgreSQL one statement finds and locks it, skipping the jobs other workers are taking (no
+    transaction per candidate, no queueing behind their row locks)."""
     now = utcnow()
     with sessions.begin() as session:
-        if session.get_bind().dialect.name == "postgresql" and session.scalar(
-                select(Job.id).where(Job.id == job_id, Job.status == QUEUED).with_for_update(skip_locked=True)) is None:
-            return None  # taken, or being taken by another worker: do not queue behind its row lock
-        taken = session.execute(
+        if session.get_bind().dialect.name == "postgresql":
+            in_order = case({job_id: place for place, job_id in enumerate(job_ids)}, value=Job.id)
+            job_ids = list(session.scalars(select(Job.id).where(Job.id.in_(job_ids), Job.status == QUEUED).order_by(
+                in_order).limit(1).with_for_update(skip_locked=True)))
+        job_id = next((job_id for job_id in job_ids if session.execute(
             update(Job).where(Job.id == job_id, Job.status == QUEUED)
             .values(status=RUNNING, worker_id=attempt_id, attempts=Job.attempts + 1, started_at=now, heartbeat_at=now)
-        ).rowcount
-        if not taken:
+        ).rowcount), None)
+        if job_id is None:
             return None
         job = session.get(Job, job_id, populate_existing=True)
         if job.kind not in handlers:  # a row another version wrote: failed with the reason, not left waiting

@@ -7,12 +7,17 @@ import threading
 from datetime import timedelta
 
 import pytest
+from sqlalchemy import select
 
 from league.server.config import Settings
 from league.server.db import crud
-from league.server.db.models import DONE, FAILED, LOW, QUEUED, RUNNING, Job, utcnow
+from league.server.db.models import (
+    DONE, FAILED, LOW, PRIVATE, PUBLIC, QUEUED, RUNNING, Evaluation, Job, Submission, utcnow,
+)
 from league.server.db.session import make_engine, make_sessionmaker, migrate
-from league.server.jobs.leases import cancel, claim, claim_next, complete, fairest_queued, heartbeat
+from league.server.jobs.leases import (
+    cancel, claim, claim_next, complete, fairest_queued, first_turns, heartbeat, ranked_queued,
+)
 from league.server.jobs.placement import Placement
 from league.server.jobs.queue import JobQueue
 from league.server.jobs.runner import JobCannotSucceed, JobRun, WorkerContext, reap, release_active, run_next
@@ -257,6 +262,47 @@ def test_a_students_jobs_are_claimed_before_any_low_priority_re_evaluation(conte
     assert fairest_queued(context.sessions, limit=5) == [uploads[0], uploads[2], uploads[1], backlog[3], backlog[1]]
     claimed = [claim_next(context.sessions, handlers, attempt_id=f"w{i}").id for i in range(4)]
     assert claimed == [uploads[0], uploads[2], uploads[1], backlog[3]]
+
+
+def test_the_first_turns_read_from_the_index_are_the_ranking_of_every_job(context):
+    """The claim's short way (first_turns: the first jobs that take their owner's first turn) gives the
+    full ranking's candidates (ranked_queued) whenever it answers, on random queues: owners with
+    backlogs and running jobs, both priorities, every kind, private tests, jobs of no owner."""
+    import random
+
+    rng = random.Random(7)
+    students = owners(context, 30)
+    with context.sessions.begin() as session:
+        submission = Submission(owner_id=students[0], name="m", filename="m.onnx", kind="onnx", sha256="0" * 64, size=1)
+        session.add(submission)
+        session.flush()
+        for _ in range(160):
+            owner = rng.choice([*students, None])
+            track = rng.choice([PUBLIC, PRIVATE]) if owner is not None and rng.random() < 0.3 else None
+            evaluation_id = None
+            if track is not None:
+                evaluation = Evaluation(submission_id=submission.id, track=track, settings={}, result_key="k")
+                session.add(evaluation)
+                session.flush()
+                evaluation_id = evaluation.id
+            job = crud.create_job(session, kind="evaluate" if track else rng.choice(["validate", "evaluate", "race"]),
+                                  owner_id=owner, evaluation_id=evaluation_id, priority=rng.choice([0, 0, 0, LOW]))
+            job.status = rng.choice([QUEUED, QUEUED, QUEUED, RUNNING, DONE])
+    answered = 0
+    for step in range(40):
+        with context.sessions() as session:
+            for limit in (1, 3, 8):
+                fast = first_turns(session, limit)
+                assert fast in ([], ranked_queued(session, limit)), (step, limit)
+                answered += bool(fast)
+        with context.sessions.begin() as session:  # the queue moves on: one claimed, one finished
+            head = ranked_queued(session, 1)
+            if head:
+                session.get(Job, head[0]).status = RUNNING
+            running = session.scalars(select(Job).where(Job.status == RUNNING).limit(1)).first()
+            if running is not None and step % 2:
+                running.status = DONE
+    assert answered >= 40  # the short way answered a third of the claims at least: the check above is not idle
 
 
 def test_a_job_that_cannot_succeed_fails_once_without_retrying(context, recorder):
