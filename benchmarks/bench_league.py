@@ -21,7 +21,10 @@
     (and skips (c)): `--backend postgres --per-cpu --round-repeats 5 --students 200` (a class's round,
     20 heats) is the per-CPU figure,
     printed beside (b0): what two CPUs give the same heats without the league (one heat alone on
-    one CPU, then two at once on a CPU each), the most any league can get from them;
+    one CPU, then two at once on a CPU each), the most any league can get from them. Each round
+    also says where its time went besides racing: its first heat's wait to be claimed, the
+    workers' idle time between heats (the queue's share), and the tail after the first worker ran
+    out of heats;
 --before PATH: a checkout of this project at an earlier commit (its Cython core built, or copied
     when league/lidar.pyx is the same), e.g. the commit before the jobs table became the queue
     (`git archive e7704ee | tar -x -C /tmp/before`): (b)'s rounds are also raced by its servers, on

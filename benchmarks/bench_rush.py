@@ -15,11 +15,13 @@ championship round of every student's active agent in heats of 10.
 
 Printed: the time from the last upload to an empty queue (target <= 60 s); p50/p99 of the status
 and leaderboard answers during the rush (target p99 <= 50 ms), idle and during the round; the
-round's wall time. Checked, exit status 1 if one fails: every upload accounted for (good ones
-ready and evaluated, broken ones refused with a reason), one submission per accepted upload; no
-job left queued or running, failed, or done twice (from the database); every evaluation equal,
-figure for figure, to `metrics_run` of the same file with the course's seed and episodes, run
-here; the round done with every student in exactly one heat.
+round's wall time, and where it went (the heats' run times; the queue's waits: the first heat's
+claim, the workers' idle time between heats; the last heat's tail after the other worker's).
+Checked, exit status 1 if one fails: every upload accounted for (good ones ready and evaluated,
+broken ones refused with a reason), one submission per accepted upload; no job left queued or
+running, failed, or done twice (from the database); every evaluation equal, figure for figure, to
+`metrics_run` of the same file with the course's seed and episodes, run here; the round done
+with every student in exactly one heat.
 
 --faults: halfway through the window, as soon as a worker runs a job (30 s at most), that worker
 is killed (SIGKILL) and the API restarted (SIGTERM, started again), then a worker is started
