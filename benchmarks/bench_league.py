@@ -2,6 +2,7 @@
 
     python benchmarks/bench_league.py [--quick] [--students 40] [--repeats 3] [--round-repeats 1]
                                       [--rate 200] [--seconds 10] [--backend sqlite|postgres] [--per-cpu]
+                                      [--before PATH]
 
 (a) a 10-car heat of thesis-size ONNX agents (5 -> 64 -> 64 -> 2), each in its own sandbox
     process, pinned to one core: from starting the 10 sandboxes to the classification, sandbox
@@ -20,7 +21,15 @@
     (and skips (c)): `--backend postgres --per-cpu --round-repeats 5 --students 200` (a class's round,
     20 heats) is the per-CPU figure,
     printed beside (b0): what two CPUs give the same heats without the league (one heat alone on
-    one CPU, then two at once on a CPU each), the most any league can get from them;
+    one CPU, then two at once on a CPU each), the most any league can get from them. Each round
+    also says where its time went besides racing: its first heat's wait to be claimed, the
+    workers' idle time between heats (the queue's share), and the tail after the first worker ran
+    out of heats;
+--before PATH: a checkout of this project at an earlier commit (its Cython core built, or copied
+    when league/lidar.pyx is the same), e.g. the commit before the jobs table became the queue
+    (`git archive e7704ee | tar -x -C /tmp/before`): (b)'s rounds are also raced by its servers, on
+    a league and database of their own, the two trees taking turns round by round, and printed
+    side by side (the same heats; each round a track of its own);
 (c) GET /api/leaderboard at 200 requests/s on loopback (open loop) while rounds are raced by
     two workers: target p99 <= 50 ms.
 
@@ -31,6 +40,7 @@ bounded in count and time, every process started here stopped at the end.
 from __future__ import annotations
 
 import argparse
+import contextlib
 import functools
 import os
 import signal
@@ -42,7 +52,7 @@ import time
 from dataclasses import dataclass
 from pathlib import Path
 
-from _league import Deadline, League, backend, enrol, machine, measure_latency, one_core, thesis_actor
+from _league import ROOT, Deadline, League, backend, enrol, machine, measure_latency, one_core, thesis_actor
 
 HEAT_TARGET_S = 5.0
 SPEEDUP_TARGET = 1.7
@@ -107,10 +117,21 @@ class Ceiling:
 @dataclass
 class RoundRun:
     repeat: int
-    setup: str
+    setup: str  # the worker setup, after the tree's name with --before ("before: 1 worker on CPU 0")
     seconds: float
     heats_s: float  # the heats' run times, summed
     heats: str  # per heat: start, run time, worker, outcomes
+    waits: HeatWaits | None = None
+
+
+@dataclass
+class HeatWaits:
+    """Where a round's time went besides racing, from its jobs' times (seconds)."""
+
+    first_claim_s: float  # the round created -> its first heat claimed
+    idle_s: float  # summed over workers: one heat of theirs finished -> their next one claimed
+    tail_s: float  # the first worker to run out of heats -> the round's last heat finished
+    busiest_s: float  # the busiest worker's heats' run times, summed
 
 
 @dataclass
@@ -132,6 +153,16 @@ class Rounds:
     @property
     def medians(self) -> dict[str, float]:
         return {setup: statistics.median(runs) for setup, runs in self.times.items()}
+
+    @property
+    def repeats(self) -> int:
+        return max(run.repeat for run in self.runs)
+
+    @property
+    def trees(self) -> list[str]:
+        """The source trees' prefixes of the setups ("" alone; "before: ", "this tree: " with --before)."""
+        first = next(iter(pinned_setups()))
+        return list(dict.fromkeys(run.setup.removesuffix(first) for run in self.runs if run.setup.endswith(first)))
 
 
 @dataclass
@@ -319,17 +350,32 @@ def heat_report(client, summary: dict) -> tuple[str, float]:
     from datetime import datetime
 
     jobs = {job["race_id"]: job for job in client.get("/api/jobs", params={"limit": 1000}).json() if job["race_id"]}
-    parts, busy = [], 0.0
+    parts, busy, spans = [], 0.0, []
     for race_id in summary["race_ids"]:
         race, job = client.get(f"/api/races/{race_id}").json(), jobs[race_id]
         created, started, finished = (datetime.fromisoformat(t) for t in
                                       (race["created_at"], job["started_at"], job["finished_at"]))
         ran = (finished - started).total_seconds()
         busy += ran
+        worker = job["worker_id"].split("/")[1]
+        spans.append((worker, (started - created).total_seconds(), (finished - created).total_seconds()))
         parts.append(f"heat {race['heat']} ({len(race['entrants'])} cars): started at "
                      f"{(started - created).total_seconds():.1f} s, ran {ran:.1f} s in worker "
-                     f"{job['worker_id'].split('/')[1]} [{outcomes(race['classification'])}]")
-    return "\n    ".join(parts), busy
+                     f"{worker} [{outcomes(race['classification'])}]")
+    return "\n    ".join(parts), busy, heat_waits(spans)
+
+
+def heat_waits(spans: list[tuple[str, float, float]]) -> HeatWaits:
+    """From each heat's (worker, claimed at, finished at), seconds from the round's creation."""
+    by_worker: dict[str, list[tuple[float, float]]] = {}
+    for worker, start, end in spans:
+        by_worker.setdefault(worker, []).append((start, end))
+    idle = sum(later[0] - earlier[1] for runs in by_worker.values()
+               for earlier, later in zip(sorted(runs), sorted(runs)[1:]))
+    last_ends = [max(end for _, end in runs) for runs in by_worker.values()]
+    return HeatWaits(first_claim_s=min(start for _, start, _ in spans), idle_s=idle,
+                     tail_s=max(last_ends) - min(last_ends),
+                     busiest_s=max(sum(end - start for start, end in runs) for runs in by_worker.values()))
 
 
 def keep_racing(client, championship_id: int, stop: threading.Event, busy: list[bool], max_rounds: int) -> None:
@@ -370,20 +416,24 @@ def start_workers(league: League, setup: Setup) -> None:
         league.start_worker(wait=True, **worker)
 
 
-def compare_workers(league: League, client, students: int, seed: int, repeats: int,
+def compare_workers(leagues: dict[str, tuple[League, object]], students: int, seed: int, repeats: int,
                     timeout: float, per_cpu: bool = False) -> tuple[Rounds, int]:
     """Time the same heats (a new championship, same seed; each round a track of its own) with each
-    worker setup, `repeats` times, alternating. Returns the rounds and the last championship."""
+    worker setup, `repeats` times, alternating; with several leagues (name -> league, its instructor's
+    client: --before), each setup on each in turn. Returns the rounds and the last league's last
+    championship."""
     runs, shapes = [], set()
     for repeat in range(repeats):
         for setup, workers in worker_setups(per_cpu).items():
-            league.stop_workers()
-            start_workers(league, workers)
-            championship_id = new_championship(client, f"{setup}, run {repeat + 1}", seed)
-            seconds, summary = timed_round(client, championship_id, timeout)
-            heats, busy = heat_report(client, summary)
-            runs.append(RoundRun(repeat=repeat + 1, setup=setup, seconds=seconds, heats_s=busy, heats=heats))
-            shapes.add(str(summary["heats"]))
+            for tree, (league, client) in leagues.items():
+                league.stop_workers()
+                start_workers(league, workers)
+                championship_id = new_championship(client, f"{setup}, run {repeat + 1}", seed)
+                seconds, summary = timed_round(client, championship_id, timeout)
+                heats, busy, waits = heat_report(client, summary)
+                runs.append(RoundRun(repeat=repeat + 1, setup=f"{tree}{setup}", seconds=seconds, heats_s=busy,
+                                     heats=heats, waits=waits))
+                shapes.add(str(summary["heats"]))
     return Rounds(students=students, heats=len(summary["heats"]), runs=runs, same_heats=len(shapes) == 1), \
         championship_id
 
@@ -392,23 +442,32 @@ def report_rounds(f: Rounds, per_cpu: bool = False, ceiling: float | None = None
     print(f"(b) a round of {f.students} students in heats of <= {HEAT_SIZE}, from POST .../rounds to the round done, "
           f"per worker setup (same seed: same heats; each round's track drawn secretly):")
     for run in f.runs:
-        print(f"    run {run.repeat}, {run.setup}: {run.seconds:.1f} s (the heats ran {run.heats_s:.1f} s in all)\n"
-              f"    {run.heats}")
+        w = run.waits
+        print(f"    run {run.repeat}, {run.setup}: {run.seconds:.1f} s (the heats ran {run.heats_s:.1f} s in all; "
+              f"first heat claimed after {w.first_claim_s:.2f} s, workers idle between heats {w.idle_s:.2f} s "
+              f"in all, the busiest worker's heats {w.busiest_s:.1f} s, the last heat finished {w.tail_s:.1f} s "
+              f"after the other worker's)\n    {run.heats}")
     if not f.same_heats:
         print("    warning: the rounds differ in heats")
     medians, times = f.medians, f.times
-    print(f"    {f.heats} heats, median over {len(f.runs) // len(times)} run(s) (range):")
+    print(f"    {f.heats} heats, median over {f.repeats} run(s) (range):")
     for setup, runs in times.items():
-        print(f"      {setup}: {medians[setup]:.1f} s ({min(runs):.1f} .. {max(runs):.1f} s)")
-    one_pinned, two_pinned = (medians[setup] for setup in pinned_setups())
-    verdict = "ok" if one_pinned / two_pinned >= PER_CPU_TARGET else "UNDER TARGET"
-    print(f"    per CPU ({' -> '.join(pinned_setups())}): speed-up {one_pinned / two_pinned:.2f}x "
-          f"(target >= {PER_CPU_TARGET:g}x: {verdict})")
-    if ceiling:
-        print(f"    that is {one_pinned / two_pinned / ceiling:.0%} of the {ceiling:.2f}x that two CPUs give the same "
-              f"heats without the league (b0)")
+        queue = statistics.median(r.waits.first_claim_s + r.waits.idle_s for r in f.runs if r.setup == setup)
+        print(f"      {setup}: {medians[setup]:.1f} s ({min(runs):.1f} .. {max(runs):.1f} s); waiting for the "
+              f"queue (first claim + idle between heats) {queue:.2f} s")
+    for tree in f.trees:
+        one_pinned, two_pinned = (medians[tree + setup] for setup in pinned_setups())
+        verdict = "ok" if one_pinned / two_pinned >= PER_CPU_TARGET else "UNDER TARGET"
+        print(f"    {tree}per CPU ({' -> '.join(pinned_setups())}): speed-up {one_pinned / two_pinned:.2f}x "
+              f"(target >= {PER_CPU_TARGET:g}x: {verdict})")
+        if ceiling:
+            print(f"    that is {one_pinned / two_pinned / ceiling:.0%} of the {ceiling:.2f}x that two CPUs give the "
+                  f"same heats without the league (b0)")
     if not per_cpu:
-        one, two, two_unplaced = medians["1 worker"], medians["2 workers"], medians["2 workers, CPU placement off"]
+        tree = f.trees[-1]  # this tree's
+        one, two, two_unplaced = (medians[tree + setup] for setup in
+                                  ("1 worker", "2 workers", "2 workers, CPU placement off"))
+        one_pinned = medians[tree + next(iter(pinned_setups()))]
         verdict = "ok" if one / two >= SPEEDUP_TARGET else "UNDER TARGET"
         print(f"    1 -> 2 workers (no pinning): speed-up {one / two:.2f}x (target >= {SPEEDUP_TARGET:g}x: {verdict}); "
               f"without CPU placement {one / two_unplaced:.2f}x; one worker alone races on every CPU, "
@@ -416,50 +475,58 @@ def report_rounds(f: Rounds, per_cpu: bool = False, ceiling: float | None = None
 
 
 def bench_league(models: list[Path], *, backend_kind: str, eval_episodes: int, rate: float, seconds: float,
-                 seed: int, round_repeats: int, per_cpu: bool = False) -> LeagueRun:
+                 seed: int, round_repeats: int, per_cpu: bool = False, before: Path | None = None) -> LeagueRun:
     import numpy as np
 
     round_timeout = 60 + 30 * len(models)  # generous: a heat takes seconds
-    with tempfile.TemporaryDirectory(prefix="league-bench-") as tmp, backend(backend_kind, Path(tmp)) as urls:
-        settings = {**urls, "LEAGUE_EVAL_EPISODES": str(eval_episodes), "LEAGUE_QUOTA_PER_DAY": "10",
-                    "LEAGUE_WORKER_THREADS": "1", "LEAGUE_CPU_SLOTS_DIR": str(Path(tmp) / "cpu-slots")}
-        with League(Path(tmp), embedded=False, settings=settings) as league, league.client() as client:
+    trees = {"before: ": before, "this tree: ": ROOT} if before else {"": ROOT}
+    with contextlib.ExitStack() as stack:
+        leagues, setup_s = {}, 0.0
+        for name, root in trees.items():  # a league and database each: the trees' schemas may differ
+            tmp = Path(stack.enter_context(tempfile.TemporaryDirectory(prefix="league-bench-")))
+            urls = stack.enter_context(backend(backend_kind, tmp))
+            settings = {**urls, "LEAGUE_EVAL_EPISODES": str(eval_episodes), "LEAGUE_QUOTA_PER_DAY": "10",
+                        "LEAGUE_WORKER_THREADS": "1", "LEAGUE_CPU_SLOTS_DIR": str(tmp / "cpu-slots")}
+            league = stack.enter_context(League(tmp, embedded=False, settings=settings, root=root))
+            leagues[name] = league, stack.enter_context(league.client())
             begin = time.perf_counter()
             for _ in range(2):
                 league.start_worker()
             setup_students(league, models, timeout=120 + 20 * len(models))
             league.stop_workers()
-            setup_s = time.perf_counter() - begin
+            setup_s += time.perf_counter() - begin
+        league, client = leagues[next(reversed(leagues))]  # this tree's: (c)
 
-            # (b) the same heats (same seed; each round a track of its own) with one worker, then with two
-            rounds, two_id = compare_workers(league, client, len(models), seed, round_repeats, round_timeout, per_cpu)
-            league.stop_workers()
-            figures = LeagueRun(backend=backend_kind, students=len(models), eval_episodes=eval_episodes,
-                                setup_s=setup_s, rounds=rounds)
-            if per_cpu:
-                return figures
-            start_workers(league, worker_setups()["2 workers"])  # (c) runs with two workers
+        # (b) the same heats (same seed; each round a track of its own) with one worker, then with two
+        rounds, two_id = compare_workers(leagues, len(models), seed, round_repeats, round_timeout, per_cpu)
+        for other, _ in leagues.values():
+            other.stop_workers()
+        figures = LeagueRun(backend=backend_kind, students=len(models), eval_episodes=eval_episodes,
+                            setup_s=setup_s, rounds=rounds)
+        if per_cpu:
+            return figures
+        start_workers(league, worker_setups()["2 workers"])  # (c) runs with two workers
 
-            # (c) leaderboard latency while the two workers race rounds
-            stop, busy = threading.Event(), []
-            loader = threading.Thread(target=keep_racing, args=(client, two_id, stop, busy, 20))
-            loader.start()
-            try:
-                wait_running = Deadline(60, "the next round to start racing")
-                while True:
-                    rounds = client.get(f"/api/championships/{two_id}").json()["rounds"]
-                    if len(rounds) >= 2 and rounds[-1]["status"] == "running":
-                        break
-                    wait_running.check(rounds[-1:])
-                    time.sleep(0.2)
-                time.sleep(1.0)  # sandboxes started, cars on the track
-                sent: list[float] = []
-                latencies = np.array(measure_latency(league.url, None, "/api/leaderboard", rate, seconds,
-                                                     sent=sent)) * 1000
-            finally:
-                stop.set()
-                loader.join()
-            answer = client.get("/api/leaderboard")
+        # (c) leaderboard latency while the two workers race rounds
+        stop, busy = threading.Event(), []
+        loader = threading.Thread(target=keep_racing, args=(client, two_id, stop, busy, 20))
+        loader.start()
+        try:
+            wait_running = Deadline(60, "the next round to start racing")
+            while True:
+                rounds = client.get(f"/api/championships/{two_id}").json()["rounds"]
+                if len(rounds) >= 2 and rounds[-1]["status"] == "running":
+                    break
+                wait_running.check(rounds[-1:])
+                time.sleep(0.2)
+            time.sleep(1.0)  # sandboxes started, cars on the track
+            sent: list[float] = []
+            latencies = np.array(measure_latency(league.url, None, "/api/leaderboard", rate, seconds,
+                                                 sent=sent)) * 1000
+        finally:
+            stop.set()
+            loader.join()
+        answer = client.get("/api/leaderboard")
     p50, p95, p99 = np.percentile(latencies, [50, 95, 99])
     figures.leaderboard = Leaderboard(
         rows=answer.json()["total"], rate=rate, requests=len(latencies),
@@ -515,6 +582,8 @@ def main(argv: list[str] | None = None) -> None:
                         help="rounds per worker setup in (b), the setups alternating; medians are compared")
     parser.add_argument("--skip-heat", action="store_true", help="skip (a)")
     parser.add_argument("--skip-round", action="store_true", help="skip (b) and (c)")
+    parser.add_argument("--before", type=Path, help="a checkout of this project at an earlier commit: (b) races its "
+                                                    "rounds too, side by side")
     parser.add_argument("--per-cpu", action="store_true",
                         help="(b) with one worker on one CPU and two on a CPU each only, and no (c)")
     args = parser.parse_args(argv)
@@ -539,7 +608,7 @@ def main(argv: list[str] | None = None) -> None:
         if not args.skip_round:
             figures = bench_league(models, backend_kind=args.backend, eval_episodes=args.eval_episodes, rate=args.rate,
                                    seconds=seconds, seed=args.seed, round_repeats=max(1, args.round_repeats),
-                                   per_cpu=args.per_cpu)
+                                   per_cpu=args.per_cpu, before=args.before)
             figures.ceiling = ceiling.speedup if ceiling else None
             report_league(figures, args.per_cpu)
     print(f"load average {' '.join(f'{x:.2f}' for x in os.getloadavg())}", flush=True)

@@ -15,11 +15,13 @@ championship round of every student's active agent in heats of 10.
 
 Printed: the time from the last upload to an empty queue (target <= 60 s); p50/p99 of the status
 and leaderboard answers during the rush (target p99 <= 50 ms), idle and during the round; the
-round's wall time. Checked, exit status 1 if one fails: every upload accounted for (good ones
-ready and evaluated, broken ones refused with a reason), one submission per accepted upload; no
-job left queued or running, failed, or done twice (from the database); every evaluation equal,
-figure for figure, to `metrics_run` of the same file with the course's seed and episodes, run
-here; the round done with every student in exactly one heat.
+round's wall time, and where it went (the heats' run times; the queue's waits: the first heat's
+claim, the workers' idle time between heats; the last heat's tail after the other worker's).
+Checked, exit status 1 if one fails: every upload accounted for (good ones ready and evaluated,
+broken ones refused with a reason), one submission per accepted upload; no job left queued or
+running, failed, or done twice (from the database); every evaluation equal, figure for figure, to
+`metrics_run` of the same file with the course's seed and episodes, run here; the round done
+with every student in exactly one heat.
 
 --faults: halfway through the window, as soon as a worker runs a job (30 s at most), that worker
 is killed (SIGKILL) and the API restarted (SIGTERM, started again), then a worker is started
@@ -46,6 +48,7 @@ from _league import (
     Deadline, League, broken_files, checks_line, course_files, course_league, course_settings, enrol, machine,
     percentiles_ms, run_script, student_names, wait_queue_empty,
 )
+from bench_league import HeatWaits
 
 QUEUE_TARGET_S = 60.0
 P99_TARGET_MS = 50.0
@@ -256,12 +259,14 @@ def busy_worker(league: League, timeout: float) -> tuple[subprocess.Popen, int |
 
 
 def run_round(league: League, seed: int, students: int) -> tuple[float, dict]:
-    from bench_league import new_championship, timed_round
+    """The round's seconds from POST to done, and its summary with its races and `waits` (HeatWaits)."""
+    from bench_league import heat_report, new_championship, timed_round
 
     with league.client() as instructor:
         championship_id = new_championship(instructor, "deadline cup", seed)
         seconds, summary = timed_round(instructor, championship_id, timeout=120 + 20 * students)
         summary["races"] = [instructor.get(f"/api/races/{race_id}").json() for race_id in summary["race_ids"]]
+        _, summary["heats_s"], summary["waits"] = heat_report(instructor, summary)
     return seconds, summary
 
 
@@ -408,6 +413,8 @@ class RushFigures:
     drain_s: float  # last upload answered -> queue empty
     latencies: dict[str, dict[str, dict[str, float]]]  # "status"/"leaderboard" -> phase -> p50, p99 (ms), answers
     round_s: float  # POST .../rounds -> the round done
+    round_waits: HeatWaits  # where the round's time went besides racing
+    heats_s: float  # the heats' run times (claimed -> finished), summed
     heats: int
     cars: int
     attempts: dict[int, int]  # jobs by how many attempts they took
@@ -446,7 +453,11 @@ def report(figures: RushFigures) -> None:
         verdict = "ok" if p99 <= P99_TARGET_MS else "OVER TARGET"
         print(f"  GET {what}: during the rush {percentiles(phases['rush'])} (target p99 <= {P99_TARGET_MS:g} ms: "
               f"{verdict}); idle {percentiles(phases['idle'])}; during the round {percentiles(phases['round'])}")
-    print(f"  championship round of {f.heats} heats ({f.cars} cars): {f.round_s:.1f} s from POST to done")
+    w = f.round_waits
+    print(f"  championship round of {f.heats} heats ({f.cars} cars): {f.round_s:.1f} s from POST to done; the heats "
+          f"ran {f.heats_s:.1f} s in all (claimed -> finished), the busiest worker's {w.busiest_s:.1f} s; waiting for "
+          f"the queue: first heat claimed after {w.first_claim_s:.2f} s, workers idle between heats {w.idle_s:.2f} s "
+          f"in all; the last heat finished {w.tail_s:.1f} s after the other worker's")
     print(f"  jobs by attempts: {dict(sorted(f.attempts.items()))}")
     print(checks_line(f.failures, "uploads accounted for, one submission each, no job lost, stuck, failed or done "
                                   "twice, results equal to local metrics_run, the round complete"), flush=True)
@@ -557,7 +568,8 @@ def rush(league: League, args: argparse.Namespace, uploads: list[Upload], databa
         ready=sum(s["status"] == "ready" for s in final.values()),
         rejected=sum(s["status"] == "rejected" for s in final.values()),
         upload_s=last_upload - begin, drain_s=emptied - last_upload, latencies=latency_figures(pollers),
-        round_s=round_s, heats=len(summary["race_ids"]), cars=sum(map(len, summary["heats"])),
+        round_s=round_s, round_waits=summary["waits"], heats_s=summary["heats_s"], heats=len(summary["race_ids"]),
+        cars=sum(map(len, summary["heats"])),
         attempts=dict(attempts), faults={what: at - begin for what, at in events.items()},
         polls_refused=len(pollers.errors) if events else 0, failures=failures)
 

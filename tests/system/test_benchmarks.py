@@ -128,6 +128,15 @@ def test_league_heat(tmp_path):
     assert positive(*f.totals, *f.starts, f.in_process_s) and f.starts[0] <= f.totals[0]
 
 
+def test_league_heat_waits_split_a_rounds_time():
+    """(b)'s breakdown of a round from its heats' (worker, claimed, finished) times."""
+    spans = [("7", 0.4, 2.0), ("8", 0.5, 1.5), ("7", 2.1, 3.0), ("8", 1.8, 2.5), ("8", 2.5, 4.5)]
+    waits = bench_league.heat_waits(spans)
+    assert waits.first_claim_s == 0.4
+    assert waits.idle_s == pytest.approx(0.1 + 0.3 + 0.0)  # 7: 2.0 -> 2.1; 8: 1.5 -> 1.8, 2.5 -> 2.5
+    assert waits.tail_s == pytest.approx(4.5 - 3.0) and waits.busiest_s == pytest.approx(1.0 + 0.7 + 2.0)
+
+
 @pytest.mark.long
 def test_queue_on_sqlite():
     case = bench_queue.measure_case("sqlite", 0.5, False, jobs=2, rng=random.Random(0))

@@ -29,3 +29,6 @@ def test_a_small_rush_passes_the_benchmarks_checks():
         assert phases["rush"]["answers"] > 0 and 0 < phases["rush"]["p50"] <= phases["rush"]["p99"]
     assert all(math.isfinite(value) and value > 0 for value in (figures.upload_s, figures.round_s))
     assert figures.drain_s >= 0
+    waits = figures.round_waits  # where the round's time went: the heats, the queue's waits
+    assert 0 < waits.busiest_s <= figures.heats_s and waits.first_claim_s >= 0 and waits.idle_s >= 0
+    assert 0 <= waits.tail_s < figures.round_s
