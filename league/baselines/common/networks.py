@@ -85,7 +85,8 @@ def anneal_learning_rates(optimizers: Iterable[torch.optim.Optimizer], step: int
 
     A function of the step alone, so a resumed run follows the same schedule. Decaying the rate
     damps the late swings of the off-policy actors (the thesis' "catastrophic forgetting"), which
-    otherwise often end their run driving too fast and crashing.
+    otherwise often end their run driving too fast and crashing: step sizes that decay are what
+    stochastic approximation needs to settle (Robbins and Monro 1951).
     """
     fraction = 1.0 - (1.0 - final_fraction) * min(step / steps, 1.0)
     for optimizer in optimizers:
