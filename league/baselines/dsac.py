@@ -39,7 +39,7 @@ class Args(CommonArgs):
     batch_size: int = option(64, "mini-batch size (table 4.1)")
     policy_lr: float = option(1e-3, "actor learning rate (table 4.1)")
     q_lr: float = option(1e-3, "critic and temperature learning rate (table 4.1)")
-    lr_final_fraction: float = option(0.0, LR_FINAL_HELP)
+    lr_final_fraction: float = option(0.1, LR_FINAL_HELP)
     learning_starts: int = option(1_000, "steps of uniformly random actions before learning starts")
     policy_frequency: int = option(2, "update the actor, the temperature and the targets every this many critic "
                                       "updates (table 4.1: 2)")
