@@ -18,6 +18,7 @@ evaluation; its metadata also holds a second evaluation on fresh tracks (seed 20
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import json
 import sys
 import tempfile
@@ -26,7 +27,7 @@ from pathlib import Path
 import numpy as np
 
 from league.agents import load_agent
-from league.baselines import ALGORITHMS, export_run
+from league.baselines import ALGORITHMS, export_run, load_algorithm
 from league.baselines.common.evaluation import eval_key
 from league.baselines.common.logger import read_csv
 from league.baselines.common.plots import moving_average
@@ -104,7 +105,8 @@ def plot(runs: dict[str, list[Path]], path: Path) -> None:
     import matplotlib.pyplot as plt
 
     algorithms = [a for a in ALGORITHMS if a in runs]
-    fig, axes = plt.subplots(2, 3, figsize=(14, 7.5), squeeze=False)
+    rows = -(-len(algorithms) // 3)  # three panels a row
+    fig, axes = plt.subplots(rows, 3, figsize=(14, 0.5 + 3.5 * rows), squeeze=False)
     for ax, algorithm in zip(axes.flat, algorithms):
         for i, folder in enumerate(runs[algorithm]):
             charts, evals = read_csv(folder / "charts.csv"), read_csv(folder / "eval.csv")
@@ -146,10 +148,22 @@ def bundle(algorithm: str, rows: list[dict], folder: Path, which: str) -> dict:
                        **chosen["evaluation"]},
         "evaluation_fresh_tracks": {"seed": CHECK_SEED, **evaluate_run(run, which, CHECK_SEED)},
         "args": config["args"], "versions": config["versions"],
-        "train_command": f"league train {algorithm} --seed {chosen['seed']} --steps {chosen['steps']}",
+        "train_command": train_command(algorithm, config["args"]),
     }
     (folder / f"{algorithm}.json").write_text(json.dumps(metadata, indent=2) + "\n")
     return metadata
+
+
+def train_command(algorithm: str, args: dict) -> str:
+    """The `league train` command that reproduces a run: its seed and steps, and every argument
+    that differs from today's defaults (so that a later change of a default does not change it)."""
+    defaults = dataclasses.asdict(load_algorithm(algorithm).Args())
+    words = ["league", "train", algorithm, "--seed", str(args["seed"]), "--steps", str(args["steps"])]
+    for name, value in args.items():
+        if name not in ("seed", "steps") and value != defaults.get(name):
+            flag = "--" + name.replace("_", "-")
+            words += [flag if value else f"--no-{flag[2:]}"] if isinstance(value, bool) else [flag, str(value)]
+    return " ".join(words)
 
 
 def main(argv=None) -> int:

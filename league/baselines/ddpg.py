@@ -20,7 +20,7 @@ import torch
 from torch import nn
 
 from league.baselines import td3
-from league.baselines.common.args import obs_dim_of, option
+from league.baselines.common.args import LR_FINAL_HELP, obs_dim_of, option
 from league.baselines.common.networks import ObservationNormalizer, mlp
 from league.baselines.common.run import Run
 
@@ -30,6 +30,7 @@ class Args(td3.Args):
     policy_frequency: int = option(1, "update the actor every this many critic updates (DDPG: every one)")
     policy_noise: float = option(0.0, "no target policy smoothing in DDPG")
     n_critics: int = option(1, "one critic, no clipped double-Q")
+    lr_final_fraction: float = option(0.0, LR_FINAL_HELP)
     hidden: int = option(32, "units of the hidden layers of each actor tower (section 4.1)")
 
 

@@ -24,7 +24,7 @@ import numpy as np
 import torch
 
 from league.baselines import ddpg, td3
-from league.baselines.common.args import obs_dim_of, option
+from league.baselines.common.args import LR_FINAL_HELP, obs_dim_of, option
 from league.baselines.common.networks import fit_normalizers
 from league.baselines.common.run import Run
 
@@ -32,6 +32,8 @@ from league.baselines.common.run import Run
 @dataclass
 class Args(ddpg.Args):
     hidden: int = option(64, "units of the actor's two hidden layers (section 4.1: as TD3's actor)")
+    lr_final_fraction: float = option(1.0, LR_FINAL_HELP + "; DDPG2 keeps the constant rate: decayed to 0, its last "
+                                           "actors did worse (docs/BASELINES.md)")
     exploration_noise: float = option(0.0, "no action noise: the perturbed weights explore")
     param_noise_std: float = option(0.2, "initial standard deviation σ of the noise on the actor's weights (table 4.1)")
     desired_action_std: float = option(0.2, "target distance δ between perturbed and unperturbed actions (adaptive σ)")

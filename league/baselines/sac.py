@@ -19,10 +19,11 @@ import torch
 import torch.nn.functional as F
 from torch import nn
 
-from league.baselines.common.args import CommonArgs, obs_dim_of, option
+from league.baselines.common.args import LR_FINAL_HELP, CommonArgs, obs_dim_of, option
 from league.baselines.common.buffers import ReplayBuffer
 from league.baselines.common.cars import make_cars
-from league.baselines.common.networks import ObservationNormalizer, adam, fit_normalizers, mlp, polyak_update
+from league.baselines.common.networks import (ObservationNormalizer, adam, anneal_learning_rates, fit_normalizers, mlp,
+                                               polyak_update)
 from league.baselines.common.run import Run
 from league.baselines.common.seeding import seed_everything
 
@@ -39,6 +40,7 @@ class Args(CommonArgs):
     batch_size: int = option(64, "mini-batch size (table 4.1)")
     policy_lr: float = option(1e-3, "actor learning rate (table 4.1)")
     q_lr: float = option(1e-3, "critic and temperature learning rate (table 4.1)")
+    lr_final_fraction: float = option(1.0, LR_FINAL_HELP)
     learning_starts: int = option(1_000, "steps of uniformly random actions before learning starts")
     policy_frequency: int = option(1, "update the actor and the temperature every this many critic updates (the "
                                       "thesis: every one)")
@@ -132,6 +134,7 @@ class SoftActorCritic:
         self.target_entropy = -float(ACT_DIM)  # table 4.1: −|A|
         self.log_alpha = torch.full((1,), math.log(args.alpha), requires_grad=True)
         self.a_optimizer = adam([self.log_alpha], lr=args.q_lr)
+        self.optimizers = [self.q_optimizer, self.actor_optimizer, self.a_optimizer]
         self.alpha = args.alpha
 
     def update_critics(self, data) -> dict:
@@ -237,6 +240,7 @@ def train(args: Args, run: Run) -> dict:
             if global_step == args.learning_starts and args.normalize_obs:
                 agent.fit_normalizers(rb.observations[:rb.size])
             if global_step > args.learning_starts:
+                anneal_learning_rates(agent.optimizers, global_step, args.steps, args.lr_final_fraction)
                 data = rb.sample(args.batch_size)
                 losses = losses | agent.update_critics(data)
                 if global_step % args.policy_frequency == 0:

@@ -19,10 +19,11 @@ import torch
 import torch.nn.functional as F
 from torch import nn
 
-from league.baselines.common.args import CommonArgs, obs_dim_of, option
+from league.baselines.common.args import LR_FINAL_HELP, CommonArgs, obs_dim_of, option
 from league.baselines.common.buffers import ReplayBuffer
 from league.baselines.common.cars import make_cars
-from league.baselines.common.networks import ObservationNormalizer, adam, fit_normalizers, mlp, polyak_update
+from league.baselines.common.networks import (ObservationNormalizer, adam, anneal_learning_rates, fit_normalizers, mlp,
+                                               polyak_update)
 from league.baselines.common.run import Run
 from league.baselines.common.seeding import seed_everything
 
@@ -36,6 +37,7 @@ class Args(CommonArgs):
     buffer_size: int = option(50_000, "replay buffer size (table 4.1)")
     batch_size: int = option(64, "mini-batch size (table 4.1)")
     learning_rate: float = option(1e-3, "actor and critic learning rate (table 4.1)")
+    lr_final_fraction: float = option(1.0, LR_FINAL_HELP)
     learning_starts: int = option(1_000, "steps of uniformly random actions before learning starts")
     exploration_noise: float = option(0.1, "standard deviation of the Gaussian action noise N(0, σ) (table 4.1)")
     policy_frequency: int = option(2, "update the actor and the targets every this many critic updates (table 4.1: 2)")
@@ -105,6 +107,7 @@ class TD3:
         self.q_params, self.q_target_params = list(self.critics.parameters()), list(self.critics_target.parameters())
         self.q_optimizer = adam(self.q_params, lr=args.learning_rate)
         self.actor_optimizer = adam(self.actor_params, lr=args.learning_rate)
+        self.optimizers = [self.q_optimizer, self.actor_optimizer]
 
     def update_critics(self, data) -> dict:
         """y = r + γ (1 − d) min_i Q_targ,i(s', clip(μ_targ(s') + clip(ε, −c, c), −1, 1)), ε ~ N(0, σ̃);
@@ -199,6 +202,7 @@ def train(args: Args, run: Run, make: callable = make_learner) -> dict:
             if global_step == args.learning_starts and args.normalize_obs:
                 agent.fit_normalizers(rb.observations[:rb.size])
             if global_step > args.learning_starts:
+                anneal_learning_rates(agent.optimizers, global_step, args.steps, args.lr_final_fraction)
                 data = rb.sample(args.batch_size)
                 losses = losses | agent.update_critics(data)
                 if global_step % args.policy_frequency == 0:

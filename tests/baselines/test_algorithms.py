@@ -84,6 +84,20 @@ def test_same_seed_same_first_updates(algorithm, tmp_path):
     assert not all(torch.equal(weights_a[k], weights_c[k]) for k in weights_a)
 
 
+@pytest.mark.parametrize("algorithm", ["ddpg", "dsac"])
+def test_learning_rates_end_at_their_final_fraction(algorithm, tmp_path):
+    """DDPG and DSAC decay their rates linearly (by default to 0 and to a tenth); the run's last
+    checkpoint holds the rates of its last update."""
+    assert load_algorithm(algorithm).Args().lr_final_fraction == {"ddpg": 0.0, "dsac": 0.1}[algorithm]
+    train_in_process(algorithm, tmp_path, lr_final_fraction=0.25)
+    _, args = tiny_args(algorithm)
+    agent = torch.load(tmp_path / "checkpoint.pt", weights_only=True)["algorithm"]["agent"]
+    initial = ({"q_optimizer": args.learning_rate, "actor_optimizer": args.learning_rate} if algorithm == "ddpg" else
+               {"q_optimizer": args.q_lr, "actor_optimizer": args.policy_lr, "a_optimizer": args.q_lr})
+    for name, lr in initial.items():
+        assert agent[name]["param_groups"][0]["lr"] == pytest.approx(0.25 * lr), name
+
+
 def export_random_actor(algorithm, fmt, tmp_path):
     """The algorithm's deterministic actor with large random weights and fitted observation statistics, exported."""
     module, args = tiny_args(algorithm)

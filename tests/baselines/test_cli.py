@@ -57,6 +57,8 @@ def test_a_new_run_never_overwrites_one_and_resume_checks_the_algorithm(tmp_path
 def test_bad_option_values(tmp_path):
     assert_clean_error(cli("train", "sac", "--observation", "camera", "--out", tmp_path / "r"), "--observation")
     assert_clean_error(cli("train", "sac", "--envs", 0, "--out", tmp_path / "r"), "--envs must be at least 1")
+    assert_clean_error(cli("train", "ddpg", "--lr-final-fraction", 2, "--out", tmp_path / "r"),
+                       "--lr-final-fraction must be in [0, 1]")
     result = cli("train", "sac", "--no-such-option", "3")
     assert result.returncode == 2 and "unrecognized arguments: --no-such-option" in result.stderr
 
@@ -91,6 +93,8 @@ def test_help_lists_the_algorithm_options_with_their_help():
     assert result.returncode == 0
     assert "--policy-frequency" in text and "toward the target entropy -|A| (table 4.1) (default True)" in text
     assert "--neutral-prob" in text and "--resume" in text
+    text = " ".join(cli("train", "ddpg", "--help").stdout.split())
+    assert "--lr-final-fraction" in text and "(SB3's get_linear_fn; 1: constant, as the thesis) (default 0.0)" in text
     result = cli("train", "--help")
     assert result.returncode == 0 and "ddpg_param_noise" in result.stdout
 

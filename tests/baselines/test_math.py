@@ -7,7 +7,7 @@ import pytest
 torch = pytest.importorskip("torch")
 
 from league.baselines.common.buffers import ReplayBuffer  # noqa: E402
-from league.baselines.common.networks import polyak_update  # noqa: E402
+from league.baselines.common.networks import adam, anneal_learning_rates, polyak_update  # noqa: E402
 from league.baselines.common.plots import moving_average  # noqa: E402
 from league.baselines.dsac import critic_loss, critic_targets  # noqa: E402
 from league.baselines.ppo import compute_gae  # noqa: E402
@@ -74,6 +74,19 @@ def test_polyak_update_by_hand():
     polyak_update(params, targets, 0.25)  # θ' ← τθ + (1 − τ)θ'
     assert targets[0].tolist() == [0.25, 0.5]
     assert targets[1].tolist() == [[2.5]]
+
+
+def test_learning_rates_decay_linearly_to_their_final_fraction():
+    """SB3's get_linear_fn: lr(t) = lr0 (1 − (1 − f) t / T), for each optimizer from its own lr0."""
+    weight = torch.zeros(1, requires_grad=True)
+    optimizers = [adam([weight], lr=1e-3), adam([torch.zeros(1, requires_grad=True)], lr=3e-4)]
+    for step, fraction in [(0, 1.0), (500, 0.55), (1000, 0.1), (2000, 0.1)]:
+        anneal_learning_rates(optimizers, step, 1000, final_fraction=0.1)
+        assert [o.param_groups[0]["lr"] for o in optimizers] == pytest.approx([1e-3 * fraction, 3e-4 * fraction])
+    constant = [adam([weight], lr=1e-3)]
+    for step in (1, 700, 1000):  # 1: the thesis' constant rate, exactly
+        anneal_learning_rates(constant, step, 1000, final_fraction=1.0)
+        assert constant[0].param_groups[0]["lr"] == 1e-3
 
 
 def test_replay_buffer_wraps_around_and_round_trips():

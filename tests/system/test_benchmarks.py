@@ -73,6 +73,22 @@ def test_baselines_loop():
     assert sum(f.parts_s.values()) <= f.total_s and positive(f.ms_per_iteration)
 
 
+def test_baselines_final_and_best_actors(tmp_path, capsys):
+    from league.baselines import ddpg
+    from league.baselines.common.run import Run
+
+    args = ddpg.Args(steps=300, learning_starts=100, eval_every=150, eval_episodes=2, final_eval_episodes=0,
+                     checkpoint_every=0)
+    run = Run(tmp_path / "ddpg-1", "ddpg", args, progress=False, tensorboard=False)
+    ddpg.train(args, run)
+    run.close()
+    rows = bench_baselines.measure_actors(tmp_path)
+    assert [(r.algorithm, r.seed) for r in rows] == [("ddpg", 1)]
+    assert all(0 <= e["completed"] <= e["episodes"] == 100 for e in (rows[0].final, rows[0].best))
+    bench_baselines.report_actors(rows)
+    assert "thesis mean 38" in capsys.readouterr().out
+
+
 def test_integrity():
     distances = bench_integrity.distances()
     assert list(distances.formats) == list(bench_integrity.SPEEDS)

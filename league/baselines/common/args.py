@@ -9,6 +9,10 @@ import dataclasses
 from typing import Any
 
 
+LR_FINAL_HELP = ("the learning rates decay linearly to this fraction of their initial value at the last step "
+                 "(SB3's get_linear_fn; 1: constant, as the thesis)")
+
+
 class TrainError(ValueError):
     """A training or export request that cannot be honoured; the message is one line for the user."""
 
@@ -54,6 +58,8 @@ def check_args(args: CommonArgs) -> None:
             raise TrainError(f"--{name} must be at least 1, got {getattr(args, name)}")
     if not 0 <= args.neutral_prob <= 1:
         raise TrainError(f"--neutral-prob must be in [0, 1], got {args.neutral_prob}")
+    if not 0 <= getattr(args, "lr_final_fraction", 1.0) <= 1:
+        raise TrainError(f"--lr-final-fraction must be in [0, 1], got {args.lr_final_fraction}")
     if args.normalize_obs and getattr(args, "learning_starts", 2) < 2:
         raise TrainError("--normalize-obs fits its statistics on the warm-up data: give --learning-starts 2 or more, "
                          "or --no-normalize-obs")

@@ -76,3 +76,19 @@ def adam(params: Iterable[torch.Tensor], lr: float, **kwargs) -> torch.optim.Ada
         return torch.optim.Adam(params, lr=lr, **kwargs)
 
 
+
+
+def anneal_learning_rates(optimizers: Iterable[torch.optim.Optimizer], step: int, steps: int,
+                          final_fraction: float) -> None:
+    """Linear learning-rate decay, Stable-Baselines3's ``get_linear_fn``: every rate goes from its
+    initial value at step 0 to ``final_fraction`` of it at ``steps``; 1 keeps it constant (bit for bit).
+
+    A function of the step alone, so a resumed run follows the same schedule. Decaying the rate
+    damps the late swings of the off-policy actors (the thesis' "catastrophic forgetting"), which
+    otherwise often end their run driving too fast and crashing: step sizes that decay are what
+    stochastic approximation needs to settle (Robbins and Monro 1951).
+    """
+    fraction = 1.0 - (1.0 - final_fraction) * min(step / steps, 1.0)
+    for optimizer in optimizers:
+        for group in optimizer.param_groups:
+            group["lr"] = group.setdefault("initial_lr", group["lr"]) * fraction
