@@ -153,9 +153,10 @@ def check_actions(raw: Any, batch: int) -> np.ndarray:
         actions = actions[None, :]
     if actions.ndim != 2 or actions.shape[0] != batch or actions.shape[1] != 2:
         raise AgentError(_wrong_shape_message(actions.shape, batch), isolable=True)
-    if not np.all(np.isfinite(actions)):
+    if not np.isfinite(actions).all():
         raise AgentError("the model returned NaN or infinite actions", isolable=True)
-    return np.clip(actions, -1.0, 1.0).astype(np.float32, copy=False)
+    # the ufuncs themselves: np.clip's and np.all's Python wrappers cost more than the work on (100, 2)
+    return np.minimum(np.maximum(actions, -1.0, dtype=np.float32), 1.0, dtype=np.float32)
 
 
 def _wrong_shape_message(shape: tuple, batch: int) -> str:
