@@ -63,6 +63,8 @@ def test_a_value_that_cannot_be_read_names_its_variable(monkeypatch):
                                           "two of its heartbeats"),
     ("LEAGUE_LEASE_TIMEOUT_S", "4", "LEAGUE_LEASE_TIMEOUT_S=4.0 must be more than LEAGUE_HEARTBEAT_INTERVAL_S=5.0: "
                                     "a running job's lease would run out between two renewals"),
+    ("LEAGUE_TRACK_CACHE_SIZE", "5000", "LEAGUE_TRACK_CACHE_SIZE='5000': Input should be less than or equal to "
+                                        "4096 (range: [0, 4096])"),
     ("LEAGUE_EVAL_ENV_OPTIONS", '{"obstacle": false}', "LEAGUE_EVAL_ENV_OPTIONS={'obstacle': False}: 'obstacle' is "
                                                        "not an option of the simulator: did you mean 'obstacles'?"),
     ("LEAGUE_EVAL_ENV_OPTIONS", '{"curves": 1000}', "LEAGUE_EVAL_ENV_OPTIONS={'curves': 1000}: curves must be an "
