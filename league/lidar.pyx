@@ -739,15 +739,18 @@ cdef class CarBatch:
                 timed_out[c] = self.oc[c] == RUNNING and self.taken[c] >= max_steps
         return terminated, truncated
 
-    def step_vector(self, cnp.ndarray actions, long max_steps, cnp.ndarray pending, bint refuse_pending=False):
-        """`step_episodes` of every car, for the vector env's step, in one call: `actions` a
-        C-contiguous float32 (n, 2) array (league.cars.as_actions), `pending` the bool (n) array
-        of the cars whose episode ended in an earlier step and is still to be restarted.
+    def step_vector(self, cnp.ndarray actions, long max_steps, cnp.ndarray pending, bint refuse_pending=False,
+                    bint names=True, dict masks=None):
+        """`step_episodes` of every car and `observe`, for the vector env's step, in one call:
+        `actions` a C-contiguous float32 (n, 2) array (league.cars.as_actions), `pending` the
+        bool (n) array of the cars whose episode ended in an earlier step and is still to be
+        restarted.
 
-        Returns (rewards, terminated, truncated, n_done, n_pending): new arrays (a copy of
-        `reward` and step_episodes' flags), the number of cars that stopped or ran out of time
-        in this step and the number pending before it. With `refuse_pending` and a car pending,
-        returns None before anything moves.
+        Returns (obs, rewards, terminated, truncated, infos, n_done, n_pending): new arrays (a
+        copy of `reward` and step_episodes' flags), the number of cars that stopped or ran out of
+        time in this step and the number pending before it; obs and infos are `observe(None,
+        names, masks)`'s, or None when either number is not 0 (episodes to end or restart
+        first). With `refuse_pending` and a car pending, returns None before anything moves.
         """
         if (cnp.PyArray_TYPE(actions) != cnp.NPY_FLOAT32 or actions.ndim != 2 or actions.shape[0] != self.n
                 or actions.shape[1] != 2 or not cnp.PyArray_IS_C_CONTIGUOUS(actions)):
@@ -777,7 +780,10 @@ cdef class CarBatch:
                 n_done += stopped[c] | timed_out[c]
         rewards = cnp.PyArray_EMPTY(1, dims, cnp.NPY_FLOAT64, 0)
         memcpy(cnp.PyArray_DATA(rewards), self.rw, self.n * sizeof(double))
-        return rewards, terminated, truncated, n_done, n_pending
+        if n_done or n_pending:
+            return None, rewards, terminated, truncated, None, n_done, n_pending
+        obs, infos = self.observe(None, names, masks)
+        return obs, rewards, terminated, truncated, infos, n_done, n_pending
 
     def step_one(self, double acc, double turn):
         """`step` for a batch of one car, without building an array; returns its outcome code."""
@@ -868,10 +874,11 @@ cdef class CarBatch:
             view[c] = self.lap_progress(c)
         return out
 
-    def observe(self, shown_running=None, bint names=True):
+    def observe(self, shown_running=None, bint names=True, dict masks=None):
         """A copy of every car's observation and their infos as arrays, those of `info` (dtypes
-        int64 and float64, "outcome" an object array of names, left out without `names`); cars
-        in the bool (n) array `shown_running` are reported as running (out of time, not stopped)."""
+        int64 and float64, "outcome" an object array of names, left out without `names`), then
+        the items of `masks`; cars in the bool (n) array `shown_running` are reported as running
+        (out of time, not stopped)."""
         cdef cnp.npy_intp dims[2]
         dims[0], dims[1] = self.n, self.obs_dim
         obs = cnp.PyArray_EMPTY(2, dims, cnp.NPY_FLOAT32, 0)
@@ -905,6 +912,8 @@ cdef class CarBatch:
         infos["time"] = times
         infos["distance"] = distance
         infos["speed"] = speed
+        if masks:
+            infos.update(masks)
         return obs, infos
 
     def info(self, int c):

@@ -155,15 +155,13 @@ class MicroRacerVectorEnv(EnvRendering, VectorEnv):
         (without either, it would leave everything as it is)."""
         cars, mode = self.cars, self.autoreset_mode
         stepped = cars.step_vector(as_actions(actions, self.num_envs), self.options.max_episode_steps,
-                                   self._needs_reset, mode == AutoresetMode.DISABLED)
+                                   self._needs_reset, mode == AutoresetMode.DISABLED, not self.numeric_infos,
+                                   self._info_masks)
         if stepped is None:
             raise self._pending_error()
-        rewards, terminated, truncated, n_done, n_pending = stepped
+        obs, rewards, terminated, truncated, infos, n_done, n_pending = stepped
         if n_done or n_pending:
             obs, infos = self._end_episodes(terminated, truncated, self._mask)
-        else:
-            obs, infos = cars.observe(None, not self.numeric_infos)
-            infos.update(self._info_masks)
         return obs, rewards, terminated, truncated, infos
 
     def _end_episodes(self, terminated: np.ndarray, truncated: np.ndarray, moving: np.ndarray):
@@ -212,9 +210,7 @@ class MicroRacerVectorEnv(EnvRendering, VectorEnv):
     def _observe(self, truncated: np.ndarray | None = None) -> tuple[np.ndarray, dict[str, Any]]:
         """Copies of the observations and the infos of every sub-env; cars just out of time
         (`truncated`) are still "running"."""
-        obs, infos = self.cars.observe(truncated, not self.numeric_infos)
-        infos.update(self._info_masks)
-        return obs, infos
+        return self.cars.observe(truncated, not self.numeric_infos, self._info_masks)
 
     def scene(self):
         """Sub-env 0: its track, car and trail."""
