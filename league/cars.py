@@ -56,7 +56,10 @@ def as_actions(action, n: int) -> np.ndarray:
         array = np.ascontiguousarray(action, dtype=np.float32)
     except (TypeError, ValueError) as error:
         raise ValueError(f"an action must be numbers [acceleration, turn], got {action!r}") from error
-    if array.shape != (n, 2) and not (n == 1 and array.shape == (2,)):
+    shape = array.shape
+    if shape == (n, 2):
+        return array
+    if not (n == 1 and shape == (2,)):
         expected = "(2,)" if n == 1 else f"({n}, 2)"
-        raise ValueError(f"action must have shape {expected} [acceleration, turn], got shape {array.shape}")
+        raise ValueError(f"action must have shape {expected} [acceleration, turn], got shape {shape}")
     return array.reshape(n, 2)

@@ -14,7 +14,8 @@ import numpy as np
 cimport numpy as cnp
 from libc.math cimport atan2, cos, sin, fabs, fmod, copysign, hypot, isnan, M_PI, NAN
 from libc.stdlib cimport malloc, free
-from libc.string cimport memset
+from libc.string cimport memcpy, memset
+from cpython.ref cimport PyObject, Py_INCREF, Py_XDECREF
 
 from league.constants import OUTCOMES
 
@@ -688,20 +689,28 @@ cdef class CarBatch:
         distance, steps_taken and, for a car finishing in this step, finish_time
         interpolated inside the step. Returns the number of cars still running.
         """
-        cdef int c, running = 0
         cdef bint everyone = moving is None  # the common case: no mask to build or read
         cdef const unsigned char[::1] acts = None if everyone else self._moving(moving)
         if actions.shape[0] != self.n or actions.shape[1] != 2:
             raise ValueError(f"actions must have shape ({self.n}, 2), got ({actions.shape[0]}, {actions.shape[1]})")
+        cdef const unsigned char* mask = NULL
+        if not everyone:
+            mask = &acts[0]
+        return self.advance(&actions[0, 0], mask)
+
+    cdef int advance(self, const float* actions, const unsigned char* moving) except -1:
+        """`step` on raw arrays: actions (n, 2) row-major, `moving` (n) or NULL for every car."""
+        cdef int c, running = 0
         for c in range(self.n):
-            if self.oc[c] == RUNNING and (everyone or acts[c]) and (isnan(actions[c, 0]) or isnan(actions[c, 1])):
+            if (self.oc[c] == RUNNING and (moving == NULL or moving[c])
+                    and (isnan(actions[2 * c]) or isnan(actions[2 * c + 1]))):
                 raise ValueError(f"the action of car {c} contains NaN; actions must be finite numbers in [-1, 1]")
         self.steps += 1
         with nogil:
             for c in range(self.n):
                 self.rw[c] = 0.0
-                if self.oc[c] == RUNNING and (everyone or acts[c]):
-                    self.move(c, actions[c, 0], actions[c, 1])
+                if self.oc[c] == RUNNING and (moving == NULL or moving[c]):
+                    self.move(c, actions[2 * c], actions[2 * c + 1])
                 running += self.oc[c] == RUNNING
         return running
 
@@ -729,6 +738,52 @@ cdef class CarBatch:
                 stopped[c] = self.oc[c] != RUNNING
                 timed_out[c] = self.oc[c] == RUNNING and self.taken[c] >= max_steps
         return terminated, truncated
+
+    def step_vector(self, cnp.ndarray actions, long max_steps, cnp.ndarray pending, bint refuse_pending=False,
+                    bint names=True, dict masks=None):
+        """`step_episodes` of every car and `observe`, for the vector env's step, in one call:
+        `actions` a C-contiguous float32 (n, 2) array (league.cars.as_actions), `pending` the
+        bool (n) array of the cars whose episode ended in an earlier step and is still to be
+        restarted.
+
+        Returns (obs, rewards, terminated, truncated, infos, n_done, n_pending): new arrays (a
+        copy of `reward` and step_episodes' flags), the number of cars that stopped or ran out of
+        time in this step and the number pending before it; obs and infos are `observe(None,
+        names, masks)`'s, or None when either number is not 0 (episodes to end or restart
+        first). With `refuse_pending` and a car pending, returns None before anything moves.
+        """
+        if (cnp.PyArray_TYPE(actions) != cnp.NPY_FLOAT32 or actions.ndim != 2 or actions.shape[0] != self.n
+                or actions.shape[1] != 2 or not cnp.PyArray_IS_C_CONTIGUOUS(actions)):
+            raise ValueError(f"actions must be a C-contiguous float32 array of shape ({self.n}, 2)")
+        if (cnp.PyArray_TYPE(pending) != cnp.NPY_BOOL or pending.ndim != 1 or pending.shape[0] != self.n
+                or not cnp.PyArray_IS_C_CONTIGUOUS(pending)):
+            raise ValueError(f"pending must be a C-contiguous bool array of shape ({self.n},)")
+        cdef const unsigned char* waiting = <const unsigned char*>cnp.PyArray_DATA(pending)
+        cdef int c, n_done = 0, n_pending = 0
+        for c in range(self.n):
+            n_pending += waiting[c] != 0
+        if refuse_pending and n_pending:
+            return None
+        cdef cnp.npy_intp dims[1]
+        dims[0] = self.n
+        terminated = cnp.PyArray_ZEROS(1, dims, cnp.NPY_BOOL, 0)
+        truncated = cnp.PyArray_ZEROS(1, dims, cnp.NPY_BOOL, 0)
+        cdef unsigned char* stopped = <unsigned char*>cnp.PyArray_DATA(terminated)
+        cdef unsigned char* timed_out = <unsigned char*>cnp.PyArray_DATA(truncated)
+        for c in range(self.n):
+            timed_out[c] = self.oc[c] == RUNNING  # running before the step, for now
+        self.advance(<const float*>cnp.PyArray_DATA(actions), NULL)
+        for c in range(self.n):
+            if timed_out[c]:
+                stopped[c] = self.oc[c] != RUNNING
+                timed_out[c] = self.oc[c] == RUNNING and self.taken[c] >= max_steps
+                n_done += stopped[c] | timed_out[c]
+        rewards = cnp.PyArray_EMPTY(1, dims, cnp.NPY_FLOAT64, 0)
+        memcpy(cnp.PyArray_DATA(rewards), self.rw, self.n * sizeof(double))
+        if n_done or n_pending:
+            return None, rewards, terminated, truncated, None, n_done, n_pending
+        obs, infos = self.observe(None, names, masks)
+        return obs, rewards, terminated, truncated, infos, n_done, n_pending
 
     def step_one(self, double acc, double turn):
         """`step` for a batch of one car, without building an array; returns its outcome code."""
@@ -819,6 +874,48 @@ cdef class CarBatch:
             view[c] = self.lap_progress(c)
         return out
 
+    def observe(self, shown_running=None, bint names=True, dict masks=None):
+        """A copy of every car's observation and their infos as arrays, those of `info` (dtypes
+        int64 and float64, "outcome" an object array of names, left out without `names`), then
+        the items of `masks`; cars in the bool (n) array `shown_running` are reported as running
+        (out of time, not stopped)."""
+        cdef cnp.npy_intp dims[2]
+        dims[0], dims[1] = self.n, self.obs_dim
+        obs = cnp.PyArray_EMPTY(2, dims, cnp.NPY_FLOAT32, 0)
+        memcpy(cnp.PyArray_DATA(obs), self.ob, self.n * self.obs_dim * sizeof(float))
+        codes = cnp.PyArray_EMPTY(1, dims, cnp.NPY_INT64, 0)
+        progress = cnp.PyArray_EMPTY(1, dims, cnp.NPY_FLOAT64, 0)
+        times = cnp.PyArray_EMPTY(1, dims, cnp.NPY_FLOAT64, 0)
+        distance = cnp.PyArray_EMPTY(1, dims, cnp.NPY_FLOAT64, 0)
+        speed = cnp.PyArray_EMPTY(1, dims, cnp.NPY_FLOAT64, 0)
+        cdef const unsigned char* shown = NULL
+        if shown_running is not None:
+            if (not isinstance(shown_running, np.ndarray) or shown_running.dtype != np.bool_
+                    or shown_running.shape != (self.n,) or not shown_running.flags.c_contiguous):
+                raise ValueError(f"shown_running must be a C-contiguous bool array of shape ({self.n},)")
+            shown = <const unsigned char*>cnp.PyArray_DATA(shown_running)
+        cdef cnp.int64_t* code = <cnp.int64_t*>cnp.PyArray_DATA(codes)
+        cdef double* p = <double*>cnp.PyArray_DATA(progress)
+        cdef double* t = <double*>cnp.PyArray_DATA(times)
+        cdef int c
+        for c in range(self.n):
+            code[c] = RUNNING if shown != NULL and shown[c] else self.oc[c]
+            p[c] = self.lap_progress(c)
+            t[c] = self.taken[c] * self.tstep  # numpy's steps_taken * tstep: the int as a double, times tstep
+        memcpy(cnp.PyArray_DATA(distance), self.ds, self.n * sizeof(double))
+        memcpy(cnp.PyArray_DATA(speed), self.vs, self.n * sizeof(double))
+        infos = {}
+        if names:
+            infos["outcome"] = outcome_names(code, self.n)
+        infos["outcome_code"] = codes
+        infos["progress"] = progress
+        infos["time"] = times
+        infos["distance"] = distance
+        infos["speed"] = speed
+        if masks:
+            infos.update(masks)
+        return obs, infos
+
     def info(self, int c):
         """Car c's outcome (name and code), lap progress, time (s), distance and speed.
 
@@ -833,6 +930,25 @@ cdef class CarBatch:
             "distance": float64(self.ds[c]),
             "speed": float64(self.vs[c]),
         }
+
+
+cdef tuple OUTCOME_NAMES = tuple(OUTCOMES)
+
+
+cdef object outcome_names(const cnp.int64_t* codes, int n):
+    """An object array of the outcomes' names (numpy's `np.array(OUTCOMES, dtype=object)[codes]`)."""
+    cdef cnp.npy_intp dims[1]
+    dims[0] = n
+    names = cnp.PyArray_EMPTY(1, dims, cnp.NPY_OBJECT, 0)  # every item None
+    cdef PyObject** items = <PyObject**>cnp.PyArray_DATA(names)
+    cdef PyObject* name
+    cdef int c
+    for c in range(n):
+        name = <PyObject*>OUTCOME_NAMES[codes[c]]
+        Py_INCREF(<object>name)
+        Py_XDECREF(items[c])
+        items[c] = name
+    return names
 
 
 STATE_ARRAYS = ("x", "y", "heading", "speed", "theta", "outcome", "rays", "obs", "reward",

@@ -13,13 +13,12 @@ except ImportError as error:  # Gymnasium 0.29: the single and the PettingZoo en
 from gymnasium.vector.utils import batch_space
 
 from league.cars import as_actions, new_cars, place_car
-from league.constants import OUTCOMES, RUNNING
+from league.constants import RUNNING
 from league.env import action_space, observation_space
 from league.options import RaceOptions
 from league.render import EnvRendering
 from league.track import Track, episode_start
 
-OUTCOME_NAMES = np.array(OUTCOMES, dtype=object)
 INFO_KEYS = ("outcome", "outcome_code", "progress", "time", "distance", "speed")
 
 
@@ -111,6 +110,7 @@ class MicroRacerVectorEnv(EnvRendering, VectorEnv):
         self._needs_reset = np.zeros(self.num_envs, dtype=bool)  # done in the previous step
         self._mask = np.ones(self.num_envs, dtype=bool)
         self._mask.flags.writeable = False
+        self._info_masks = {f"_{key}": self._mask for key in self.info_keys}
         self._trail: list[tuple[float, float]] = []
 
     @property
@@ -131,26 +131,49 @@ class MicroRacerVectorEnv(EnvRendering, VectorEnv):
         for i in np.flatnonzero(mask):
             self._start_episode(i, options)
         self._needs_reset[mask] = False
-        return self.cars.obs.copy(), self._infos(np.zeros(self.num_envs, dtype=bool))
+        return self._observe()
 
     def step(self, actions, moving=None):
+        if moving is None and self.render_mode is None:
+            return self._step_all(actions)
         cars, mode = self.cars, self.autoreset_mode
         moving = self._mask if moving is None else np.asarray(moving, dtype=bool)  # (all: the read-only mask)
         if mode == AutoresetMode.DISABLED and (self._needs_reset & moving).any():
-            raise RuntimeError(f"sub-envs {np.flatnonzero(self._needs_reset).tolist()} are done: reset them with "
-                               "reset(options={'reset_mask': mask}) before stepping (autoreset_mode DISABLED)")
+            raise self._pending_error()
         moving_first = cars.outcome[0] == RUNNING and moving[0]
         terminated, truncated = cars.step_episodes(as_actions(actions, self.num_envs), self.options.max_episode_steps,
                                                    moving)
         rewards = cars.reward.copy()
         if self.render_mode is not None and moving_first:
             self._trail.append((float(cars.x[0]), float(cars.y[0])))
+        obs, infos = self._end_episodes(terminated, truncated, moving)
+        return obs, rewards, terminated, truncated, infos
+
+    def _step_all(self, actions):
+        """`step` of every sub-env, not rendered: one call of the compiled core, and the Python
+        bookkeeping of `_end_episodes` only in the steps where an episode ends or starts again
+        (without either, it would leave everything as it is)."""
+        cars, mode = self.cars, self.autoreset_mode
+        stepped = cars.step_vector(as_actions(actions, self.num_envs), self.options.max_episode_steps,
+                                   self._needs_reset, mode == AutoresetMode.DISABLED, not self.numeric_infos,
+                                   self._info_masks)
+        if stepped is None:
+            raise self._pending_error()
+        obs, rewards, terminated, truncated, infos, n_done, n_pending = stepped
+        if n_done or n_pending:
+            obs, infos = self._end_episodes(terminated, truncated, self._mask)
+        return obs, rewards, terminated, truncated, infos
+
+    def _end_episodes(self, terminated: np.ndarray, truncated: np.ndarray, moving: np.ndarray):
+        """After the cars' step: retire the cars out of time, restart the episodes the autoreset
+        mode restarts now; the observations and infos."""
+        cars, mode = self.cars, self.autoreset_mode
         done = terminated | truncated
         restart, final = self._needs_reset & moving, None  # next step: those done in the previous step
         if mode == AutoresetMode.SAME_STEP:
             restart = done
             if done.any():
-                final = self._infos(truncated), cars.obs.copy()
+                final = self._observe(truncated)
         if truncated.any():
             for i in np.flatnonzero(truncated):
                 cars.retire(i)  # out of time: it stops where it is until its reset
@@ -161,10 +184,14 @@ class MicroRacerVectorEnv(EnvRendering, VectorEnv):
             self._needs_reset = np.zeros(self.num_envs, dtype=bool)
         else:
             self._needs_reset = done if moving is self._mask else np.where(moving, done, self._needs_reset)
-        infos = self._infos(truncated & ~restart)
+        obs, infos = self._observe(truncated & ~restart)
         if final is not None:
             _add_final(infos, *final, done, self.info_keys)
-        return cars.obs.copy(), rewards, terminated, truncated, infos
+        return obs, infos
+
+    def _pending_error(self) -> RuntimeError:
+        return RuntimeError(f"sub-envs {np.flatnonzero(self._needs_reset).tolist()} are done: reset them with "
+                            "reset(options={'reset_mask': mask}) before stepping (autoreset_mode DISABLED)")
 
     def _start_episode(self, i: int, options: dict | None = None) -> None:
         """Sub-env i's next episode: as `MicroRacerEnv.reset`, from the sub-env's own generator."""
@@ -180,17 +207,10 @@ class MicroRacerVectorEnv(EnvRendering, VectorEnv):
     def _fill_pool(self, pool_seed: int) -> None:
         self._pool = [episode_start(pool_seed + k, self.options)[0] for k in range(self.track_pool)]
 
-    def _infos(self, truncated: np.ndarray) -> dict[str, Any]:
-        """The infos of every sub-env; cars just out of time (`truncated`) are still "running"."""
-        cars = self.cars
-        codes = cars.outcome.astype(np.int64)
-        if truncated.any():
-            codes[truncated] = RUNNING
-        infos = {} if self.numeric_infos else {"outcome": OUTCOME_NAMES[codes]}
-        infos.update(outcome_code=codes, progress=cars.progress_all(), time=cars.steps_taken * cars.tstep,
-                     distance=cars.distance.copy(), speed=cars.speed.copy())
-        infos.update({f"_{key}": self._mask for key in self.info_keys})
-        return infos
+    def _observe(self, truncated: np.ndarray | None = None) -> tuple[np.ndarray, dict[str, Any]]:
+        """Copies of the observations and the infos of every sub-env; cars just out of time
+        (`truncated`) are still "running"."""
+        return self.cars.observe(truncated, not self.numeric_infos, self._info_masks)
 
     def scene(self):
         """Sub-env 0: its track, car and trail."""
@@ -200,7 +220,7 @@ class MicroRacerVectorEnv(EnvRendering, VectorEnv):
         return self.tracks[0], cars.x[:1], cars.y[:1], cars.heading[:1], [np.array(self._trail)]
 
 
-def _add_final(infos: dict, final_infos: dict, final_obs: np.ndarray, done: np.ndarray, keys: tuple) -> None:
+def _add_final(infos: dict, final_obs: np.ndarray, final_infos: dict, done: np.ndarray, keys: tuple) -> None:
     """Same-step autoreset: the done sub-envs' last observations and infos, as SyncVectorEnv gives them."""
     infos["final_obs"] = np.full(len(done), None, dtype=object)
     for i in np.flatnonzero(done):

@@ -268,3 +268,74 @@ def test_bad_actions_and_masks_are_clear_errors():
         venv.step(np.full((2, 2), np.nan))
     with pytest.raises(ValueError, match="reset_mask"):
         venv.reset(options={"reset_mask": [True, False]})
+
+
+def numpy_infos(cars, truncated, names=True):
+    """The infos as the vector env built them with numpy before the compiled core built them."""
+    codes = cars.outcome.astype(np.int64)
+    codes[truncated] = league.constants.RUNNING
+    infos = {"outcome": np.array(league.constants.OUTCOMES, dtype=object)[codes]} if names else {}
+    infos.update(outcome_code=codes, progress=np.array([cars.progress(c) for c in range(cars.n)]),
+                 time=cars.steps_taken * cars.tstep, distance=cars.distance.copy(), speed=cars.speed.copy())
+    return infos
+
+
+def assert_identical(mine, theirs):
+    """Same keys in the same order, same types, dtypes and values (nested dicts and object arrays too)."""
+    if isinstance(theirs, tuple):
+        assert type(mine) is tuple and len(mine) == len(theirs)
+        for a, b in zip(mine, theirs):
+            assert_identical(a, b)
+    elif isinstance(theirs, dict):
+        assert list(mine) == list(theirs)
+        for key in theirs:
+            assert_identical(mine[key], theirs[key])
+    elif isinstance(theirs, np.ndarray):
+        assert isinstance(mine, np.ndarray) and mine.dtype == theirs.dtype and mine.shape == theirs.shape
+        if theirs.dtype == object:
+            assert len(mine) == len(theirs)
+            for a, b in zip(mine, theirs):
+                assert_identical(a, b)
+        else:
+            assert mine.tobytes() == theirs.tobytes()  # bit for bit, NaN and -0.0 included
+    else:
+        assert type(mine) is type(theirs) and mine == theirs
+
+
+def test_the_compiled_infos_are_the_numpy_ones_bit_for_bit():
+    venv = league.make_vector_env(num_envs=6, max_episode_steps=30)
+    obs, _ = venv.reset(seed=9)
+    cars, seen = venv.cars, set()
+    for _ in range(200):
+        for shown in (None, np.arange(6) % 2 == 0):
+            for names in (True, False):
+                copy, infos = cars.observe(shown, names)
+                assert_identical(infos, numpy_infos(cars, np.zeros(6, bool) if shown is None else shown, names))
+                assert_identical(copy, cars.obs.copy())
+        seen.update(cars.outcome.tolist())
+        obs, *_ = venv.step(drive(obs))
+    assert len(seen) >= 2  # running and ended cars
+
+
+@pytest.mark.parametrize("mode", list(AutoresetMode))
+@pytest.mark.parametrize("options", [{}, {"numeric_infos": True, "observation": "lidar"}])
+def test_the_fast_step_of_every_sub_env_is_the_plain_step_bit_for_bit(mode, options):
+    # step(actions) takes the compiled fast path; step(actions, moving=all True) the plain one
+    fast, plain = (league.make_vector_env(num_envs=5, autoreset_mode=mode, max_episode_steps=45, **options)
+                   for _ in range(2))
+    results = fast.reset(seed=3), plain.reset(seed=3)
+    assert_identical(*results)
+    everyone, ended = np.ones(5, dtype=bool), 0
+    for _ in range(250):
+        actions = drive(results[0][0])
+        results = fast.step(actions), plain.step(actions, moving=everyone)
+        assert_identical(*results)
+        done = results[0][2] | results[0][3]
+        ended += done.sum()
+        if mode == AutoresetMode.DISABLED and done.any():
+            results = fast.reset(options={"reset_mask": done}), plain.reset(options={"reset_mask": done})
+            assert_identical(*results)
+    assert ended >= 10
+    with pytest.raises(ValueError, match="NaN"):
+        fast.step(np.full((5, 2), np.nan))
+    assert_identical(fast.step(drive(results[0][0])), plain.step(drive(results[0][0]), moving=everyone))
