@@ -269,12 +269,17 @@ def metrics_run(agent: Agent | str | os.PathLike, episodes: int = 100, seed: int
     results: list[EpisodeResult | None] = [None] * episodes
     with tqdm(total=episodes, disable=not progress, desc=agent.name, unit="ep", dynamic_ncols=True) as bar:
 
+        completed = 0
+
         def finish(i: int, result: EpisodeResult) -> None:
+            nonlocal completed
             results[i] = result
+            completed += result.outcome == "finished"
             if on_episode is not None:
                 on_episode(i, result)
-            bar.update(1)
-            bar.set_postfix(completed=sum(r is not None and r.outcome == "finished" for r in results), refresh=False)
+            if progress:
+                bar.update(1)
+                bar.set_postfix(completed=completed, refresh=False)
 
         try:
             _reset(agent)
@@ -309,25 +314,33 @@ def _run_lockstep(agent: Agent, seeds: list[int], options: RaceOptions,
         finish(i, EpisodeResult(seeds[i], int(steps[i]), float(returns[i]),
                                 float(speed_sums[i] / max(steps[i], 1)), outcome, reason))
 
+    # Each step's bookkeeping is a few whole-array operations (no per-episode Python but for the
+    # episodes that end): the same additions, car by car, as masked assignments would make.
+    outcome, reward, speed = cars.outcome, cars.reward, cars.speed  # (the batch's own arrays, updated in place)
+    whole = len(outcome) == n
     while True:
-        rows = np.flatnonzero(cars.outcome[:n] == RUNNING)
+        running = outcome == RUNNING if whole else outcome[:n] == RUNNING
+        rows = running.nonzero()[0]
         if not len(rows):
             return
         answers, failures = _ask(agent, cars.obs[rows])
-        for k, reason in failures.items():
-            end(int(rows[k]), "dnf", reason)
-        if len(failures) == len(rows):
-            continue
+        if failures:
+            for k, reason in failures.items():
+                end(int(rows[k]), "dnf", reason)
+            if len(failures) == len(rows):
+                continue
         actions[rows] = answers
-        moving = cars.outcome == RUNNING
+        moving = outcome == RUNNING if failures or not whole else running
         stopped, timed_out = cars.step_episodes(actions, options.max_episode_steps)
-        steps[moving] += 1
-        returns[moving] += cars.reward[moving]
-        driving = moving & ~stopped & ~timed_out
-        speed_sums[driving] += cars.speed[driving]  # SPEC: speeds of the non-final steps, divided by all steps
-        for i in np.flatnonzero(stopped | timed_out):
-            outcome = "timeout" if timed_out[i] else OUTCOMES[cars.outcome[i]]
-            end(int(i), outcome, None if cars.outcome[i] == FINISHED else OUTCOME_TEXT[outcome])
+        np.add(steps, 1, out=steps, where=moving)
+        np.add(returns, reward, out=returns, where=moving)
+        ended = stopped | timed_out  # (cars that were moving)
+        driving = moving ^ ended
+        np.add(speed_sums, speed, out=speed_sums, where=driving)  # SPEC: speeds of the non-final steps, / all steps
+        if ended.any():
+            for i in ended.nonzero()[0]:
+                outcome_i = "timeout" if timed_out[i] else OUTCOMES[outcome[i]]
+                end(int(i), outcome_i, None if outcome[i] == FINISHED else OUTCOME_TEXT[outcome_i])
 
 
 def _ask(agent: Agent, obs: np.ndarray) -> tuple[np.ndarray, dict[int, str]]:
