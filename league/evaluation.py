@@ -269,12 +269,17 @@ def metrics_run(agent: Agent | str | os.PathLike, episodes: int = 100, seed: int
     results: list[EpisodeResult | None] = [None] * episodes
     with tqdm(total=episodes, disable=not progress, desc=agent.name, unit="ep", dynamic_ncols=True) as bar:
 
+        completed = 0
+
         def finish(i: int, result: EpisodeResult) -> None:
+            nonlocal completed
             results[i] = result
+            completed += result.outcome == "finished"
             if on_episode is not None:
                 on_episode(i, result)
-            bar.update(1)
-            bar.set_postfix(completed=sum(r is not None and r.outcome == "finished" for r in results), refresh=False)
+            if progress:
+                bar.update(1)
+                bar.set_postfix(completed=completed, refresh=False)
 
         try:
             _reset(agent)
@@ -309,25 +314,33 @@ def _run_lockstep(agent: Agent, seeds: list[int], options: RaceOptions,
         finish(i, EpisodeResult(seeds[i], int(steps[i]), float(returns[i]),
                                 float(speed_sums[i] / max(steps[i], 1)), outcome, reason))
 
+    # Each step's bookkeeping is a few whole-array operations (no per-episode Python but for the
+    # episodes that end): the same additions, car by car, as masked assignments would make.
+    outcome, reward, speed = cars.outcome, cars.reward, cars.speed  # (the batch's own arrays, updated in place)
+    whole = len(outcome) == n
     while True:
-        rows = np.flatnonzero(cars.outcome[:n] == RUNNING)
+        running = outcome == RUNNING if whole else outcome[:n] == RUNNING
+        rows = running.nonzero()[0]
         if not len(rows):
             return
         answers, failures = _ask(agent, cars.obs[rows])
-        for k, reason in failures.items():
-            end(int(rows[k]), "dnf", reason)
-        if len(failures) == len(rows):
-            continue
+        if failures:
+            for k, reason in failures.items():
+                end(int(rows[k]), "dnf", reason)
+            if len(failures) == len(rows):
+                continue
         actions[rows] = answers
-        moving = cars.outcome == RUNNING
+        moving = outcome == RUNNING if failures or not whole else running
         stopped, timed_out = cars.step_episodes(actions, options.max_episode_steps)
-        steps[moving] += 1
-        returns[moving] += cars.reward[moving]
-        driving = moving & ~stopped & ~timed_out
-        speed_sums[driving] += cars.speed[driving]  # SPEC: speeds of the non-final steps, divided by all steps
-        for i in np.flatnonzero(stopped | timed_out):
-            outcome = "timeout" if timed_out[i] else OUTCOMES[cars.outcome[i]]
-            end(int(i), outcome, None if cars.outcome[i] == FINISHED else OUTCOME_TEXT[outcome])
+        np.add(steps, 1, out=steps, where=moving)
+        np.add(returns, reward, out=returns, where=moving)
+        ended = stopped | timed_out  # (cars that were moving)
+        driving = moving ^ ended
+        np.add(speed_sums, speed, out=speed_sums, where=driving)  # SPEC: speeds of the non-final steps, / all steps
+        if ended.any():
+            for i in ended.nonzero()[0]:
+                outcome_i = "timeout" if timed_out[i] else OUTCOMES[outcome[i]]
+                end(int(i), outcome_i, None if outcome[i] == FINISHED else OUTCOME_TEXT[outcome_i])
 
 
 def _ask(agent: Agent, obs: np.ndarray) -> tuple[np.ndarray, dict[int, str]]:
@@ -464,35 +477,63 @@ def race(agents: Sequence[Agent | str | os.PathLike], seed: int = 0, names: Sequ
 
 
 def _drive(penv: Any, agents: list[Agent], cars: list[CarLog], obs: dict, infos: dict) -> None:
-    """Step the race until every car is done; a car whose agent fails is retired (DNF)."""
-    states = penv.car_states()
+    """Step the race until every car is done; a car whose agent fails is retired (DNF).
+
+    Each step asks every racing car's agent first and only then waits for the answers (agents in
+    sandboxes think in parallel), then moves the cars with the simulator's arrays
+    (`step_arrays`): the states and actions are kept as one array per step and made into each
+    car's log at the end, so no Python runs per car beyond its agent's call, but when a car ends
+    (its info then, as the PettingZoo step gives it)."""
+    batch, names = penv.cars, penv.possible_agents
     for i, car in enumerate(cars):
-        car.record_state(states, i)
-        car.info = infos[f"car_{i}"]
+        car.info = infos[names[i]]
         if car.outcome == "dnf":
-            penv.retire(f"car_{i}")
+            penv.retire(names[i])
+    n = len(cars)
+    taken = np.zeros(n, dtype=np.int64)  # steps of each car: a car steps from the start until it is done
+    states = [(batch.x.copy(), batch.y.copy(), batch.heading.copy(), batch.speed.copy())]
+    actions = []
     while penv.agents:
-        # every car is asked before any answer is awaited: agents in sandboxes think in parallel
-        pending = {car_id: _request(agents[int(car_id[4:])], obs[car_id]) for car_id in penv.agents}
-        actions = {}
-        for car_id, answer in pending.items():
-            i = int(car_id[4:])
+        seen = batch.obs.copy()  # this step's observations, the agents' own (no agent sees the simulator's)
+        live = [int(car_id[4:]) for car_id in penv.agents]
+        pending = [_request(agents[i], seen[i]) for i in live]
+        step = np.zeros((n, 2), dtype=np.float32)
+        stepped = []
+        for i, answer in zip(live, pending):
             try:
-                actions[car_id] = answer()[0]
+                step[i] = answer()[0]
             except AgentError as error:
+                cars[i].info = penv._infos({names[i]: i})[names[i]]  # its last step's (it has not moved since)
                 cars[i].outcome, cars[i].reason = "dnf", error.reason
-                penv.retire(car_id)
-        if not actions:
+                penv.retire(names[i])
+            else:
+                stepped.append(i)
+        if not stepped:
             break
-        obs, _, terminations, truncations, infos = penv.step(actions)
-        states = penv.car_states()
-        for car_id in actions:
-            i = int(car_id[4:])
-            cars[i].record_action(actions[car_id])
-            cars[i].record_state(states, i)
-            cars[i].info = infos[car_id]
-            if terminations[car_id] or truncations[car_id]:
-                cars[i].outcome = infos[car_id]["outcome"] if terminations[car_id] else "timeout"
+        _, _, terminated, truncated = penv.step_arrays(step)
+        taken[stepped] += 1
+        states.append((batch.x.copy(), batch.y.copy(), batch.heading.copy(), batch.speed.copy()))
+        actions.append(step)
+        ended = terminated | truncated
+        if ended.any():
+            done = ended.nonzero()[0]
+            for i in done:
+                cars[i].info = info = penv._infos({names[i]: i})[names[i]]
+                cars[i].outcome = info["outcome"] if terminated[i] else "timeout"
+            gone = {names[i] for i in done}
+            penv.agents = [car_id for car_id in penv.agents if car_id not in gone]
+    _record(cars, taken, states, actions)
+
+
+def _record(cars: list[CarLog], taken: np.ndarray, states: list[tuple], actions: list[np.ndarray]) -> None:
+    """Each car's log from the race's arrays: its states from the start and its actions, step by step."""
+    x, y, heading, speed = (np.stack(column) for column in zip(*states))
+    moves = np.stack(actions) if actions else np.zeros((0, len(cars), 2), dtype=np.float32)
+    for i, car in enumerate(cars):
+        k = int(taken[i])
+        car.x, car.y = x[:k + 1, i].tolist(), y[:k + 1, i].tolist()
+        car.heading, car.speed = heading[:k + 1, i].tolist(), speed[:k + 1, i].tolist()
+        car.acc, car.turn = moves[:k, i, 0].tolist(), moves[:k, i, 1].tolist()
 
 
 def _request(agent: Agent, observation: np.ndarray) -> Callable[[], np.ndarray]:

@@ -5,7 +5,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 from typing import Any
 
-from sqlalchemy import delete
+from sqlalchemy import delete, insert
 from sqlalchemy.orm import Session
 
 from league.agents import AgentError
@@ -70,9 +70,11 @@ class EvaluateSubmission:
 def _store_result(session: Session, evaluation: Evaluation, result: dict[str, Any]) -> None:
     """Totals and episodes; replaces any earlier rows of this evaluation (idempotent)."""
     session.execute(delete(EpisodeResult).where(EpisodeResult.evaluation_id == evaluation.id))
-    session.add_all(EpisodeResult(evaluation_id=evaluation.id, index=i, seed=e["seed"], steps=e["steps"],
-                                  episode_return=e["return"], mean_speed=e["mean_speed"], outcome=e["outcome"],
-                                  reason=e["reason"]) for i, e in enumerate(result["episodes"]))
+    rows = [{"evaluation_id": evaluation.id, "index": i, "seed": e["seed"], "steps": e["steps"],
+             "episode_return": e["return"], "mean_speed": e["mean_speed"], "outcome": e["outcome"],
+             "reason": e["reason"]} for i, e in enumerate(result["episodes"])]
+    if rows:  # one bulk INSERT of plain rows: no ORM object (and unit of work) per episode
+        session.execute(insert(EpisodeResult), rows)
     for key in ("completed", "episodes_total", "mean_return", "mean_steps", "mean_speed"):
         setattr(evaluation, key, result[key])
     # what produced it, as the worker's metrics_run recorded it: its simulator may not be the API's

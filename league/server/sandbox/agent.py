@@ -20,7 +20,7 @@ import numpy as np
 
 from league.agents import Agent, AgentError, check_actions
 from league.server.sandbox.log import LogBuffer
-from league.server.sandbox.process import Budget, SandboxFailure, SandboxProcess
+from league.server.sandbox.process import WALL_BACKSTOP, WALL_MARGIN_S, Budget, SandboxFailure, SandboxProcess
 from league.validation.limits import SandboxLimits
 from league.validation.timing import CpuAllowance, run_spent
 
@@ -72,25 +72,26 @@ class SandboxedAgent(Agent):
         """Send a batch; return the function that waits for its answer within the call's budget."""
         if self.cancel.is_set():
             raise AgentError("the evaluation was cancelled")
-        process = self._live_process()
-        if self.allowance.run_left() <= 0:
+        process = self._process or self._live_process()
+        allowance = self.allowance
+        if allowance.run_left() <= 0:
             raise AgentError(run_spent(self.limits))
         rows = obs.shape[0]
-        over = self.allowance.call_over(rows)  # the reason, should the call use up its budget
-        budget = Budget.for_call(process.cpu_time, self.allowance.for_call(rows))
+        budget = Budget(process.cpu_time, cpu_s := allowance.for_call(rows), WALL_BACKSTOP * cpu_s + WALL_MARGIN_S)
         try:
             process.send_observations(obs)
         except SandboxFailure as failure:
-            self.allowance.account(budget.used(), rows)
-            raise AgentError(self._failure_reason(failure, budget, over)) from failure
+            reason = self._failure_reason(failure, budget, rows)  # (before the call is accounted)
+            allowance.account(budget.used(), rows)
+            raise AgentError(reason) from failure
 
         def receive() -> np.ndarray:
             try:
                 return process.receive_actions(budget)
             except SandboxFailure as failure:
-                raise AgentError(self._failure_reason(failure, budget, over)) from failure
+                raise AgentError(self._failure_reason(failure, budget, rows)) from failure
             finally:
-                self.allowance.account(budget.used(), rows)
+                allowance.account(budget.used(), rows)
 
         return receive
 
@@ -104,7 +105,8 @@ class SandboxedAgent(Agent):
         """Seconds of CPU of the calls of this run."""
         return self.allowance.used
 
-    def _failure_reason(self, failure: SandboxFailure, budget: Budget, over: str) -> str:
+    def _failure_reason(self, failure: SandboxFailure, budget: Budget, rows: int) -> str:
+        """Why the call failed; asked before the call is accounted (the allowance it had)."""
         if failure.fatal:
             self._process.close()
             self._process = None
@@ -114,7 +116,7 @@ class SandboxedAgent(Agent):
             reason = (f"the model stopped answering without using the CPU "
                       f"(no answer after {budget.wall_s:g} s)")
         else:
-            reason = over
+            reason = self.allowance.call_over(rows)  # why a call that used up its budget failed
         self.last_failure = reason
         self.log.note(reason)
         return reason

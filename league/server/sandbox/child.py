@@ -430,6 +430,11 @@ def keep_our_nice_in_our_autogroup() -> None:
 
 
 def fork_sandbox(request: dict, fds: list[int], control) -> int:
+    import gc
+
+    # what the server holds (its runtimes' objects) out of the collector's reach, in the sandbox: a
+    # collection there would write to every object's pages, copying them from the server's (fork)
+    gc.freeze()
     pid = os.fork()
     if pid:
         for fd in fds:
@@ -462,21 +467,63 @@ def fork_sandbox(request: dict, fds: list[int], control) -> int:
 
 
 class Reader:
-    """Buffered reads of the parent's requests: a request written at once is read at once."""
+    """Buffered reads of the parent's requests into one buffer kept for the sandbox's life: a
+    request written at once is read at once, with no allocation per read."""
 
-    def __init__(self, fd: int):
-        self.fd, self.unread = fd, bytearray()
+    def __init__(self, fd: int, size: int = 65536):
+        self.fd, self.buffer = fd, bytearray(size)
+        self.view = memoryview(self.buffer)
+        self.start = self.end = 0  # the unread bytes: buffer[start:end]
+
+    def fill(self, size: int) -> bool:
+        """At least `size` unread bytes from buffer[start] (False at the end of input)."""
+        if self.end - self.start >= size:
+            return True
+        if self.start + size > len(self.buffer):  # move what is unread to the front, growing if need be
+            unread = bytes(self.view[self.start:self.end])
+            if size > len(self.buffer):
+                self.buffer = bytearray(size)
+                self.view = memoryview(self.buffer)
+            self.buffer[:len(unread)] = unread
+            self.start, self.end = 0, len(unread)
+        while self.end - self.start < size:
+            got = os.readv(self.fd, [self.view[self.end:]])
+            if not got:
+                return False
+            self.end += got
+        return True
+
+    def consume(self, size: int) -> None:
+        self.start += size
+        if self.start == self.end:
+            self.start = self.end = 0
 
     def read_exact(self, size: int) -> bytes:
         """`size` bytes, or b"" at the end of input."""
-        while len(self.unread) < size:
-            chunk = os.read(self.fd, max(65536, size - len(self.unread)))
-            if not chunk:
-                return b""
-            self.unread += chunk
-        data = bytes(self.unread[:size])
-        del self.unread[:size]
+        if not self.fill(size):
+            return b""
+        data = bytes(self.view[self.start:self.start + size])
+        self.consume(size)
         return data
+
+
+class Writer:
+    """Action frames built in one buffer kept for the sandbox's life and sent with one write."""
+
+    AT = 3  # the frame starts here, so that its floats (after 9 bytes of header) are aligned
+
+    def __init__(self, fd: int, rows: int = MAX_BATCH):
+        import numpy as np
+
+        self.fd, self.buffer = fd, bytearray(self.AT + HEADER.size + 8 * rows)
+        self.view = memoryview(self.buffer)
+        self.floats = np.frombuffer(self.buffer, dtype="<f4", offset=self.AT + HEADER.size)
+
+    def actions(self, actions) -> None:
+        n, d = actions.shape
+        HEADER.pack_into(self.buffer, self.AT, b"A", n, d)
+        self.floats[:n * d] = actions.reshape(-1)
+        send(self.fd, self.view[self.AT:self.AT + HEADER.size + 4 * n * d])
 
 
 def send(fd: int, data: bytes) -> None:
@@ -495,22 +542,30 @@ def serve(agent, proto_in: int, proto_out: int, memory_mb: int) -> None:
 
     from league.validation.loading import failure_reason
 
-    requests = Reader(proto_in)
+    requests, answers = Reader(proto_in), Writer(proto_out)
     while True:
-        header = requests.read_exact(HEADER.size)
-        if not header:
+        if not requests.fill(HEADER.size):
             return
-        tag, n, d = HEADER.unpack(header)
+        tag, n, d = HEADER.unpack_from(requests.buffer, requests.start)
         if tag != b"I" or n > MAX_BATCH or d != agent.obs_dim:
             send_text(proto_out, b"E", f"sandbox protocol error: request {tag!r} {n}x{d}")
             return
-        obs = np.frombuffer(bytearray(requests.read_exact(n * d * 4)), dtype="<f4").reshape(n, d)  # writable
+        size = HEADER.size + 4 * n * d
+        if not requests.fill(size):
+            return
+        # the model's own copy, writable (as a fresh array of the environment's would be)
+        obs = np.frombuffer(requests.buffer, dtype="<f4", count=n * d,
+                            offset=requests.start + HEADER.size).reshape(n, d).copy()
+        requests.consume(size)
         try:
             actions = np.ascontiguousarray(agent(obs), dtype="<f4")
         except Exception as error:  # the model's failure is an answer, not the sandbox's end
             send_text(proto_out, b"E", failure_reason(error, memory_mb))
             continue
-        send(proto_out, HEADER.pack(b"A", actions.shape[0], actions.shape[1]) + actions.tobytes())
+        if actions.ndim != 2 or actions.shape[0] > MAX_BATCH or actions.shape[1] != 2:  # (the agent checks them)
+            send_text(proto_out, b"E", f"the model's output has shape {actions.shape}")
+            continue
+        answers.actions(actions)
 
 
 def main(argv: list[str]) -> int:

@@ -25,7 +25,7 @@ import tempfile
 import threading
 import time
 from collections.abc import Callable
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
@@ -40,7 +40,11 @@ log = logging.getLogger("league.server.sandbox")
 CHILD_SCRIPT = Path(child.__file__).resolve()
 HEADER, LENGTH = child.HEADER, child.LENGTH
 MAX_MESSAGE = 65536
-READ_CHUNK = 65536
+# The child's answers are read into one buffer that holds the largest frame twice over: an action
+# frame of MAX_BATCH rows (9 + 8 * 4096 bytes) or a text message of MAX_MESSAGE bytes (5 + 65536)
+ANSWER_BUFFER = 2 * (LENGTH.size + 1 + MAX_MESSAGE)
+SEND_BUFFER = 16384  # an observation frame of 128 lidar rows; grown for a larger batch
+FRAME_AT = 3  # a frame is written from here, so that its floats (after 9 bytes of header) are aligned
 FORK_SERVER_TIMEOUT_S = 300.0  # its imports and tiny models on a busy machine (torch's took 35 s on one)
 # Wall-clock backstops of a CPU-time budget: only a child that stops using the CPU without
 # answering reaches them; a busy machine stretches a call's wall time far less than 30x.
@@ -63,20 +67,20 @@ def cpu_clock_of(pid: int) -> int:
     return (~pid << 3) | 2
 
 
-@dataclass
 class Budget:
     """What one answer of the child may take: `cpu_s` of the child's own CPU time, so that a busy
     machine (which delays the child but does not make it use more CPU) changes nothing; and a
-    wall-clock backstop, `wall_s`, for a child that stops using the CPU without answering."""
+    wall-clock backstop, `wall_s`, for a child that stops using the CPU without answering.
+    (A plain class with slots: one is made per call, hundreds per evaluation.)"""
 
-    clock: Callable[[], float]  # the child's CPU time
-    cpu_s: float
-    wall_s: float
-    cpu_start: float = field(init=False)
-    wall_end: float = field(init=False)
+    __slots__ = ("clock", "cpu_s", "wall_s", "cpu_start", "wall_end")
 
-    def __post_init__(self):
-        self.cpu_start, self.wall_end = self.clock(), time.monotonic() + self.wall_s
+    def __init__(self, clock: Callable[[], float], cpu_s: float, wall_s: float):
+        self.clock, self.cpu_s, self.wall_s = clock, cpu_s, wall_s  # clock: the child's CPU time
+        self.cpu_start, self.wall_end = clock(), time.monotonic() + wall_s
+
+    def __repr__(self) -> str:
+        return f"Budget(cpu_s={self.cpu_s!r}, wall_s={self.wall_s!r})"
 
     @classmethod
     def for_call(cls, clock: Callable[[], float], cpu_s: float) -> Budget:
@@ -113,11 +117,9 @@ class SandboxProcess:
             shutil.rmtree(self.workdir, ignore_errors=True)
             raise
         self._cpu_clock, self._cpu_time = cpu_clock_of(self.proc.pid), 0.0
-        self._out = self.proc.stdout.fileno()
-        os.set_blocking(self._out, False)
-        self._poller = select.poll()
-        self._poller.register(self._out, select.POLLIN)
-        self._unread = bytearray()
+        self._in = self.proc.stdin.fileno()  # written with os.write, never through the file's buffer
+        self._answers = AnswerReader(self.proc.stdout.fileno(), self._death_reason, self.kill)
+        self._send_buffer(SEND_BUFFER)
         self._log_thread = threading.Thread(target=self._copy_log, daemon=True)
         self._log_thread.start()
         try:
@@ -133,15 +135,17 @@ class SandboxProcess:
     def cpu_time(self) -> float:
         """The child's CPU time so far, in seconds (its last reading once it is gone)."""
         if self._cpu_clock is not None:  # not once it is reaped: its pid may be another process's
-            with contextlib.suppress(OSError):
+            try:
                 self._cpu_time = time.clock_gettime(self._cpu_clock)
+            except OSError:
+                pass
         return self._cpu_time
 
     def _await_ready(self) -> dict:
         limit = self.limits.load_cpu_s
         try:
-            tag, payload = self._read_message(Budget(self.cpu_time, limit, LOAD_WALL_BACKSTOP * limit),
-                                              expected=(b"R", b"E"))
+            tag, payload = self._answers.message(Budget(self.cpu_time, limit, LOAD_WALL_BACKSTOP * limit),
+                                                 expected=(b"R", b"E"))
         except SandboxFailure as failure:
             if failure.timed_out:
                 raise SandboxFailure(load_over(self.limits), fatal=True) from failure
@@ -150,59 +154,30 @@ class SandboxProcess:
             raise SandboxFailure(plain_text(payload.decode("utf-8", errors="replace")), fatal=True)
         return json.loads(payload)
 
+    def _send_buffer(self, size: int) -> None:
+        self._frame = bytearray(size)
+        self._frame_view = memoryview(self._frame)
+        self._frame_floats = np.frombuffer(self._frame, dtype="<f4", offset=FRAME_AT + HEADER.size)
+
     def send_observations(self, obs: np.ndarray) -> None:
-        obs = np.ascontiguousarray(obs, dtype="<f4")
-        self._send(HEADER.pack(b"I", obs.shape[0], obs.shape[1]) + obs.tobytes())
+        """One write of the frame b"I" n d + n*d float32, built in a buffer kept for the process."""
+        n, d = obs.shape
+        end = FRAME_AT + HEADER.size + 4 * n * d
+        if end > len(self._frame):
+            self._send_buffer(end)
+        HEADER.pack_into(self._frame, FRAME_AT, b"I", n, d)
+        self._frame_floats[:n * d] = obs.reshape(-1)  # (cast to float32 as np.ascontiguousarray did)
+        self._write(self._frame_view[FRAME_AT:end])
 
     def receive_actions(self, budget: Budget) -> np.ndarray:
-        tag, payload = self._read_message(budget, expected=(b"A", b"E"))
-        if tag == b"E":
-            raise SandboxFailure(plain_text(payload.decode("utf-8", errors="replace")), fatal=False)
-        return payload
+        return self._answers.actions(budget)
 
-    def _send(self, data: bytes) -> None:
+    def _write(self, data: memoryview) -> None:
         try:
-            self.proc.stdin.write(data)
-            self.proc.stdin.flush()
-        except (BrokenPipeError, OSError) as error:
+            while data:
+                data = data[os.write(self._in, data):]
+        except OSError as error:  # BrokenPipeError: the child is gone
             raise SandboxFailure(self._death_reason(), fatal=True) from error
-
-    def _read_message(self, budget: Budget, expected: tuple[bytes, ...]) -> tuple[bytes, object]:
-        tag = self._read_exact(1, budget)
-        if tag not in expected:
-            self.kill()
-            raise SandboxFailure(f"sandbox protocol error (message {tag!r})", fatal=True)
-        if tag == b"A":
-            n, d = HEADER.unpack(tag + self._read_exact(8, budget))[1:]
-            if d != 2 or n > child.MAX_BATCH:
-                self.kill()
-                raise SandboxFailure(f"sandbox protocol error (actions {n}x{d})", fatal=True)
-            return tag, np.frombuffer(self._read_exact(n * d * 4, budget), dtype="<f4").reshape(n, d)
-        (length,) = LENGTH.unpack(self._read_exact(LENGTH.size, budget))
-        if length > MAX_MESSAGE:
-            self.kill()
-            raise SandboxFailure("sandbox protocol error (message too long)", fatal=True)
-        return tag, self._read_exact(length, budget)
-
-    def _read_exact(self, size: int, budget: Budget) -> bytes:
-        """`size` bytes of the child's answers, within the budget. Reads are buffered and
-        non-blocking: an answer that is already in the pipe costs one read, no poll."""
-        while len(self._unread) < size:
-            try:
-                chunk = os.read(self._out, max(READ_CHUNK, size - len(self._unread)))
-            except BlockingIOError:
-                wait_s = budget.wait_s()
-                if wait_s <= 0:
-                    self.kill()
-                    raise SandboxFailure("out of time", fatal=True, timed_out=True) from None
-                self._poller.poll(wait_s * 1000)
-                continue
-            if not chunk:
-                raise SandboxFailure(self._death_reason(), fatal=True)
-            self._unread += chunk
-        data = bytes(self._unread[:size])
-        del self._unread[:size]
-        return data
 
     def _death_reason(self) -> str:
         try:
@@ -231,6 +206,92 @@ class SandboxProcess:
         self.proc.stdout.close()
         self.proc.stderr.close()
         shutil.rmtree(self.workdir, ignore_errors=True)
+
+
+class AnswerReader:
+    """The child's answers (league.server.sandbox.child's protocol), read from its stdout within a
+    call's budget into one preallocated buffer: no allocation per read, and one poll and one read
+    for an answer that comes in one piece. Anything that is not a well-formed frame (an unknown
+    tag, actions of another width or more rows than a request may hold, a text longer than
+    MAX_MESSAGE) kills the child and is a fatal SandboxFailure; so is the end of its output (its
+    death) or an answer that does not come within the budget. Bytes after a frame are kept for the
+    next one (a child that sends more than it was asked for fails there)."""
+
+    def __init__(self, fd: int, death_reason: Callable[[], str], kill: Callable[[], None]):
+        self.fd, self._death_reason, self._kill = fd, death_reason, kill
+        os.set_blocking(fd, False)
+        self._poller = select.poll()
+        self._poller.register(fd, select.POLLIN)
+        self._buffer = bytearray(ANSWER_BUFFER)
+        self._view = memoryview(self._buffer)
+        self._start = self._end = 0  # the unread bytes: self._buffer[self._start:self._end]
+
+    def actions(self, budget: Budget) -> np.ndarray:
+        """The next answer to an observation batch: float32 (n, 2) actions (a copy, the caller's),
+        or SandboxFailure: the model's failure (an E message: not fatal) or the child's."""
+        if self._start == self._end:  # nothing read yet: the child needs the CPU first, wait for it
+            self._poller.poll(1000 * min(budget.cpu_s, budget.wall_s))  # (the child is one thread)
+        tag, payload = self.message(budget, expected=(b"A", b"E"))
+        if tag == b"E":
+            raise SandboxFailure(plain_text(payload.decode("utf-8", errors="replace")), fatal=False)
+        return payload
+
+    def message(self, budget: Budget, expected: tuple[bytes, ...]) -> tuple[bytes, object]:
+        """(tag, payload): actions for b"A", the message's bytes for the others."""
+        self._fill(1, budget)
+        tag = self._buffer[self._start:self._start + 1]
+        if tag not in expected:
+            raise self._protocol_error(f"message {bytes(tag)!r}")
+        if tag == b"A":
+            self._fill(HEADER.size, budget)
+            _, n, d = HEADER.unpack_from(self._buffer, self._start)
+            if d != 2 or n > child.MAX_BATCH:
+                raise self._protocol_error(f"actions {n}x{d}")
+            size = HEADER.size + 8 * n
+            self._fill(size, budget)  # (which may move the unread bytes to the buffer's front)
+            actions = np.frombuffer(self._buffer, dtype="<f4", count=2 * n, offset=self._start + HEADER.size)
+            self._consume(size)
+            return b"A", actions.reshape(n, 2).copy()
+        self._fill(1 + LENGTH.size, budget)
+        (length,) = LENGTH.unpack_from(self._buffer, self._start + 1)
+        if length > MAX_MESSAGE:
+            raise self._protocol_error("message too long")
+        size = 1 + LENGTH.size + length
+        self._fill(size, budget)
+        payload = bytes(self._view[self._start + 1 + LENGTH.size:self._start + size])
+        self._consume(size)
+        return bytes(tag), payload
+
+    def _protocol_error(self, what: str) -> SandboxFailure:
+        self._kill()
+        return SandboxFailure(f"sandbox protocol error ({what})", fatal=True)
+
+    def _consume(self, size: int) -> None:
+        self._start += size
+        if self._start == self._end:
+            self._start = self._end = 0
+
+    def _fill(self, size: int, budget: Budget) -> None:
+        """At least `size` unread bytes (size <= half the buffer), within the budget."""
+        if self._end - self._start >= size:
+            return
+        if self._start + size > len(self._buffer):  # the frame would not fit after what was read
+            unread = self._end - self._start
+            self._buffer[:unread] = self._view[self._start:self._end]
+            self._start, self._end = 0, unread
+        while self._end - self._start < size:
+            try:
+                got = os.readv(self.fd, [self._view[self._end:]])
+            except BlockingIOError:
+                wait_s = budget.wait_s()
+                if wait_s <= 0:
+                    self._kill()
+                    raise SandboxFailure("out of time", fatal=True, timed_out=True) from None
+                self._poller.poll(wait_s * 1000)
+                continue
+            if not got:
+                raise SandboxFailure(self._death_reason(), fatal=True)
+            self._end += got
 
 
 class ForkServer:
