@@ -218,6 +218,59 @@ def test_the_status_answer_is_small_its_episodes_paged_and_pollers_get_304(app_l
         assert mixed.status_code == 404
 
 
+def same_answer(answer, other) -> bool:
+    """Byte for byte, headers (but the date) in order."""
+    def head(response):
+        return [(name, value) for name, value in response.headers.multi_items() if name != "date"]
+    return (answer.status_code, head(answer), answer.content) == (other.status_code, head(other), other.content)
+
+
+def test_status_answers_skip_the_router_and_answer_as_the_route(app_league):
+    """StatusAnswers answers GET /api/submissions/{id} before the router: the same bytes and headers as
+    the route (which an id written "02" reaches), 304s included, timed under the route's label and
+    logged with the reader's id."""
+    import logging
+
+    from prometheus_client import generate_latest
+
+    from league.server.api.routes.submissions import StatusAnswers
+
+    assert any(middleware.cls is StatusAnswers for middleware in app_league.app.user_middleware)
+    owner, student = app_league.student("fast poller")
+    ready = app_league.submission(owner)
+    label = 'method="GET",route="/api/submissions/{submission_id}",status="%d"'
+    with student:
+        def counted(status: int) -> float:
+            for line in generate_latest(app_league.app.state.metrics).decode().splitlines():
+                if line.startswith("league_http_request_duration_seconds_count{") and label % status in line:
+                    return float(line.rsplit(" ", 1)[1])
+            return 0.0
+
+        before = counted(200), counted(304)
+        fast, routed = student.get(f"/api/submissions/{ready.id}"), student.get(f"/api/submissions/0{ready.id}")
+        assert fast.status_code == 200 and same_answer(fast, routed)
+        etag = {"If-None-Match": fast.headers["etag"]}
+        fast, routed = (student.get(f"/api/submissions/{ready.id}", headers=etag),
+                        student.get(f"/api/submissions/0{ready.id}", headers=etag))
+        assert fast.status_code == 304 and same_answer(fast, routed)
+        assert (counted(200), counted(304)) == (before[0] + 2, before[1] + 2)
+
+        records = []
+        handler = logging.Handler()
+        handler.emit = records.append
+        access = logging.getLogger("league.server.access")
+        access.addHandler(handler)
+        level = access.level
+        access.setLevel(logging.INFO)
+        try:
+            assert student.get(f"/api/submissions/{ready.id}").status_code == 200
+        finally:
+            access.removeHandler(handler)
+            access.setLevel(level)
+        assert [(record.path, record.status, record.user_id) for record in records] == [
+            (f"/api/submissions/{ready.id}", 200, owner.id)]
+
+
 def shared_fields(detail: dict) -> dict:
     """A status answer without what only it carries (the sandbox logs, the link): the list's item."""
     shown = {name: value for name, value in detail.items() if name not in ("log", "links")}
@@ -246,6 +299,7 @@ def test_the_status_answer_agrees_with_the_list_and_refuses_as_every_route(kind,
             for submission_id in ids:
                 detail = client.get(f"/api/submissions/{submission_id}")
                 assert detail.status_code == 200, detail.text
+                assert same_answer(detail, client.get(f"/api/submissions/0{submission_id}"))  # by the route
                 assert shared_fields(detail.json()) == listed[submission_id]
                 assert detail.json()["links"]["episodes"] == (
                     None if listed[submission_id]["evaluation"] is None else
