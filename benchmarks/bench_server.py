@@ -14,7 +14,8 @@
     evaluations per core-minute (issue 33), beside the same uploads to a worker that keeps no
     tracks (LEAGUE_TRACK_CACHE_SIZE=0: every evaluation draws its 100 tracks again);
 (d) GET /api/submissions/{id} of an evaluated submission (100 episodes) at 200 requests/s on
-    loopback while a worker keeps evaluating another one (re-runs): target p99 <= 50 ms; with
+    loopback while a worker keeps evaluating another one (re-runs): target p99 <= 50 ms, and the API
+    process's CPU time per answer under that load (/proc: steadier than latencies on a busy machine); with
     a `league worker` beside `league serve --no-worker`, then with `league serve` alone (the
     default setup; its worker is its child process). --status-trees runs the latter only, once
     per source tree given (e.g. a checkout of an older commit, then this one);
@@ -86,6 +87,7 @@ class Status:
     requests: int
     busy_share: float  # the share of samples in which a job was running
     idle_ms: dict[str, float]  # p50, p99 before the load
+    cpu_ms: float = float("nan")  # CPU time of the API process per answer under load (its own: not its worker's)
 
 
 @dataclass
@@ -267,7 +269,9 @@ def bench_status(model: Path, rate: float, seconds: float, embedded: bool, root:
             loader.start()
             time.sleep(2)  # evaluations under way
             try:
+                used = cpu_seconds(league.api.pid)  # robust on a busy machine, unlike the latencies
                 latencies = np.array(measure_latency(league.url, league.token, path, rate, seconds)) * 1000
+                used = cpu_seconds(league.api.pid) - used
             finally:
                 stop.set()
                 loader.join()
@@ -275,7 +279,8 @@ def bench_status(model: Path, rate: float, seconds: float, embedded: bool, root:
     return Status(embedded=embedded, root=root, rate=rate,
                   ms={"p50": float(p50), "p95": float(p95), "p99": float(p99), "max": float(latencies.max())},
                   requests=len(latencies), busy_share=float(np.mean(np.array(busy) > 0)),
-                  idle_ms={"p50": float(np.percentile(idle, 50)), "p99": float(np.percentile(idle, 99))})
+                  idle_ms={"p50": float(np.percentile(idle, 50)), "p99": float(np.percentile(idle, 99))},
+                  cpu_ms=1000 * used / len(latencies))
 
 
 def report_status(f: Status) -> None:
@@ -285,7 +290,8 @@ def report_status(f: Status) -> None:
     print(f"    p50 {f.ms['p50']:.1f} ms, p95 {f.ms['p95']:.1f} ms, p99 {f.ms['p99']:.1f} ms, max {f.ms['max']:.1f} ms "
           f"(target p99 <= {P99_TARGET_MS:g} ms: {verdict(f.ms['p99'] <= P99_TARGET_MS)}); a job was running in "
           f"{100 * f.busy_share:.0f}% of the samples; idle before: p50 {f.idle_ms['p50']:.1f} ms, p99 "
-          f"{f.idle_ms['p99']:.1f} ms", flush=True)
+          f"{f.idle_ms['p99']:.1f} ms; the API's CPU: {f.cpu_ms:.2f} ms per answer (the loader's few requests and "
+          "its heartbeat included)", flush=True)
 
 
 # --------------------------------------------------------------------------- (e) evaluation job
@@ -416,6 +422,8 @@ def main(argv: list[str] | None = None) -> None:
                 statuses.append(bench_status(model, args.rate, args.seconds, embedded=True, root=tree.resolve()))
                 report_status(statuses[-1])
             print("    p99: " + ", ".join(f"{status.root}: {status.ms['p99']:.1f} ms" for status in statuses))
+            print("    API CPU per answer: " + ", ".join(f"{status.root}: {status.cpu_ms:.2f} ms"
+                                                       for status in statuses))
             return
         parts = {"e"} if args.only_jobs else set(args.parts)
         if parts & {"a", "b", "c"}:  # (b) compares with (a)'s plain loop

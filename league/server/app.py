@@ -20,6 +20,7 @@ import league
 from league.server.api.cache import ResponseCache
 from league.server.api.limits import KB, BodyLimits, Limit
 from league.server.api.routes import api_router
+from league.server.api.routes.submissions import StatusAnswers
 from league.server.api.routes.tracks import MAX_TRACK_BYTES
 from league.server.api.watch import ProcessWatch, SchemaGuard, database_error
 from league.server import metrics
@@ -84,6 +85,7 @@ def create_app(settings: Settings | None = None, league_: League | None = None) 
     app.add_exception_handler(RequestValidationError, _validation_error)
     app.add_exception_handler(DBAPIError, database_error)
     mount_web(app, settings)
+    app.add_middleware(StatusAnswers, league_=league_)  # inside the metrics' timer (installed next)
     metrics.install(app, league_.sessions, settings.worker_silent_after_s)
     app.add_middleware(BodyLimits, default=Limit.of(64 * KB), limits=body_limits(settings),
                        read_timeout_s=settings.request_body_timeout_s)

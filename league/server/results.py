@@ -27,9 +27,28 @@ SUPERSEDED = ("superseded: the evaluation settings changed before it ran, "
               "to settings its submission has an evaluation of")
 
 
+_KEYS: dict[str, str] = {}  # settings_key by the settings' JSON text: a course has a few settings, read at every answer
+MAX_KEYS = 1024
+
+
 def settings_key(settings: dict[str, Any]) -> str:
     """The result key of evaluation settings on this simulator. Settings the simulator refuses
-    (they fail every evaluation) get a key of their own text."""
+    (they fail every evaluation) get a key of their own text. Kept by the settings' JSON text, of
+    which the key is a function (result_key hashes the options' JSON): computing it (the options'
+    defaults filled in, each checked) costs more than a status answer's queries."""
+    try:
+        text = json.dumps(settings, sort_keys=True)
+    except (TypeError, ValueError):
+        return _settings_key(settings)
+    key = _KEYS.get(text)
+    if key is None:
+        if len(_KEYS) >= MAX_KEYS:
+            _KEYS.clear()
+        key = _KEYS[text] = _settings_key(settings)
+    return key
+
+
+def _settings_key(settings: dict[str, Any]) -> str:
     try:
         return result_key(settings["seed"], settings["episodes"], settings["env_options"])
     except (TypeError, ValueError):

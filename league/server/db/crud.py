@@ -6,7 +6,7 @@ from dataclasses import dataclass
 from datetime import datetime, timedelta
 from typing import Any
 
-from sqlalchemy import case, delete, func, select, update
+from sqlalchemy import Connection, Row, bindparam, case, delete, func, select, update
 from sqlalchemy.dialects.postgresql import insert as postgresql_insert
 from sqlalchemy.dialects.sqlite import insert as sqlite_insert
 from sqlalchemy.orm import Session
@@ -481,6 +481,84 @@ def submissions_by_id(session: Session, *, ids: list[int]) -> dict[int, Submissi
     if not ids:
         return {}
     return {s.id: s for s in session.scalars(select(Submission).where(Submission.id.in_(ids)))}
+
+
+# --------------------------------------------------------------------------- status answers (Core)
+# GET /api/submissions/{id} is what every student's page and `league submit --wait` poll: two Core
+# statements, built once, read what the answer shows (league.server.api.routes.submissions.status_answer),
+# instead of an ORM session's five queries and its objects.
+
+_viewer, _owner, _chosen = User.__table__.alias("viewer"), User.__table__.alias("owner"), Submission.__table__.alias()
+_submission, _assignment, _oldest = Submission.__table__, Assignment.__table__, Assignment.__table__.alias()
+_evaluation = Evaluation.__table__
+STATUS_SUBMISSION_COLUMNS = ("id", "name", "owner_id", "filename", "kind", "sha256", "size", "status", "error",
+                             "obs_dim", "assignment_id", "late", "created_at", "updated_at", "public", "log")
+STATUS_EVALUATION_COLUMNS = ("id", "status", "error", "settings", "result_key", "versions", "completed",
+                             "episodes_total", "mean_return", "mean_steps", "mean_speed", "created_at",
+                             "finished_at", "log")
+
+
+def _status_statement():
+    """The viewer (by token), the submission and its owner, the settings of the assignment whose results
+    count for it, and whether it is the one its owner races (rounds.active_submission_ids) -- the same
+    rules as the ORM's functions, in SQL: the viewer's course is theirs, else the first
+    (api.deps.user_course); a baseline's results count by the viewer's course's default (oldest)
+    assignment (results.submissions_current_keys); a student races their pick if it is a ready
+    submission of theirs, else their latest ready one, a baseline every ready one."""
+    viewer_course = func.coalesce(_viewer.c.course_id, select(func.min(Course.__table__.c.id)).scalar_subquery())
+    default_assignment = select(func.min(_oldest.c.id)).where(_oldest.c.course_id == viewer_course).scalar_subquery()
+    counted = case((_owner.c.role == BASELINE, default_assignment), else_=_submission.c.assignment_id)
+    picked = select(_chosen.c.id).where(_chosen.c.id == _owner.c.active_submission_id,
+                                        _chosen.c.owner_id == _owner.c.id, _chosen.c.status == READY)
+    # the owner's submissions by their index (owner_id, created_at), not the ready ones of everyone by theirs
+    latest = (select(func.max(case((_chosen.c.status == READY, _chosen.c.id))))
+              .where(_chosen.c.owner_id == _owner.c.id))
+    active = (_submission.c.status == READY) & (
+        (_owner.c.role == BASELINE)
+        | (_submission.c.id == func.coalesce(picked.scalar_subquery(), latest.scalar_subquery())))
+    return (select(_viewer.c.id.label("viewer_id"), _viewer.c.role.label("viewer_role"),
+                   _viewer.c.course_id.label("viewer_course_id"), _viewer.c.revoked_at.label("viewer_revoked_at"),
+                   viewer_course.label("viewer_course"),
+                   *(_submission.c[name] for name in STATUS_SUBMISSION_COLUMNS),
+                   _owner.c.name.label("owner"), _owner.c.role.label("owner_role"),
+                   _owner.c.course_id.label("owner_course_id"),
+                   _assignment.c.id.label("counted_assignment_id"), _assignment.c.seed, _assignment.c.episodes,
+                   _assignment.c.env_options, active.label("active"))
+            .select_from(_viewer)
+            .outerjoin(_submission, _submission.c.id == bindparam("submission_id"))
+            .outerjoin(_owner, _owner.c.id == _submission.c.owner_id)
+            .outerjoin(_assignment, _assignment.c.id == counted)
+            .where(_viewer.c.token_hash == bindparam("token_hash")))
+
+
+def _shown_evaluation_statement(by_course: bool, keyless: bool):
+    """latest_evaluation's query, of the columns a status answer shows."""
+    key = bindparam("result_key")
+    query = select(*(_evaluation.c[name] for name in STATUS_EVALUATION_COLUMNS)).where(
+        _evaluation.c.submission_id == bindparam("submission_id"), _evaluation.c.track == PUBLIC)
+    if by_course:
+        query = query.where(_evaluation.c.course_id == bindparam("course_id"))
+    matches = _evaluation.c.result_key.is_(None) if keyless else _evaluation.c.result_key == key
+    return query.order_by(matches.desc(), _evaluation.c.id.desc()).limit(1)
+
+
+_STATUS = _status_statement()
+_SHOWN_EVALUATION = {(by_course, keyless): _shown_evaluation_statement(by_course, keyless)
+                     for by_course in (False, True) for keyless in (False, True)}
+
+
+def status_row(connection: Connection, *, token: str, submission_id: int) -> Row | None:
+    """What a status answer needs of the token's user and the submission (None: no user has the token;
+    the submission's columns are None when there is no such submission)."""
+    return connection.execute(_STATUS, {"token_hash": hash_token(token), "submission_id": submission_id}).first()
+
+
+def shown_evaluation_row(connection: Connection, *, submission_id: int, result_key: str | None,
+                         course_id: int | None = None) -> Row | None:
+    """latest_evaluation, as a row of STATUS_EVALUATION_COLUMNS."""
+    statement = _SHOWN_EVALUATION[course_id is not None, result_key is None]
+    return connection.execute(statement, {"submission_id": submission_id, "result_key": result_key,
+                                          "course_id": course_id}).first()
 
 
 # --------------------------------------------------------------------------- people of a course

@@ -216,3 +216,139 @@ def test_the_status_answer_is_small_its_episodes_paged_and_pollers_get_304(app_l
             their_evaluation = crud.latest_evaluation(session, submission_id=theirs.id, result_key=None).id
         mixed = student.get(f"/api/submissions/{ready.id}/episodes", params={"evaluation_id": their_evaluation})
         assert mixed.status_code == 404
+
+
+def same_answer(answer, other) -> bool:
+    """Byte for byte, headers (but the date) in order."""
+    def head(response):
+        return [(name, value) for name, value in response.headers.multi_items() if name != "date"]
+    return (answer.status_code, head(answer), answer.content) == (other.status_code, head(other), other.content)
+
+
+def test_status_answers_skip_the_router_and_answer_as_the_route(app_league):
+    """StatusAnswers answers GET /api/submissions/{id} before the router: the same bytes and headers as
+    the route (which an id written "02" reaches), 304s included, timed under the route's label and
+    logged with the reader's id."""
+    import logging
+
+    from prometheus_client import generate_latest
+
+    from league.server.api.routes.submissions import StatusAnswers
+
+    assert any(middleware.cls is StatusAnswers for middleware in app_league.app.user_middleware)
+    owner, student = app_league.student("fast poller")
+    ready = app_league.submission(owner)
+    label = 'method="GET",route="/api/submissions/{submission_id}",status="%d"'
+    with student:
+        def counted(status: int) -> float:
+            for line in generate_latest(app_league.app.state.metrics).decode().splitlines():
+                if line.startswith("league_http_request_duration_seconds_count{") and label % status in line:
+                    return float(line.rsplit(" ", 1)[1])
+            return 0.0
+
+        before = counted(200), counted(304)
+        fast, routed = student.get(f"/api/submissions/{ready.id}"), student.get(f"/api/submissions/0{ready.id}")
+        assert fast.status_code == 200 and same_answer(fast, routed)
+        etag = {"If-None-Match": fast.headers["etag"]}
+        fast, routed = (student.get(f"/api/submissions/{ready.id}", headers=etag),
+                        student.get(f"/api/submissions/0{ready.id}", headers=etag))
+        assert fast.status_code == 304 and same_answer(fast, routed)
+        assert (counted(200), counted(304)) == (before[0] + 2, before[1] + 2)
+
+        records = []
+        handler = logging.Handler()
+        handler.emit = records.append
+        access = logging.getLogger("league.server.access")
+        access.addHandler(handler)
+        level = access.level
+        access.setLevel(logging.INFO)
+        try:
+            assert student.get(f"/api/submissions/{ready.id}").status_code == 200
+        finally:
+            access.removeHandler(handler)
+            access.setLevel(level)
+        assert [(record.path, record.status, record.user_id) for record in records] == [
+            (f"/api/submissions/{ready.id}", 200, owner.id)]
+
+
+def shared_fields(detail: dict) -> dict:
+    """A status answer without what only it carries (the sandbox logs, the link): the list's item."""
+    shown = {name: value for name, value in detail.items() if name not in ("log", "links")}
+    if shown["evaluation"] is not None:
+        shown["evaluation"] = {name: value for name, value in shown["evaluation"].items() if name != "log"}
+    return shown
+
+
+@pytest.mark.parametrize("kind", BACKENDS)
+def test_the_status_answer_agrees_with_the_list_and_refuses_as_every_route(kind, tmp_path):
+    """The status answer reads its rows with two statements of its own (crud.status_row); the list reads
+    them with the ORM functions every other route uses. Each answer agrees with the list's item, for a
+    student's picked, unpicked, unevaluated and rejected uploads, before and after a change of the
+    settings (stale results), and for an instructor's view of them and of the baselines; the
+    refusals are the token dependency's and the route's."""
+    from league.server.db import crud
+
+    with in_process_league(kind, tmp_path) as league:
+        owner, student = league.student("lister")
+        older, newer = league.submission(owner), league.submission(owner)
+        unevaluated, rejected = league.submission(owner, evaluated=False), league.submission(owner, status=REJECTED)
+        instructor = league.client(league.instructor_token)
+
+        def agree(client, ids, all_=False):
+            listed = {item["id"]: item for item in client.get("/api/submissions", params={"all": all_}).json()}
+            for submission_id in ids:
+                detail = client.get(f"/api/submissions/{submission_id}")
+                assert detail.status_code == 200, detail.text
+                assert same_answer(detail, client.get(f"/api/submissions/0{submission_id}"))  # by the route
+                assert shared_fields(detail.json()) == listed[submission_id]
+                assert detail.json()["links"]["episodes"] == (
+                    None if listed[submission_id]["evaluation"] is None else
+                    f"/api/submissions/{submission_id}/episodes?evaluation_id="
+                    f"{listed[submission_id]['evaluation']['id']}")
+            return listed
+
+        mine = [older.id, newer.id, unevaluated.id, rejected.id]
+        with student, instructor:
+            assert [agree(student, mine)[i]["active"] for i in mine] == [False, False, True, False]  # the latest ready
+            assert student.patch(f"/api/submissions/{older.id}", json={"active": True}).status_code == 200
+            assert [agree(student, mine)[i]["active"] for i in mine] == [True, False, False, False]
+            baselines = [item["id"] for item in instructor.get("/api/submissions", params={"all": True}).json()
+                         if item["owner"] == "baselines"]
+            assert baselines
+            agree(instructor, mine + baselines, all_=True)
+
+            with league.sessions.begin() as session:  # new settings, their re-evaluations not queued yet
+                assignment = crud.default_assignment(session, course_id=crud.first_course(session).id)
+                assignment.seed += 1
+            listed = agree(student, mine)
+            assert listed[newer.id]["evaluation"]["stale"] is True
+            assert all(item["evaluation"]["stale"] for item in agree(instructor, mine + baselines, all_=True).values()
+                       if item["evaluation"] is not None)
+            settings = instructor.get("/api/settings/evaluation").json()
+            changed = instructor.put("/api/settings/evaluation", json={**settings, "seed": settings["seed"] + 1})
+            assert changed.status_code == 200
+            listed = agree(student, mine)
+            assert listed[newer.id]["evaluation"]["status"] == "queued"  # its re-evaluation, of the new settings
+            assert listed[newer.id]["evaluation"]["stale"] is False
+            agree(instructor, mine + baselines, all_=True)
+
+            other_owner, other = league.student("other lister")
+            with other:
+                refused = other.get(f"/api/submissions/{newer.id}")
+                assert (refused.status_code, refused.json()) == (404, {"detail": "no such submission"})
+                assert other.get(f"/api/submissions/{baselines[0]}").status_code == 404
+            assert student.get("/api/submissions/999999").json() == {"detail": "no such submission"}
+            with league.client("not a token") as stranger:
+                unknown = stranger.get(f"/api/submissions/{newer.id}")
+            assert (unknown.status_code, unknown.json()) == (401, {"detail": UNKNOWN_TOKEN})
+            assert unknown.headers["www-authenticate"] == "Bearer"
+            with league.client() as anonymous:
+                missing = anonymous.get(f"/api/submissions/{newer.id}")
+            assert missing.status_code == 401 and missing.json()["detail"].startswith("missing token")
+            _, elsewhere_token = league.user("elsewhere", role="instructor", course_name=unique("other course"))
+            with league.client(elsewhere_token) as elsewhere:
+                assert elsewhere.get(f"/api/submissions/{newer.id}").status_code == 404
+                assert elsewhere.get(f"/api/submissions/{baselines[0]}").status_code == 200  # every course's
+            assert instructor.post(f"/api/users/{owner.id}/revoke").status_code == 200
+            revoked = student.get(f"/api/submissions/{newer.id}")
+            assert (revoked.status_code, revoked.json()) == (401, {"detail": "this account was revoked"})
