@@ -3,10 +3,13 @@ archive` of its commit, run as a server with its own PYTHONPATH) and upgraded wi
 migrate`) answers every read as it did, field by field over the fields both versions have.
 
 It needs the repository's history (CI clones main whole); the releases' compiled core is built once per
-version of its sources (copied from this checkout's while they did not change).
+version of its sources (copied from this checkout's while they did not change), and kept between runs
+in CORE_CACHE under the hash of those sources, this Python and this Cython (about 20 s of CPU a build,
+two builds a run: the build is not what this file tests).
 """
 from __future__ import annotations
 
+import hashlib
 import io
 import os
 import shutil
@@ -36,6 +39,7 @@ RELEASES = {
 CREATE = {"7053bbc": ("init", "--instructor", "prof")}
 FIRST_REGISTERING = "0014"  # releases from this schema list their workers: `league migrate` sees them
 CORE_SOURCES = ("league/lidar.pyx", "league/constants.py", "setup.py")  # what league/lidar.*.so is built from
+CORE_CACHE = Path("/tmp/league-release-cores")  # built cores of releases, kept between runs (by their sources)
 
 
 def csv_rank(key: str) -> bool:
@@ -67,13 +71,29 @@ def release_tree(commit: str, folder: Path, cores: dict[bytes, Path]) -> Path:
         tar.extractall(tree, filter="data")
     sources = core_sources(commit)
     if sources not in cores:
-        subprocess.run([sys.executable, "setup.py", "build_ext", "--inplace"], cwd=tree, check=True,
-                       capture_output=True)
-        cores[sources] = next((tree / "league").glob("lidar.*.so"))
+        cores[sources] = cached_core(sources, tree)
     built = cores[sources]
     if built.parent != tree / "league":
         shutil.copy2(built, tree / "league" / built.name)
     return tree
+
+
+def cached_core(sources: bytes, tree: Path) -> Path:
+    """The core built from `sources` by this Python and Cython: from CORE_CACHE, or built in `tree`
+    (setup.py build_ext, as a release is built) and kept there; written by rename, whole or not at all."""
+    import Cython
+
+    key = hashlib.sha256(sources + sys.version.encode() + Cython.__version__.encode()).hexdigest()[:32]
+    kept = sorted((CORE_CACHE / key).glob("lidar.*.so"))
+    if kept:
+        return kept[0]
+    subprocess.run([sys.executable, "setup.py", "build_ext", "--inplace"], cwd=tree, check=True, capture_output=True)
+    built = next((tree / "league").glob("lidar.*.so"))
+    (CORE_CACHE / key).mkdir(parents=True, exist_ok=True)
+    partial = CORE_CACHE / key / f".{built.name}.{os.getpid()}"
+    shutil.copy2(built, partial)
+    partial.rename(CORE_CACHE / key / built.name)
+    return built
 
 
 @pytest.fixture(scope="module")
