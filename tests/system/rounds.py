@@ -1,6 +1,6 @@
 """Championship rounds on a `league serve` and its workers as the system tests drive them: the
 students entered, a round started and waited for, and the check that each heat was raced once and
-counted once in the standings (test_rounds.py, test_hosts.py)."""
+counted once in the standings (test_rounds.py, test_round_heats.py, test_hosts.py)."""
 from __future__ import annotations
 
 from collections import Counter
