@@ -55,6 +55,7 @@ class Evaluation:
     first_sandbox_s: float  # a worker thread's first sandbox: its fork server and isolation probe
     plain_s: float
     lockstep_s: float  # metrics_run, no sandbox
+    cached_lockstep_s: float  # the same again, its tracks cached: the floor of an evaluation's CPU
     sandboxed_s: float  # metrics_run in a sandbox, its start included
     completed: int
 
@@ -125,12 +126,14 @@ def bench_evaluation(model: Path, episodes: int) -> Evaluation:
         plain = wall_time(lambda: plain_loop(model, episode_seeds(0, episodes)))
         set_track_cache_size(max(128, episodes))  # empty: each lockstep run draws its tracks, as the plain loop
         local = wall_time(lambda: metrics_run(model, episodes=episodes, seed=0))
+        cached = wall_time(lambda: metrics_run(model, episodes=episodes, seed=0))  # (the tracks of `local`)
         first = wall_time(lambda: SandboxedAgent(model, "onnx", SandboxLimits()).close())  # once per worker thread
         set_track_cache_size(max(128, episodes))
         start = time.perf_counter()
         result = sandboxed()
         seconds = time.perf_counter() - start
-    return Evaluation(episodes=episodes, first_sandbox_s=first, plain_s=plain, lockstep_s=local, sandboxed_s=seconds,
+    return Evaluation(episodes=episodes, first_sandbox_s=first, plain_s=plain, lockstep_s=local,
+                      cached_lockstep_s=cached, sandboxed_s=seconds,
                       completed=result.completed)
 
 
@@ -139,6 +142,7 @@ def report_evaluation(f: Evaluation) -> None:
           f"first sandbox, started before: {f.first_sandbox_s:.2f} s, its fork server and isolation probe):")
     print(f"    plain loop (gym.make + ONNX Runtime, one call per step):   {f.plain_s:6.2f} s")
     print(f"    metrics_run in lockstep, no sandbox:                        {f.lockstep_s:6.2f} s")
+    print(f"    the same again, its tracks cached (no sandbox, no validation): {f.cached_lockstep_s:6.2f} s")
     print(f"    metrics_run in lockstep, in a sandbox (start included):     {f.sandboxed_s:6.2f} s  "
           f"(target <= {EVALUATION_TARGET_S:g} s: {verdict(f.sandboxed_s <= EVALUATION_TARGET_S)})")
     cost = f.sandboxed_s / f.lockstep_s
@@ -189,7 +193,7 @@ def uploads_without_shared_tracks(league: League, client, model: Path, uploads: 
     return wall_time(lambda: wait_evaluated(client, [upload_file(client, model) for _ in range(uploads)]))
 
 
-def report_worker(f: WorkerOnOneCpu, plain_s: float) -> None:
+def report_worker(f: WorkerOnOneCpu, plain_s: float, cached_lockstep_s: float) -> None:
     print(f"(b) upload to figures, {f.episodes} episodes, a `league worker` on CPU {f.cpu}: {f.upload_s:.2f} s, "
           f"{plain_s / f.upload_s:.2f}x the plain loop of (a) (target >= 1x: {verdict(plain_s / f.upload_s >= 1)}); "
           f"the first upload a new worker sees: {f.first_upload_s:.2f} s")
@@ -197,6 +201,8 @@ def report_worker(f: WorkerOnOneCpu, plain_s: float) -> None:
     print(f"(c) {f.uploads} uploads at once, validated and evaluated ({f.episodes} episodes) by that worker: "
           f"{f.uploads_s:.1f} s, {rate:.0f} evaluations per core-minute "
           f"(target >= {RATE_TARGET}: {verdict(rate >= RATE_TARGET)})")
+    print(f"    the ceiling of an evaluation that were only (a)'s lockstep run with its tracks cached (no sandbox, "
+          f"no validation, no database): {60 / cached_lockstep_s:.0f} per core-minute")
     if f.unshared_uploads_s is not None:
         before = 60 * f.uploads / f.unshared_uploads_s
         print(f"    the same by a worker that keeps no tracks (each evaluation draws its own): "
@@ -430,7 +436,8 @@ def main(argv: list[str] | None = None) -> None:
             evaluation = bench_evaluation(model, args.episodes)
             report_evaluation(evaluation)
         if parts & {"b", "c"}:
-            report_worker(bench_worker_on_one_cpu(model, args.episodes, args.uploads), evaluation.plain_s)
+            report_worker(bench_worker_on_one_cpu(model, args.episodes, args.uploads), evaluation.plain_s,
+                          evaluation.cached_lockstep_s)
         if "d" in parts:
             report_status(bench_status(model, args.rate, args.seconds, embedded=False))
             report_status(bench_status(model, args.rate, args.seconds, embedded=True))

@@ -6,7 +6,8 @@ and the vector env against Gymnasium's SyncVectorEnv.
 Prints medians over many calls (one process, one thread, pinned to one core). Cars are driven by
 SPEC's heuristic driver, computed for all cars at once in numpy, so they stay on the road; only
 the step calls are timed, never the resets, except in the vector env rows, which time whole
-loops (driver, steps and the autoresets with their new tracks) as a training loop runs them.
+loops (driver, steps and the autoresets with their new tracks) as a training loop runs them, and
+beside them their step calls alone (the driver, the same numpy code on both sides, left out).
 Resets and loops are timed in CPU time of the process (time.process_time): on a shared machine
 the other processes' time slices on this core are not counted; microsecond calls use the wall
 clock (a median over thousands of calls).
@@ -164,18 +165,22 @@ def bench_parallel(n_cars: int, seconds: float, batched: bool) -> float:
     return car_steps / elapsed
 
 
-def bench_vector(make, seconds: float) -> float:
-    """Sub-env steps per second of a whole training-style loop: driver, step, autoresets."""
+def bench_vector(make, seconds: float) -> tuple[float, float]:
+    """Sub-env steps per second of a whole training-style loop (driver, step, autoresets), and
+    of its `step` calls alone (autoresets included; the driver, the same on both sides, not)."""
     venv = make()
     obs, _ = venv.reset(seed=0)
-    steps, start = 0, time.process_time()
+    steps, in_step, start = 0, 0.0, time.process_time()
     while time.process_time() - start < seconds:
         for _ in range(50):
-            obs, *_ = venv.step(heuristic(obs))
+            actions = heuristic(obs)
+            t0 = time.process_time()
+            obs, *_ = venv.step(actions)
+            in_step += time.process_time() - t0
         steps += 50 * venv.num_envs
     rate = steps / (time.process_time() - start)
     venv.close()
-    return rate
+    return rate, steps / in_step
 
 
 @dataclass
@@ -216,14 +221,18 @@ def measure(scale: float = 1.0, reference: Path | None = None, before: Path | No
         Row("batched step_arrays, 64 cars", bench_parallel(64, 3 * scale, batched=True), "car-steps/s", ">= 1000000"),
     ]
     seconds = 4 * scale
-    sync = bench_vector(lambda: gym.make_vec("league/MicroRacer-v0", num_envs=8, vectorization_mode="sync"), seconds)
+    sync, sync_steps = bench_vector(
+        lambda: gym.make_vec("league/MicroRacer-v0", num_envs=8, vectorization_mode="sync"), seconds)
     rows.append(Row('make_vec(..., "sync"), 8 envs, new track every episode', sync, "steps/s"))
+    rows.append(Row("  its step calls alone", sync_steps, "steps/s"))
     for num_envs in (8, 64, 256):
-        fresh = bench_vector(functools.partial(league.make_vector_env, num_envs=num_envs), seconds)
+        fresh, fresh_steps = bench_vector(functools.partial(league.make_vector_env, num_envs=num_envs), seconds)
         rows.append(Row(f"league.vector_env, {num_envs} envs, new track every episode", fresh, "steps/s",
                         f"{fresh / sync:.1f}x sync, target >= 5x"))
+        rows.append(Row("  its step calls alone", fresh_steps, "steps/s", f"{fresh_steps / sync_steps:.1f}x sync's"))
     for num_envs, pool_size in ((256, 8), (256, 100)):
-        pool = bench_vector(functools.partial(league.make_vector_env, num_envs=num_envs, track_pool=pool_size), seconds)
+        pool, _ = bench_vector(functools.partial(league.make_vector_env, num_envs=num_envs, track_pool=pool_size),
+                               seconds)
         rows.append(Row(f"league.vector_env, {num_envs} envs, pool of {pool_size} tracks", pool, "steps/s",
                         "target >= 1000000"))
     return rows

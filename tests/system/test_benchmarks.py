@@ -46,7 +46,7 @@ def positive(*values: float) -> bool:
 
 def test_simulator():
     rows = bench_simulator.measure(scale=0.01)
-    assert len(rows) == 14  # no --reference, no --before
+    assert len(rows) == 18  # no --reference, no --before
     assert [row.name for row in rows][:2] == ["reset, new random track, all options on", "MicroRacerEnv.step, one car"]
     assert positive(*(row.value for row in rows))
     assert {row.unit for row in rows} == {"us", "car-steps/s", "steps/s"}
@@ -133,7 +133,8 @@ def test_server_evaluation(tmp_path):
 
     f = bench_server.bench_evaluation(thesis_actor(tmp_path), episodes=2)
     assert f.episodes == 2 and 0 <= f.completed <= 2
-    assert positive(f.first_sandbox_s, f.plain_s, f.lockstep_s, f.sandboxed_s)
+    assert positive(f.first_sandbox_s, f.plain_s, f.lockstep_s, f.cached_lockstep_s, f.sandboxed_s)
+    bench_server.report_evaluation(f)
 
 
 def test_league_heat(tmp_path):
