@@ -1,4 +1,15 @@
-"""Faults: a worker killed with SIGKILL mid-evaluation, and a league restarted -- on both backends."""
+"""Faults: a worker killed with SIGKILL mid-evaluation (on PostgreSQL, the backend of workers on other
+machines), and a league restarted (on SQLite, `league serve`'s own backend: its file is what a kill
+mid-write could damage).
+
+Each runs on one backend: what is backend-specific in them, the job leases in the jobs table, runs
+on both backends in tests/server/jobs/test_runner.py, in process: a lapsed lease reaped, re-queued
+with "stopped heart-beating" and its late results discarded
+(test_results_of_an_attempt_that_lost_its_lease_are_discarded), a fresh one left alone
+(test_reaper_leaves_fresh_leases_alone), one claim of a job at a time
+(test_a_job_is_claimed_by_one_attempt_only), and a worker's jobs handed back when it stops with
+SIGTERM (test_a_worker_shutting_down_hands_its_jobs_back).
+"""
 from __future__ import annotations
 
 import signal
@@ -26,6 +37,7 @@ def jobs_of(server, submission_id: int) -> list[dict]:
         return [j for j in instructor.get("/api/jobs").json() if j["submission_id"] == submission_id]
 
 
+@pytest.mark.parametrize("backend", ["postgres"], indirect=True)  # the leases on SQLite: test_runner.py (above)
 def test_worker_killed_mid_evaluation_the_evaluation_completes_once(backend, tmp_path, models):
     _, database_url = backend
     server = make_server(tmp_path, database_url, LEAGUE_EVAL_EPISODES=LONG_EPISODES)
@@ -63,6 +75,7 @@ def test_worker_killed_mid_evaluation_the_evaluation_completes_once(backend, tmp
 
 
 @pytest.mark.long
+@pytest.mark.parametrize("backend", ["sqlite"], indirect=True)  # the leases on PostgreSQL: test_runner.py (above)
 def test_restart_loses_nothing_and_leaves_nothing_stuck(backend, tmp_path, models):
     _, database_url = backend
     server = make_server(tmp_path, database_url, LEAGUE_EVAL_EPISODES=LONG_EPISODES)

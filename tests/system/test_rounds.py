@@ -3,6 +3,11 @@ round raced again: test_round_heats.py).
 
 Every heat of a round is a race job of its own; whatever happens to the workers, each heat is
 raced to the end exactly once and counted once in the standings.
+
+The killed worker's round runs on SQLite (two workers sharing a round's heats run on PostgreSQL in
+test_round_heats.py): the heat's lapsed lease, reaped and re-queued with "stopped heart-beating",
+is the job queue's code, tested on both backends in tests/server/jobs/test_runner.py
+(test_results_of_an_attempt_that_lost_its_lease_are_discarded, test_a_job_is_claimed_by_one_attempt_only).
 """
 from __future__ import annotations
 
@@ -25,6 +30,7 @@ LEASE_S = float(TEST_SETTINGS["LEAGUE_LEASE_TIMEOUT_S"])
 
 
 @pytest.mark.long
+@pytest.mark.parametrize("backend", ["sqlite"], indirect=True)  # the leases on PostgreSQL: test_runner.py (above)
 def test_worker_killed_mid_round_every_heat_counted_once(backend, tmp_path, drivers):
     _, database_url = backend
     server = make_server(tmp_path, database_url, **ROUND_SETTINGS)
