@@ -192,9 +192,14 @@ class League:
     (or call stop()): every process it started is stopped."""
 
     def __init__(self, folder: Path, *, embedded: bool, workers: int = 0, settings: dict[str, str] | None = None,
-                 root: Path = ROOT):
-        """`root`: the source tree the servers run (another checkout, e.g. to compare with a commit)."""
+                 root: Path = ROOT, round_track_seed: int | None = None):
+        """`root`: the source tree the servers run (another checkout, e.g. to compare with a commit).
+        `round_track_seed`: every championship round's track seed, instead of the secret draw: the API
+        is started through benchmarks/_fixed_track.py, which replaces the draw in its process only
+        (a benchmark's way to race the same track in two trees; the product has no such setting)."""
         self.folder, self.port, self.root = folder, free_port(), root
+        self.api_launcher = [] if round_track_seed is None else [str(Path(__file__).with_name("_fixed_track.py")),
+                                                                 str(round_track_seed)]
         self.url = f"http://127.0.0.1:{self.port}"
         self.env = {**os.environ, "LEAGUE_DATA_DIR": str(folder), "PYTHONPATH": str(root),
                     "LEAGUE_BASELINES_DIR": str(folder / "baselines"),  # empty: the heuristic driver only
@@ -204,7 +209,7 @@ class League:
         self.workers: list[subprocess.Popen] = []  # running (started and not stopped yet)
         self.workers_started = 0
         self.serve = ["serve", "--port", str(self.port)] + ([] if embedded else ["--no-worker"])
-        self.api = self._spawn(*self.serve, log="api.log")
+        self.api = self._spawn(*self.serve, log="api.log", launcher=self.api_launcher)
         try:
             for _ in range(workers):
                 self.start_worker()
@@ -233,11 +238,13 @@ class League:
         return subprocess.run([sys.executable, "-m", "league.server", *args], env=self.env, cwd=self.root, check=True,
                               capture_output=True, text=True, timeout=120).stdout
 
-    def _spawn(self, *args: str, log: str, settings: dict[str, str] | None = None) -> subprocess.Popen:
+    def _spawn(self, *args: str, log: str, settings: dict[str, str] | None = None,
+               launcher: list[str] | None = None) -> subprocess.Popen:
         """Each process in a session of its own, as services run (systemd starts each so): Linux then
-        schedules it as a group of its own, and the benchmark's clients do not share the API's."""
+        schedules it as a group of its own, and the benchmark's clients do not share the API's.
+        `launcher`: a script and its arguments that run the server's CLI, instead of `-m league.server`."""
         with open(self.folder / log, "ab") as output:
-            return subprocess.Popen([sys.executable, "-m", "league.server", *args],
+            return subprocess.Popen([sys.executable, *(launcher or ["-m", "league.server"]), *args],
                                     env={**self.env, **(settings or {})}, cwd=self.root, stdout=output,
                                     stderr=subprocess.STDOUT, start_new_session=True)
 
@@ -257,7 +264,7 @@ class League:
     def restart_api(self) -> None:
         """Stop `league serve` (SIGTERM, as a deployment restarts it) and start it again on the same port."""
         self.stop_process(self.api)
-        self.api = self._spawn(*self.serve, log="api.log")
+        self.api = self._spawn(*self.serve, log="api.log", launcher=self.api_launcher)
         self._wait_healthy()
 
     def start_worker(self, wait: bool = False, timeout: float = 60, cpus: str | None = None,

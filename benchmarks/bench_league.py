@@ -2,7 +2,7 @@
 
     python benchmarks/bench_league.py [--quick] [--students 40] [--repeats 3] [--round-repeats 1]
                                       [--rate 200] [--seconds 10] [--backend sqlite|postgres] [--per-cpu]
-                                      [--before PATH]
+                                      [--before PATH] [--round-track-seed N]
 
 (a) a 10-car heat of thesis-size ONNX agents (5 -> 64 -> 64 -> 2), each in its own sandbox
     process, pinned to one core: from starting the 10 sandboxes to the classification, sandbox
@@ -30,6 +30,10 @@
     (`git archive e7704ee | tar -x -C /tmp/before`): (b)'s rounds are also raced by its servers, on
     a league and database of their own, the two trees taking turns round by round, and printed
     side by side (the same heats; each round a track of its own);
+--round-track-seed N: every round's track is N instead of the secret draw, in both trees: the API
+    is started through benchmarks/_fixed_track.py, a launcher that replaces
+    league.server.rounds.draw_track_seed in that process only (nothing in league/ reads an
+    override); (a) and (b0) race track N too (else TRACK_SEED); checked on each round's summary.
 (c) GET /api/leaderboard at 200 requests/s on loopback (open loop) while rounds are raced by
     two workers: target p99 <= 50 ms.
 
@@ -86,6 +90,7 @@ class Heat:
     """(a) wall seconds of each run of the heat in sandboxes on one core."""
 
     cars: int
+    track_seed: int
     cpu: int
     totals: list[float]  # start of the sandboxes -> classification, each run
     starts: list[float]  # the sandboxes' start, each run
@@ -122,6 +127,7 @@ class RoundRun:
     heats_s: float  # the heats' run times, summed
     heats: str  # per heat: start, run time, worker, outcomes
     waits: HeatWaits | None = None
+    track_seed: int | None = None  # the round's track, shown once the round is done
 
 
 @dataclass
@@ -195,7 +201,7 @@ class LeagueRun:
 # --------------------------------------------------------------------------- (a) one heat, one core
 
 
-def bench_heat(models: list[Path], repeats: int) -> Heat:
+def bench_heat(models: list[Path], repeats: int, track_seed: int = TRACK_SEED) -> Heat:
     from league.evaluation import race
     from league.server.jobs.race import race_in_sandboxes
     from league.server.sandbox.agent import SandboxedAgent
@@ -215,14 +221,14 @@ def bench_heat(models: list[Path], repeats: int) -> Heat:
 
             begin = time.perf_counter()
             result = race_in_sandboxes([functools.partial(start, m, n) for m, n in zip(models, names)], names,
-                                       seed=TRACK_SEED, env_options={})
+                                       seed=track_seed, env_options={})
             totals.append(time.perf_counter() - begin)
             starts.append(started[-1] - begin)
             results.append(result)
         begin = time.perf_counter()
-        local = race(models, seed=TRACK_SEED, names=names)
+        local = race(models, seed=track_seed, names=names)
         in_process = time.perf_counter() - begin
-    return Heat(cars=len(models), cpu=cpu, totals=totals, starts=starts, in_process_s=in_process,
+    return Heat(cars=len(models), track_seed=track_seed, cpu=cpu, totals=totals, starts=starts, in_process_s=in_process,
                 outcomes=outcomes(results[0].classification),
                 steps=max(len(car["acc"]) for car in results[0].replay["cars"]),
                 identical=all(r.classification == local.classification for r in results))
@@ -230,9 +236,10 @@ def bench_heat(models: list[Path], repeats: int) -> Heat:
 
 def report_heat(f: Heat) -> None:
     verdict = "ok" if f.median_s <= HEAT_TARGET_S else "OVER TARGET"
-    print(f"(a) {f.cars}-car heat, ONNX agents in sandboxes, one core (CPU {f.cpu}), sandbox start and close "
-          f"included: median {f.median_s:.2f} s over {len(f.totals)} runs (range {min(f.totals):.2f} .. "
-          f"{max(f.totals):.2f} s) (target <= {HEAT_TARGET_S:g} s: {verdict})", flush=True)
+    print(f"(a) {f.cars}-car heat on track {f.track_seed}, ONNX agents in sandboxes, one core (CPU {f.cpu}), "
+          f"sandbox start and close included: median {f.median_s:.2f} s over {len(f.totals)} runs "
+          f"(range {min(f.totals):.2f} .. {max(f.totals):.2f} s) "
+          f"(target <= {HEAT_TARGET_S:g} s: {verdict})", flush=True)
     print(f"    starting the {f.cars} sandboxes: median {statistics.median(f.starts):.2f} s, racing and closing: "
           f"median {statistics.median(t - s for t, s in zip(f.totals, f.starts)):.2f} s; the same race without "
           f"sandboxes (models loaded in-process): {f.in_process_s:.2f} s", flush=True)
@@ -243,7 +250,7 @@ def report_heat(f: Heat) -> None:
 # --------------------------------------------------------------------------- (b0) what two CPUs give at most
 
 
-def race_heats_pinned(cpu: int, models: list[Path], runs: int, barrier, times) -> None:
+def race_heats_pinned(cpu: int, models: list[Path], runs: int, barrier, times, track_seed: int = TRACK_SEED) -> None:
     """In a process of its own on `cpu`: race the heat once (imports, first sandboxes), then `runs`
     times, each starting with the other processes at the barrier; each race's seconds go to `times`."""
     from league.server.jobs.race import race_in_sandboxes
@@ -256,12 +263,12 @@ def race_heats_pinned(cpu: int, models: list[Path], runs: int, barrier, times) -
     for run in range(runs + 1):
         barrier.wait()
         begin = time.perf_counter()
-        race_in_sandboxes(starts, names, seed=TRACK_SEED, env_options={})
+        race_in_sandboxes(starts, names, seed=track_seed, env_options={})
         if run:
             times.put(time.perf_counter() - begin)
 
 
-def bench_ceiling(models: list[Path], runs: int) -> Ceiling:
+def bench_ceiling(models: list[Path], runs: int, track_seed: int = TRACK_SEED) -> Ceiling:
     """The per-CPU speed-up this machine allows racing, without the league: the same heat raced by one
     process on one CPU, then by two processes at once, each on a CPU of its own (nothing else
     running). Two CPUs give twice the heats only if a heat takes as long beside another as alone."""
@@ -272,7 +279,7 @@ def bench_ceiling(models: list[Path], runs: int) -> Ceiling:
     medians = {}
     for cpus in ([first], [first, second]):
         barrier, times = context.Barrier(len(cpus)), context.Queue()
-        processes = [context.Process(target=race_heats_pinned, args=(cpu, models, runs, barrier, times))
+        processes = [context.Process(target=race_heats_pinned, args=(cpu, models, runs, barrier, times, track_seed))
                      for cpu in cpus]
         for process in processes:
             process.start()
@@ -417,11 +424,11 @@ def start_workers(league: League, setup: Setup) -> None:
 
 
 def compare_workers(leagues: dict[str, tuple[League, object]], students: int, seed: int, repeats: int,
-                    timeout: float, per_cpu: bool = False) -> tuple[Rounds, int]:
+                    timeout: float, per_cpu: bool = False, track_seed: int | None = None) -> tuple[Rounds, int]:
     """Time the same heats (a new championship, same seed; each round a track of its own) with each
     worker setup, `repeats` times, alternating; with several leagues (name -> league, its instructor's
-    client: --before), each setup on each in turn. Returns the rounds and the last league's last
-    championship."""
+    client: --before), each setup on each in turn; `track_seed`: the track the leagues' APIs were
+    started to fix (checked). Returns the rounds and the last league's last championship."""
     runs, shapes = [], set()
     for repeat in range(repeats):
         for setup, workers in worker_setups(per_cpu).items():
@@ -431,16 +438,21 @@ def compare_workers(leagues: dict[str, tuple[League, object]], students: int, se
                 championship_id = new_championship(client, f"{setup}, run {repeat + 1}", seed)
                 seconds, summary = timed_round(client, championship_id, timeout)
                 heats, busy, waits = heat_report(client, summary)
+                if track_seed is not None and summary.get("track_seed") != track_seed:
+                    raise RuntimeError(f"{tree}the round raced track {summary.get('track_seed')}, not {track_seed}")
                 runs.append(RoundRun(repeat=repeat + 1, setup=f"{tree}{setup}", seconds=seconds, heats_s=busy,
-                                     heats=heats, waits=waits))
+                                     heats=heats, waits=waits, track_seed=summary.get("track_seed")))
                 shapes.add(str(summary["heats"]))
     return Rounds(students=students, heats=len(summary["heats"]), runs=runs, same_heats=len(shapes) == 1), \
         championship_id
 
 
 def report_rounds(f: Rounds, per_cpu: bool = False, ceiling: float | None = None) -> None:
+    seeds = {run.track_seed for run in f.runs}
+    tracks = (f"every round on track {next(iter(seeds))} (--round-track-seed)" if len(seeds) == 1
+              else "each round's track drawn secretly")
     print(f"(b) a round of {f.students} students in heats of <= {HEAT_SIZE}, from POST .../rounds to the round done, "
-          f"per worker setup (same seed: same heats; each round's track drawn secretly):")
+          f"per worker setup (same seed: same heats; {tracks}):")
     for run in f.runs:
         w = run.waits
         print(f"    run {run.repeat}, {run.setup}: {run.seconds:.1f} s (the heats ran {run.heats_s:.1f} s in all; "
@@ -475,7 +487,8 @@ def report_rounds(f: Rounds, per_cpu: bool = False, ceiling: float | None = None
 
 
 def bench_league(models: list[Path], *, backend_kind: str, eval_episodes: int, rate: float, seconds: float,
-                 seed: int, round_repeats: int, per_cpu: bool = False, before: Path | None = None) -> LeagueRun:
+                 seed: int, round_repeats: int, per_cpu: bool = False, before: Path | None = None,
+                 round_track_seed: int | None = None) -> LeagueRun:
     import numpy as np
 
     round_timeout = 60 + 30 * len(models)  # generous: a heat takes seconds
@@ -487,7 +500,8 @@ def bench_league(models: list[Path], *, backend_kind: str, eval_episodes: int, r
             urls = stack.enter_context(backend(backend_kind, tmp))
             settings = {**urls, "LEAGUE_EVAL_EPISODES": str(eval_episodes), "LEAGUE_QUOTA_PER_DAY": "10",
                         "LEAGUE_WORKER_THREADS": "1", "LEAGUE_CPU_SLOTS_DIR": str(tmp / "cpu-slots")}
-            league = stack.enter_context(League(tmp, embedded=False, settings=settings, root=root))
+            league = stack.enter_context(League(tmp, embedded=False, settings=settings, root=root,
+                                                round_track_seed=round_track_seed))
             leagues[name] = league, stack.enter_context(league.client())
             begin = time.perf_counter()
             for _ in range(2):
@@ -498,7 +512,8 @@ def bench_league(models: list[Path], *, backend_kind: str, eval_episodes: int, r
         league, client = leagues[next(reversed(leagues))]  # this tree's: (c)
 
         # (b) the same heats (same seed; each round a track of its own) with one worker, then with two
-        rounds, two_id = compare_workers(leagues, len(models), seed, round_repeats, round_timeout, per_cpu)
+        rounds, two_id = compare_workers(leagues, len(models), seed, round_repeats, round_timeout, per_cpu,
+                                         round_track_seed)
         for other, _ in leagues.values():
             other.stop_workers()
         figures = LeagueRun(backend=backend_kind, students=len(models), eval_episodes=eval_episodes,
@@ -584,6 +599,9 @@ def main(argv: list[str] | None = None) -> None:
     parser.add_argument("--skip-round", action="store_true", help="skip (b) and (c)")
     parser.add_argument("--before", type=Path, help="a checkout of this project at an earlier commit: (b) races its "
                                                     "rounds too, side by side")
+    parser.add_argument("--round-track-seed", type=int, metavar="N",
+                        help="every round's track N in both trees (the API started through benchmarks/_fixed_track.py;"
+                             " the product keeps drawing it secretly); (a) and (b0) race it too")
     parser.add_argument("--per-cpu", action="store_true",
                         help="(b) with one worker on one CPU and two on a CPU each only, and no (c)")
     args = parser.parse_args(argv)
@@ -596,19 +614,20 @@ def main(argv: list[str] | None = None) -> None:
     if not args.skip_round and len(os.sched_getaffinity(0)) < 2:
         parser.error("(b) compares one worker with two on CPUs of their own: this process may use one CPU "
                      "(use --skip-round)")
+    heat_track = TRACK_SEED if args.round_track_seed is None else args.round_track_seed
     print(machine(), flush=True)
     with tempfile.TemporaryDirectory(prefix="league-bench-models-") as folder:
         models = student_models(Path(folder), students)
         if not args.skip_heat:
-            report_heat(bench_heat(models[:HEAT_SIZE], repeats))
+            report_heat(bench_heat(models[:HEAT_SIZE], repeats, heat_track))
         ceiling = None
         if args.per_cpu and not args.skip_round:
-            ceiling = bench_ceiling(models[:HEAT_SIZE], repeats)
+            ceiling = bench_ceiling(models[:HEAT_SIZE], repeats, heat_track)
             report_ceiling(ceiling)
         if not args.skip_round:
             figures = bench_league(models, backend_kind=args.backend, eval_episodes=args.eval_episodes, rate=args.rate,
                                    seconds=seconds, seed=args.seed, round_repeats=max(1, args.round_repeats),
-                                   per_cpu=args.per_cpu, before=args.before)
+                                   per_cpu=args.per_cpu, before=args.before, round_track_seed=args.round_track_seed)
             figures.ceiling = ceiling.speedup if ceiling else None
             report_league(figures, args.per_cpu)
     print(f"load average {' '.join(f'{x:.2f}' for x in os.getloadavg())}", flush=True)
