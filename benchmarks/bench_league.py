@@ -614,6 +614,8 @@ def main(argv: list[str] | None = None) -> None:
     if not args.skip_round and len(os.sched_getaffinity(0)) < 2:
         parser.error("(b) compares one worker with two on CPUs of their own: this process may use one CPU "
                      "(use --skip-round)")
+    if args.round_track_seed is not None and not 0 <= args.round_track_seed < 2**53:
+        parser.error(f"--round-track-seed: a round's track seed is in [0, 2**53), not {args.round_track_seed}")
     heat_track = TRACK_SEED if args.round_track_seed is None else args.round_track_seed
     print(machine(), flush=True)
     with tempfile.TemporaryDirectory(prefix="league-bench-models-") as folder:
