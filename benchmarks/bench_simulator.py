@@ -152,8 +152,6 @@ def bench_parallel(n_cars: int, seconds: float, batched: bool) -> float:
                 t0 = time.perf_counter()
                 obs, _, _, _ = penv.step_arrays(actions)
                 elapsed += time.perf_counter() - t0
-                if not (penv.cars.outcome == 0).any():
-                    penv.agents = []
             else:
                 action_dict = {a: actions[int(a[4:])] for a in penv.agents}
                 t0 = time.perf_counter()

@@ -503,7 +503,7 @@ def _drive(penv: Any, agents: list[Agent], cars: list[CarLog], obs: dict, infos:
             try:
                 step[i] = answer()[0]
             except AgentError as error:
-                cars[i].info = penv._infos({names[i]: i})[names[i]]  # its last step's (it has not moved since)
+                cars[i].info = penv.info(names[i])  # its last step's (it has not moved since)
                 cars[i].outcome, cars[i].reason = "dnf", error.reason
                 penv.retire(names[i])
             else:
@@ -514,14 +514,9 @@ def _drive(penv: Any, agents: list[Agent], cars: list[CarLog], obs: dict, infos:
         taken[stepped] += 1
         states.append((batch.x.copy(), batch.y.copy(), batch.heading.copy(), batch.speed.copy()))
         actions.append(step)
-        ended = terminated | truncated
-        if ended.any():
-            done = ended.nonzero()[0]
-            for i in done:
-                cars[i].info = info = penv._infos({names[i]: i})[names[i]]
-                cars[i].outcome = info["outcome"] if terminated[i] else "timeout"
-            gone = {names[i] for i in done}
-            penv.agents = [car_id for car_id in penv.agents if car_id not in gone]
+        for i in (terminated | truncated).nonzero()[0]:  # (step_arrays took them out of penv.agents)
+            cars[i].info = info = penv.info(names[i])
+            cars[i].outcome = info["outcome"] if terminated[i] else "timeout"
     _record(cars, taken, states, actions)
 
 

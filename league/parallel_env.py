@@ -44,7 +44,9 @@ class MicroRacerParallelEnv(EnvRendering, ParallelEnv):
 
     ## Batched interface
     `step_arrays(actions)` takes a float32 `(n_cars, 2)` array and returns arrays
-    `(obs, rewards, terminated, truncated)`, skipping the per-agent dicts (for training).
+    `(obs, rewards, terminated, truncated)`, skipping the per-agent dicts (for training); like
+    `step`, it takes the cars done in the step out of `agents`. `info(agent)` is a car's info, as
+    `step` gives it.
 
     ## Arguments
     ```python
@@ -116,6 +118,7 @@ class MicroRacerParallelEnv(EnvRendering, ParallelEnv):
         """Advance all running cars: actions float32 (n_cars, 2) -> obs, rewards, terminated, truncated.
 
         The arrays are the simulator's own buffers, overwritten by the next step: copy what you keep.
+        The cars done in this step leave `agents`.
         """
         if self.cars is None:
             raise RuntimeError("call reset() before step()")
@@ -127,6 +130,9 @@ class MicroRacerParallelEnv(EnvRendering, ParallelEnv):
         if finished_now.any():
             self._place_finishers(finished_now)
         truncated = was_running & ~terminated & (cars.steps >= self.options.max_episode_steps)
+        done = terminated | truncated
+        if done.any():
+            self.agents = [agent for agent in self.agents if not done[int(agent[4:])]]
         if self.render_mode is not None:
             for i in np.flatnonzero(was_running):
                 self._trails[i].append((float(cars.x[i]), float(cars.y[i])))
@@ -149,7 +155,6 @@ class MicroRacerParallelEnv(EnvRendering, ParallelEnv):
         terminations = {a: bool(terminated[i]) for a, i in index.items()}
         truncations = {a: bool(truncated[i]) for a, i in index.items()}
         infos = self._infos(index)
-        self.agents = [a for a in self.agents if not (terminations[a] or truncations[a])]
         if self.render_mode == "human":
             self.render()
         return observations, reward_dict, terminations, truncations, infos
@@ -160,6 +165,12 @@ class MicroRacerParallelEnv(EnvRendering, ParallelEnv):
             raise ValueError(f"{agent!r} is not racing; live agents: {self.agents}")
         self.cars.retire(int(agent[4:]))
         self.agents.remove(agent)
+
+    def info(self, agent: str) -> dict:
+        """The car's info, as `step` gives it (its last step's once it is done)."""
+        if agent not in self.possible_agents:
+            raise ValueError(f"unknown agent {agent!r}; the agents are {self.possible_agents}")
+        return self._infos({agent: int(agent[4:])})[agent]
 
     def _place_finishers(self, finished_now: np.ndarray):
         """Finishing positions by interpolated finish time (ties: lower car index first)."""

@@ -162,6 +162,8 @@ def test_done_cars_leave_the_agents_and_their_actions_are_ignored():
         penv.step({})
     with pytest.raises(ValueError, match="NaN"):
         penv.step({"car_1": [np.nan, 0]})
+    with pytest.raises(ValueError, match="unknown agent"):
+        penv.info("car_99")
 
 
 def test_batched_interface_matches_the_dict_interface():
@@ -174,12 +176,14 @@ def test_batched_interface_matches_the_dict_interface():
         actions = np.array([reference.heuristic(o) for o in obs], dtype=np.float32)
         actions[:, 0] += rng.normal(0, 0.05, len(actions)).astype(np.float32)
         live = list(a.agents)
-        obs_d, rew_d, term_d, trunc_d, _ = a.step({x: actions[int(x[4:])] for x in live})
+        obs_d, rew_d, term_d, trunc_d, info_d = a.step({x: actions[int(x[4:])] for x in live})
         obs_b, rew_b, term_b, trunc_b = b.step_arrays(actions)
+        assert b.agents == a.agents  # step_arrays, too, takes the cars done out of `agents`
         for x in live:
             i = int(x[4:])
             np.testing.assert_array_equal(obs_d[x], obs_b[i])
             assert (rew_d[x], term_d[x], trunc_d[x]) == (rew_b[i], term_b[i], trunc_b[i])
+            assert b.info(x) == info_d[x]
         obs = obs_b.copy()
     assert not (b.cars.outcome == 0).any()
 
