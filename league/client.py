@@ -21,7 +21,10 @@ from dataclasses import dataclass, replace
 from pathlib import Path
 from typing import TYPE_CHECKING
 
-from league.cli import EXIT_CLOSED_PIPE
+from league.command import add_env_switches, env_options
+from league.exit_codes import (
+    CLIENT_EXIT_CODES, EXIT_AUTH, EXIT_ERROR, EXIT_OK, EXIT_REFUSED, EXIT_REJECTED, EXIT_TIMEOUT, EXIT_UNREACHABLE,
+)
 from league.spreadsheet import csv_text
 
 if TYPE_CHECKING:
@@ -29,17 +32,6 @@ if TYPE_CHECKING:
     from league.validation.limits import SandboxLimits
     from league.validation.report import ValidationReport
 
-# Exit codes a script can test (also in `league submit --help`).
-EXIT_OK, EXIT_REJECTED, EXIT_USAGE, EXIT_AUTH, EXIT_REFUSED, EXIT_UNREACHABLE, EXIT_TIMEOUT = 0, 1, 2, 3, 4, 5, 6
-EXIT_CODES = f"""exit codes:
-  {EXIT_OK}  done (submit --wait: ready and evaluated; check: the server would accept the file)
-  {EXIT_REJECTED}  the model was rejected (by the check or the server), or its evaluation failed
-  {EXIT_USAGE}  a mistake in the command, or a local problem (missing file, no server configured)
-  {EXIT_AUTH}  the server refused the token (missing, replaced, wrong or revoked), or the action is not yours
-  {EXIT_REFUSED}  the server refused the request: quota, jobs in flight, file size or type, ...
-  {EXIT_UNREACHABLE}  the server cannot be reached or failed
-  {EXIT_TIMEOUT}  --wait gave up before the submission was settled
-  {EXIT_CLOSED_PIPE}  the output's reader quit (`league submissions | head`), as for any command SIGPIPE ends"""
 TERMINAL = {"ready", "rejected", "failed"}
 STAGES = ["pending", "validating", "ready", "evaluation queued", "evaluation running", "done"]
 
@@ -76,7 +68,7 @@ def connection(args: argparse.Namespace, need_token: bool = True) -> Connection:
     token = args.token or os.environ.get("LEAGUE_TOKEN") or stored.get("token")
     if not server:
         raise ClientError("no server: run `league login --server URL` or give --server URL (or LEAGUE_SERVER)",
-                          EXIT_USAGE)
+                          EXIT_ERROR)
     if need_token and not token:
         raise ClientError("no token: run `league login` or give --token TOKEN (or LEAGUE_TOKEN)", EXIT_AUTH)
     return Connection(server.rstrip("/"), token)
@@ -180,7 +172,7 @@ def check_files(paths: list[Path], limits: SandboxLimits, max_bytes: int):
 
     for path in paths:
         if not path.exists():
-            raise ClientError(f"no such file: {path}", EXIT_USAGE)
+            raise ClientError(f"no such file: {path}", EXIT_ERROR)
         try:
             upload = read_upload(path, max_bytes)
         except ModelRejected as refusal:
@@ -195,7 +187,7 @@ def check_upload(upload: Upload, limits: SandboxLimits) -> ValidationReport:
 
     missing = missing_runtime(upload.kind)
     if missing:
-        raise ClientError(missing, EXIT_USAGE)
+        raise ClientError(missing, EXIT_ERROR)
     with tempfile.TemporaryDirectory(prefix="league-upload-") as folder:
         model = Path(folder) / upload.name
         model.write_bytes(upload.data)
@@ -251,7 +243,7 @@ def _optional_api(args: argparse.Namespace) -> Api | None:
 def run_login(args: argparse.Namespace) -> int:
     server = args.server or os.environ.get("LEAGUE_SERVER")
     if not server:
-        raise ClientError("say which server: league login --server URL", EXIT_USAGE)
+        raise ClientError("say which server: league login --server URL", EXIT_ERROR)
     token = args.token or os.environ.get("LEAGUE_TOKEN")
     if not token:
         import getpass
@@ -294,7 +286,7 @@ def only_open_assignment(api: Api) -> str | None:
     if len(open_) > 1:
         names = ", ".join(a["name"] for a in open_)
         raise ClientError(f"several assignments are open to you: {names}; say which with --assignment NAME, e.g. "
-                          f"league submit FILE --assignment {shell_word(open_[0]['name'])}", EXIT_USAGE)
+                          f"league submit FILE --assignment {shell_word(open_[0]['name'])}", EXIT_ERROR)
     if open_:
         print(f"for the assignment {open_[0]['name']} (the only one open to you)", file=sys.stderr)
         return open_[0]["name"]
@@ -321,7 +313,7 @@ def as_is(path: Path) -> Upload:
     from league.validation.files import Upload, model_kind_of, read_upload
 
     if not path.is_file():
-        raise ClientError(f"no such file: {path}", EXIT_USAGE)
+        raise ClientError(f"no such file: {path}", EXIT_ERROR)
     try:
         return read_upload(path, max_bytes=path.stat().st_size + 2**40)
     except ModelRejected:  # the server says why
@@ -463,7 +455,7 @@ def run_championships(args: argparse.Namespace) -> int:
                        "yes" if c["include_baselines"] else "no"] for c in championships], args.csv)
         return EXIT_OK
     if not args.championship:
-        raise ClientError(f"league championships {args.action} CHAMPIONSHIP: which championship?", EXIT_USAGE)
+        raise ClientError(f"league championships {args.action} CHAMPIONSHIP: which championship?", EXIT_ERROR)
     if args.action == "standings":
         return run_standings(args)
     with Api(connection(args)) as api:
@@ -486,10 +478,7 @@ def run_championships(args: argparse.Namespace) -> int:
 
 
 def create_championship(api: Api, args: argparse.Namespace) -> int:
-    from league.cli import ENV_SWITCHES
-
-    body = {"name": args.championship, "include_baselines": not args.no_baselines,
-            "env_options": {switch: getattr(args, switch) for switch in ENV_SWITCHES}}
+    body = {"name": args.championship, "include_baselines": not args.no_baselines, "env_options": env_options(args)}
     for field, value in (("heat_size", args.heat_size), ("seed", args.seed), ("points", args.points)):
         if value is not None:
             body[field] = value
@@ -552,8 +541,8 @@ def championship_id(api: Api, wanted: str) -> int:
     listing = ", ".join(f"{c['id']} ({c['name']})" for c in championships) or "none yet"
     if found:
         raise ClientError(f"{len(found)} championships are named {wanted!r}: give the id of one of "
-                          f"{', '.join(str(c['id']) for c in found)}", EXIT_USAGE)
-    raise ClientError(f"no championship named {wanted!r}; the championships: {listing}", EXIT_USAGE)
+                          f"{', '.join(str(c['id']) for c in found)}", EXIT_ERROR)
+    raise ClientError(f"no championship named {wanted!r}; the championships: {listing}", EXIT_ERROR)
 
 
 # --------------------------------------------------------------------------- assignments
@@ -567,7 +556,7 @@ def find_assignment(api: Api, wanted: str) -> dict:
     if len(found) == 1:
         return found[0]
     listing = ", ".join(a["name"] for a in assignments) or "none yet"
-    raise ClientError(f"no assignment named {wanted!r}; the assignments: {listing}", EXIT_USAGE)
+    raise ClientError(f"no assignment named {wanted!r}; the assignments: {listing}", EXIT_ERROR)
 
 
 def local_time(text: str | None) -> str:
@@ -603,7 +592,7 @@ def parse_time(text: str) -> str:
         moment = datetime.fromisoformat(text)
     except ValueError:
         raise ClientError(f"{text!r} is not a time such as 2026-12-01T23:59 or 2026-12-01T23:59+01:00",
-                          EXIT_USAGE) from None
+                          EXIT_ERROR) from None
     return (moment if moment.tzinfo else moment.astimezone()).isoformat()
 
 
@@ -612,7 +601,7 @@ def run_assignments(args: argparse.Namespace) -> int:
         if args.action == "list":
             return list_assignments(api.get("/api/assignments"), args.csv)
         if not args.names:
-            raise ClientError(f"league assignments {args.action} NAME: which assignment?", EXIT_USAGE)
+            raise ClientError(f"league assignments {args.action} NAME: which assignment?", EXIT_ERROR)
         if args.action == "create":
             created = api.call("POST", "/api/assignments", json={"name": args.names[0], **assignment_fields(args)})
             print(f"assignment {created['id']}: {created['name']} created ({describe_times(created)}, "
@@ -624,7 +613,7 @@ def run_assignments(args: argparse.Namespace) -> int:
             fields = assignment_fields(args)
             if not fields:
                 raise ClientError("league assignments edit NAME: say what to change (--due, --episodes, ...)",
-                                  EXIT_USAGE)
+                                  EXIT_ERROR)
             edited = api.call("PATCH", where, json=fields)
             print(f"{edited['name']}: {describe_changes(assignment, edited, fields)}")
         elif args.action == "publish":
@@ -633,10 +622,10 @@ def run_assignments(args: argparse.Namespace) -> int:
                   "it has a rubric)")
         elif args.action == "extend":
             if len(args.names) != 2 or not args.due:
-                raise ClientError("league assignments extend NAME STUDENT --due TIME", EXIT_USAGE)
+                raise ClientError("league assignments extend NAME STUDENT --due TIME", EXIT_ERROR)
             student = [u for u in api.get("/api/users") if u["name"] == args.names[1]]
             if not student:
-                raise ClientError(f"no student named {args.names[1]!r} in your course", EXIT_USAGE)
+                raise ClientError(f"no student named {args.names[1]!r} in your course", EXIT_ERROR)
             extension = api.call("PUT", f"{where}/extensions/{student[0]['id']}", json={"due_at": parse_time(args.due)})
             print(f"{assignment['name']}: {student[0]['name']} is now due {local_time(extension['due_at'])} "
                   f"(the assignment's due time: {local_time(assignment['due_at']) or 'none'})")
@@ -763,7 +752,7 @@ def run_audit(args: argparse.Namespace) -> int:
 def run_rerun(args: argparse.Namespace) -> int:
     """Instructors: evaluate a submission again, or every ready one of the course (the console's Re-run)."""
     if (args.submission is None) == (not args.all):
-        raise ClientError("league rerun: give a SUBMISSION id or --all", EXIT_USAGE)
+        raise ClientError("league rerun: give a SUBMISSION id or --all", EXIT_ERROR)
     with Api(connection(args)) as api:
         body = {"all": True} if args.all else {"submission_id": args.submission}
         queued = api.call("POST", "/api/evaluations/rerun", json=body)["queued"]
@@ -794,14 +783,14 @@ def run_grades(args: argparse.Namespace) -> int:
         assignment = find_assignment(api, args.assignment) if args.assignment else None
         if me["role"] != "instructor":
             if assignment is None:
-                raise ClientError("league grades ASSIGNMENT: which assignment?", EXIT_USAGE)
+                raise ClientError("league grades ASSIGNMENT: which assignment?", EXIT_ERROR)
             return print_my_grade(api.get(f"/api/assignments/{assignment['id']}/grades/me"))
         if args.check and args.format != "canvas":
             raise ClientError("--check says how Canvas will match the file's students: league grades "
-                              "[ASSIGNMENT] --format canvas --check", EXIT_USAGE)
+                              "[ASSIGNMENT] --format canvas --check", EXIT_ERROR)
         if args.set_rubric:
             if assignment is None:
-                raise ClientError("league grades ASSIGNMENT --set-rubric FILE: which assignment?", EXIT_USAGE)
+                raise ClientError("league grades ASSIGNMENT --set-rubric FILE: which assignment?", EXIT_ERROR)
             saved = api.call("PUT", f"/api/assignments/{assignment['id']}/rubric",
                              json=read_rubric_file(args.set_rubric))
             print(rubric_change(assignment["name"], assignment["rubric"], saved["rubric"]))
@@ -835,7 +824,7 @@ def read_rubric_file(name: str) -> dict:
         return json.loads(text)
     except ValueError as error:
         raise ClientError(f"{name}: not JSON ({error}); see the server README, Grades, for examples",
-                          EXIT_USAGE) from None
+                          EXIT_ERROR) from None
 
 
 def warn_unidentified(users: list[dict], identifier: str) -> None:
@@ -907,7 +896,7 @@ def add_commands(subparsers) -> None:
 
     def command(name: str, help_: str, run, description: str | None = None):
         parser = subparsers.add_parser(name, parents=[server], help=help_, description=description or help_,
-                                       epilog=EXIT_CODES, formatter_class=formatter)
+                                       epilog=CLIENT_EXIT_CODES, formatter_class=formatter)
         parser.set_defaults(run=run)
         return parser
 
@@ -1032,10 +1021,7 @@ def add_commands(subparsers) -> None:
     created.add_argument("--assignment", metavar="NAME",
                          help="race each student's final submission of this assignment (default: active ones)")
     created.add_argument("--no-baselines", action="store_true", help="the bundled baselines do not race")
-    from league.cli import ENV_SWITCHES
-
-    for switch, effect in ENV_SWITCHES.items():
-        created.add_argument(f"--no-{switch.replace('_', '-')}", dest=switch, action="store_false", help=effect)
+    add_env_switches(created)
     rounds = championships.add_argument_group("rounds")
     rounds.add_argument("--run", dest="run_round", action="store_true",  # (`run`: the command's function)
                         help="start the next round and watch it to the end")

@@ -153,6 +153,7 @@ def test_the_automatic_assignment_closes_once_the_instructor_makes_one_unless_ke
     students, unless the instructor keeps it open; then several are open and the upload must name one."""
     from league import client as cli_client
     from league.cli import main
+    from league.exit_codes import EXIT_ERROR
 
     course = unique("course")
     _, prof_token = league.user("prof", role=INSTRUCTOR, course_name=course)
@@ -196,7 +197,7 @@ def test_the_automatic_assignment_closes_once_the_instructor_makes_one_unless_ke
     model = tmp_path / "agent.onnx"
     model.write_bytes(b"not really onnx")
     capsys.readouterr()
-    assert main(["submit", str(model), "--no-check"]) == cli_client.EXIT_USAGE
+    assert main(["submit", str(model), "--no-check"]) == EXIT_ERROR
     assert capsys.readouterr().err == ("league: error: several assignments are open to you: default, Sprint; say "
                                        "which with --assignment NAME, e.g. league submit FILE --assignment default\n")
     assert len(mine) == len(league.client(student_token).get("/api/submissions").json())  # nothing uploaded
@@ -395,6 +396,7 @@ def test_the_cli_creates_extends_lists_and_selects(league, clock, monkeypatch, c
     itself (the CLI's HTTP client given the app's transport)."""
     from league import client as cli_client
     from league.cli import main
+    from league.exit_codes import EXIT_REFUSED
 
     def api_on_the_app(self, conn, timeout: float = 60):
         self.conn, self.http = conn, league.client(conn.token)
@@ -423,7 +425,7 @@ def test_the_cli_creates_extends_lists_and_selects(league, clock, monkeypatch, c
     selected = league_cli(student_token, "select", str(agent))
     assert f"your final submission is {agent}" in selected
     monkeypatch.setenv("LEAGUE_TOKEN", league.instructor_token)
-    assert main(["assignments", "publish", name]) == cli_client.EXIT_REFUSED  # students may still upload
+    assert main(["assignments", "publish", name]) == EXIT_REFUSED  # students may still upload
 
 
 def test_an_assignments_board_is_shown_as_the_courses_board_visibility_allows(league):
