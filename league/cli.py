@@ -92,7 +92,7 @@ def build_parser() -> argparse.ArgumentParser:
 
 def _add_server_commands(subparsers) -> None:
     from league.baselines.cli import add_commands as add_baseline_commands  # imports torch only when run
-    from league.client import add_commands as add_client_commands  # imports httpx only when run
+    from league.client.parser import add_commands as add_client_commands  # imports httpx only when run
 
     add_baseline_commands(subparsers)
     add_client_commands(subparsers)

@@ -216,7 +216,7 @@ def test_the_terminal_names_what_changed_and_says_when_an_upload_was_late(sqlite
     a late upload is said late by `submit` and `submissions`; `--check` counts Canvas's matches."""
     from datetime import datetime, timedelta, timezone
 
-    from league.client import local_time
+    from league.client.output import local_time
 
     title, now = unique("Late"), datetime.now(timezone.utc)
     env = {"LEAGUE_SERVER": sqlite_server.url, "LEAGUE_TOKEN": sqlite_server.instructor_token}
@@ -265,7 +265,7 @@ def test_the_terminal_names_what_changed_and_says_when_an_upload_was_late(sqlite
 
 
 def test_time_left_is_rounded_down_and_the_last_minute_is_under_a_minute():
-    from league.client import time_left, upload_time_left
+    from league.client.assignments import time_left, upload_time_left
 
     now = "2026-12-01T12:00:00+00:00"
     assert [time_left(until, now) for until in ("2026-12-01T12:00:59+00:00", "2026-12-01T12:01:59+00:00",
