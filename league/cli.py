@@ -25,6 +25,7 @@ import sys
 from collections.abc import Sequence
 
 from league.command import UsageError, add_env_switches, add_version, env_options, run
+from league.exit_codes import EXIT_OK
 
 AGENT_HELP = "an ONNX (.onnx) or TorchScript (.pt) file, or 'heuristic' (the built-in driver)"
 
@@ -134,7 +135,7 @@ def run_evaluate(args: argparse.Namespace) -> int:
     result = metrics_run(agent, episodes=args.episodes, seed=args.seed, progress=not args.no_progress,
                          **env_options(args))
     print(json.dumps(result.to_dict(), indent=2) if args.json else result.table(per_episode=args.per_episode))
-    return 0
+    return EXIT_OK
 
 
 def run_race(args: argparse.Namespace) -> int:
@@ -152,7 +153,7 @@ def run_race(args: argparse.Namespace) -> int:
     if args.replay:
         print(f"replay saved to {save_replay(result, args.replay)}", file=sys.stderr)
     _animate(result.replay, args)
-    return 0
+    return EXIT_OK
 
 
 def run_replay(args: argparse.Namespace) -> int:
@@ -166,7 +167,7 @@ def run_replay(args: argparse.Namespace) -> int:
     if not (args.show or args.save):
         print("add --show to watch it or --save race.gif to save the animation", file=sys.stderr)
     _animate(replay, args)
-    return 0
+    return EXIT_OK
 
 
 def run_track(args: argparse.Namespace) -> int:
@@ -186,7 +187,7 @@ def run_track(args: argparse.Namespace) -> int:
     else:
         _require_display()
         render.show_track(env.track, title=title)
-    return 0
+    return EXIT_OK
 
 
 def _load(path: str):

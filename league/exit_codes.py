@@ -2,8 +2,9 @@
 epilog of each command that talks to a league server: `league submit --help`).
 
 A script tests these numbers, so they never change. Status 2 is also what argparse exits with for a
-mistake in the command line. Imports nothing: league/command.py, league/cli.py, the client
-(league/client/) and the server's commands (league/server/cli.py) read their statuses here.
+mistake in the command line. Imports nothing: league/command.py (which runs every command),
+league/cli.py, the client (league/client/) and the server's commands (league/server/cli.py) read
+their statuses here.
 """
 
 EXIT_OK = 0
