@@ -8,9 +8,13 @@
 
 Errors print one line saying what went wrong and what to do, and exit with status 2
 (``LEAGUE_DEBUG=1`` shows the traceback). Output into a pipe whose reader quit (``league ... |
-head``) ends the command quietly, with status 141 as SIGPIPE would. The server adds its own commands
-(``serve``, ``worker``, ``init``, ``migrate``, ``backup``, ``restore``, ``config``, ``users``) through
-``league.server.cli.add_commands``.
+head``) ends the command quietly, with status 141 as SIGPIPE would (league/command.py runs every
+command; league/exit_codes.py names the statuses).
+
+This module composes the command: the toolkit's commands are here; the baselines' (``train``,
+``export``), the client's (league/client/) and, when the server extra is installed, the server's
+(``serve``, ``worker``, ``init``, ``migrate``, ``backup``, ``restore``, ``config``, ``users``, through
+``league.server.cli.add_commands``) are added to it. None of them imports this module.
 """
 from __future__ import annotations
 
@@ -20,27 +24,16 @@ import os
 import sys
 from collections.abc import Sequence
 
-EXIT_ERROR = 2
-EXIT_CLOSED_PIPE = 128 + 13  # as a command that SIGPIPE ended: the reader of its output had quit
-ENV_SWITCHES = {  # option -> what --no-OPTION does
-    "obstacles": "no obstacles on the track",
-    "chicanes": "no chicane on the track",
-    "turn_limit": "no speed-dependent turn limit",
-    "low_speed_termination": "do not end episodes below speed 0.05",
-}
+from league.command import UsageError, add_env_switches, add_version, env_options, run
+from league.exit_codes import EXIT_OK
+
 AGENT_HELP = "an ONNX (.onnx) or TorchScript (.pt) file, or 'heuristic' (the built-in driver)"
 
 
 def _env_flags() -> argparse.ArgumentParser:
     parent = argparse.ArgumentParser(add_help=False)
-    group = parent.add_argument_group("environment options (all on by default, as in the thesis)")
-    for switch, effect in ENV_SWITCHES.items():
-        group.add_argument(f"--no-{switch.replace('_', '-')}", dest=switch, action="store_false", help=effect)
+    add_env_switches(parent.add_argument_group("environment options (all on by default, as in the thesis)"))
     return parent
-
-
-def _env_options(args: argparse.Namespace) -> dict:
-    return {switch: getattr(args, switch) for switch in ENV_SWITCHES}
 
 
 def _save_or_show(parser: argparse.ArgumentParser, save_help: str,
@@ -100,7 +93,7 @@ def build_parser() -> argparse.ArgumentParser:
 
 def _add_server_commands(subparsers) -> None:
     from league.baselines.cli import add_commands as add_baseline_commands  # imports torch only when run
-    from league.client import add_commands as add_client_commands  # imports httpx only when run
+    from league.client.parser import add_commands as add_client_commands  # imports httpx only when run
 
     add_baseline_commands(subparsers)
     add_client_commands(subparsers)
@@ -140,9 +133,9 @@ def run_evaluate(args: argparse.Namespace) -> int:
 
     agent = _load(args.agent)
     result = metrics_run(agent, episodes=args.episodes, seed=args.seed, progress=not args.no_progress,
-                         **_env_options(args))
+                         **env_options(args))
     print(json.dumps(result.to_dict(), indent=2) if args.json else result.table(per_episode=args.per_episode))
-    return 0
+    return EXIT_OK
 
 
 def run_race(args: argparse.Namespace) -> int:
@@ -155,12 +148,12 @@ def run_race(args: argparse.Namespace) -> int:
     if args.show:
         _require_display()
     agents = [_load(path) for path in args.agents]
-    result = race(agents, seed=args.seed, names=args.names, **_env_options(args))
+    result = race(agents, seed=args.seed, names=args.names, **env_options(args))
     print(json.dumps(result.to_dict(), indent=2) if args.json else f"race on seed {args.seed}\n{result.table()}")
     if args.replay:
         print(f"replay saved to {save_replay(result, args.replay)}", file=sys.stderr)
     _animate(result.replay, args)
-    return 0
+    return EXIT_OK
 
 
 def run_replay(args: argparse.Namespace) -> int:
@@ -174,7 +167,7 @@ def run_replay(args: argparse.Namespace) -> int:
     if not (args.show or args.save):
         print("add --show to watch it or --save race.gif to save the animation", file=sys.stderr)
     _animate(replay, args)
-    return 0
+    return EXIT_OK
 
 
 def run_track(args: argparse.Namespace) -> int:
@@ -186,7 +179,7 @@ def run_track(args: argparse.Namespace) -> int:
         raise UsageError("say what to do with the track: --save track.png or --show")
     _check_output(args.save, (".png",))
     seed = args.seed if args.episode is None else episode_seeds(args.seed, args.episode + 1)[args.episode]
-    env = MicroRacerEnv(**_env_options(args))
+    env = MicroRacerEnv(**env_options(args))
     env.reset(seed=seed)  # the very track an episode or race with this seed is run on
     title = f"seed {args.seed}" + ("" if args.episode is None else f", episode {args.episode}")
     if args.save:
@@ -194,7 +187,7 @@ def run_track(args: argparse.Namespace) -> int:
     else:
         _require_display()
         render.show_track(env.track, title=title)
-    return 0
+    return EXIT_OK
 
 
 def _load(path: str):
@@ -243,99 +236,9 @@ def _require_display() -> None:
     render.require_display()
 
 
-class UsageError(Exception):
-    """A mistake in the command line that argparse cannot see."""
-
-
-def add_version(parser: argparse.ArgumentParser) -> None:
-    """`--version`: the package's version (its one home is pyproject.toml, read from the installed metadata)."""
-    from league import __version__
-
-    parser.add_argument("--version", action="version", version=f"%(prog)s (microracer-league) {__version__}")
-
-
-def main(argv: Sequence[str] | None = None, parser: argparse.ArgumentParser | None = None) -> int:
-    """Entry point of the ``league`` console script (and, with its parser, of ``python -m league.server``);
-    returns the exit status."""
-    try:
-        try:
-            status = _run(parser or build_parser(), argv)
-        except SystemExit as done:  # argparse: --help, or a mistake in the command line
-            if not isinstance(done.code, (int, type(None))):
-                raise  # a message for Python to print
-            status = done.code or 0
-        sys.stdout.flush()  # what is left goes out here, where a closed pipe can still be handled
-        return status
-    except BrokenPipeError as error:
-        if not reader_gone(sys.stdout):  # another pipe (a sandbox's, say) broke: an error like any other
-            return _report(error)
-        # `league ... | head`: the reader has what it wanted. The interpreter's last flush goes nowhere.
-        os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
-        return EXIT_CLOSED_PIPE
-
-
-def _run(parser: argparse.ArgumentParser, argv: Sequence[str] | None) -> int:
-    args = parser.parse_args(argv)
-    try:
-        return args.run(args)
-    except KeyboardInterrupt:
-        print("league: interrupted", file=sys.stderr)
-        return 130
-    except BrokenPipeError:
-        raise
-    except Exception as error:  # one line for the user, never a traceback (unless LEAGUE_DEBUG)
-        return _report(error)
-
-
-def _report(error: Exception) -> int:
-    if os.environ.get("LEAGUE_DEBUG"):
-        raise error
-    print(f"league: error: {_describe(error)}", file=sys.stderr)
-    return getattr(error, "exit_code", EXIT_ERROR)  # the server client's codes: league/client.py
-
-
-def reader_gone(stream) -> bool:
-    """Whether the pipe `stream` writes to has lost its reader (`league ... | head` once head quit):
-    poll reports an error on such a pipe; never on a terminal or a file."""
-    import select
-
-    try:
-        poller = select.poll()  # not on Windows: there a broken pipe is reported as an error
-        poller.register(stream.fileno(), select.POLLOUT)
-    except (AttributeError, OSError, ValueError):
-        return False
-    return any(events & select.POLLERR for _, events in poller.poll(0))
-
-
-def _describe(error: Exception) -> str:
-    from league.agents import AgentError
-
-    message = " ".join(str(error).split()) or type(error).__name__
-    if isinstance(error, ModuleNotFoundError) and (extra := extra_providing(error.name or "")):
-        return (f"{message}: this command needs the package's `{extra}` extra: pip install "
-                f"\"microracer-league[{extra}]\" (in a checkout: pip install -e \".[{extra}]\")")
-    if isinstance(error, (AgentError, UsageError, ValueError, TypeError, OSError)) or \
-            type(error).__name__ in ("RenderError", "ClientError", "ConfigError", "DatabaseError", "BackupError"):
-        return message
-    return f"unexpected {type(error).__name__}: {message} (set LEAGUE_DEBUG=1 to see the traceback and report it)"
-
-
-def extra_providing(module: str) -> str | None:
-    """The first of our extras (pyproject's order) that installs `module`'s distribution, from the
-    installed package's metadata; None if none does (or the package is not installed)."""
-    from importlib import metadata
-
-    from packaging.requirements import Requirement  # (matplotlib's dependency)
-    from packaging.utils import canonicalize_name
-
-    wanted = canonicalize_name(module.partition(".")[0])
-    try:
-        extras = metadata.metadata("microracer-league").get_all("Provides-Extra") or []
-        requirements = [Requirement(text) for text in metadata.requires("microracer-league") or []]
-    except metadata.PackageNotFoundError:
-        return None
-    providers = [r for r in requirements if canonicalize_name(r.name) == wanted and r.marker is not None]
-    return next((extra for extra in extras if any(r.marker.evaluate({"extra": extra}) for r in providers)), None)
+def main(argv: Sequence[str] | None = None) -> int:
+    """Entry point of the ``league`` console script; returns the exit status."""
+    return run(build_parser(), argv)
 
 
 if __name__ == "__main__":

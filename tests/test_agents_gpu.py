@@ -14,7 +14,7 @@ import pytest
 
 from league import testing as mf
 from league.agents import AgentError, load_agent
-from league.client import EXIT_OK
+from league.exit_codes import EXIT_OK
 from league.validation.loading import load_checked
 
 torch = pytest.importorskip("torch")

@@ -1,6 +1,9 @@
-"""Imports go one way (STYLE.md): the toolkit never imports the server, and the baselines' shared
-code never imports the package that lists the algorithms built on it. Every import of every module
-of the package counts, those inside functions too (they run as soon as the function does)."""
+"""Imports go one way (README.md, Layout: server -> evaluation/agents -> envs -> core): the toolkit
+never imports the server, the baselines' shared code never imports the package that lists the
+algorithms built on it, and no module imports itself back, directly or through others. Every import
+of every module of the package counts, those inside functions too (they run as soon as the function
+does). `importlib.import_module` is a call, not an import statement: the walk does not see league's
+lazy names (league/__init__.py), which load once the package has."""
 from __future__ import annotations
 
 import ast
@@ -71,22 +74,22 @@ def _in(module: str, package: str) -> bool:
 
 def test_imports_go_one_way():
     graph = import_graph()
-    assert len(graph) > 50 and graph["league.client"]  # the walk found the package
+    assert len(graph) > 50 and graph["league.client.parser"]  # the walk found the package
     assert upward(graph) == []
 
 
 def test_the_walk_sees_what_would_be_an_upward_edge():
-    """The rules catch the edges this change removed (the client's on the server's validation, the
+    """The rules catch the edges that were removed (the client's check on the server's validation, the
     baselines' export on their registry), written as the old code wrote them, and relative ones."""
     graph = {
-        "league.client": imports_of("def check():\n    from league.server.sandbox.validation import validate_model\n",
-                                    "league.client"),
+        "league.client.check": imports_of(
+            "def check():\n    from league.server.sandbox.validation import validate_model\n", "league.client.check"),
         "league.baselines.common.export": imports_of("from league.baselines import load_algorithm\n",
                                                      "league.baselines.common.export"),
         "league.validation.files": imports_of("from ..server import storage\n", "league.validation.files"),
     }
     assert upward(graph) == [("league.baselines.common.export", "league.baselines"),
-                             ("league.client", "league.server.sandbox.validation"),
+                             ("league.client.check", "league.server.sandbox.validation"),
                              ("league.validation.files", "league.server"),
                              ("league.validation.files", "league.server.storage")]
 
@@ -105,10 +108,11 @@ HEAVY = ("pettingzoo", "tqdm", "scipy", "matplotlib", "league.evaluation", "leag
 
 
 @pytest.mark.parametrize("module", ["league", "league.constants", "league.validation", "league.validation.checks",
-                                    "league.validation.limits"])
+                                    "league.validation.limits", "league.exit_codes", "league.client.parser"])
 def test_the_package_and_its_light_modules_import_without_the_simulator(module):
     """`import league.constants` runs league/__init__.py first: that must load none of the envs,
-    PettingZoo or the evaluation (the sandbox and `league check` import the toolkit this way)."""
+    PettingZoo or the evaluation (the sandbox and `league check` import the toolkit this way; every
+    `league` command adds the client's commands to its parser)."""
     done = run_python(f"import sys, {module}\nprint([name for name in {HEAVY!r} if name in sys.modules])")
     assert done.returncode == 0, done.stderr
     assert done.stdout.strip() == "[]"
@@ -150,40 +154,54 @@ def test_the_env_modules_are_not_hidden_by_factories():
         league.no_such_name  # noqa: B018
 
 
-def module_level_imports(path: Path) -> set[str]:
-    """The league modules that a module imports as it loads (statements outside functions)."""
-    tree, found = ast.parse(path.read_text()), set()
-    body = [node for node in tree.body if not isinstance(node, (ast.FunctionDef, ast.AsyncFunctionDef, ast.ClassDef))]
-    for statement in body:
-        source = ast.unparse(statement)
-        found |= imports_of(source, module_name(path), path.name == "__init__.py")
-    return found
-
-
 def cycles(graph: dict[str, set[str]]) -> list[list[str]]:
-    """The import cycles of `graph` (each once, from its smallest module)."""
-    found = set()
+    """The import circles of `graph`: each set of modules that import one another, directly or through
+    others (a strongly connected component, sorted; Tarjan's walk), and each module that imports itself."""
+    order, lowest, stack, found = {}, {}, [], []
 
-    def walk(module, trail):
-        for target in sorted(graph.get(module, ())):
-            if target in trail:
-                cycle = trail[trail.index(target):]
-                start = cycle.index(min(cycle))
-                found.add(tuple(cycle[start:] + cycle[:start]))
-            elif target in graph:
-                walk(target, trail + [target])
+    def visit(module):
+        order[module] = lowest[module] = len(order)
+        stack.append(module)
+        for target in graph[module] & graph.keys():
+            if target not in order:
+                visit(target)
+                lowest[module] = min(lowest[module], lowest[target])
+            elif target in stack:
+                lowest[module] = min(lowest[module], order[target])
+        if lowest[module] == order[module]:  # `module` and those above it on the stack are one component
+            component = stack[stack.index(module):]
+            del stack[stack.index(module):]
+            if len(component) > 1 or module in graph[module]:
+                found.append(sorted(component))
 
     for module in graph:
-        walk(module, [module])
-    return [list(cycle) for cycle in sorted(found)]
+        if module not in order:
+            visit(module)
+    return sorted(found)
 
 
-def test_the_toolkit_has_no_import_cycle():
-    """A module may import league (for __version__): league/__init__.py imports none of the toolkit as
-    it loads, so no cycle runs through it (compat -> evaluation -> league -> compat was one)."""
-    graph = {module_name(path): module_level_imports(path) for path in sorted(PACKAGE.rglob("*.py"))
-             if not _in(module_name(path), "league.server")}
+def test_no_module_imports_itself_back():
+    """No circle in the whole package, the server included. A module may import league (for
+    __version__): league/__init__.py imports none of the toolkit as it loads, so no circle runs
+    through it (compat -> evaluation -> league -> compat was one)."""
+    graph = import_graph()
     assert graph["league.evaluation"] >= {"league", "league.parallel_env"}  # the walk sees module-level imports
+    assert "league.server.cli" in graph["league.cli"]  # and those in functions (_add_server_commands)
     assert cycles(graph) == []
+
+
+def test_the_walk_sees_a_circle():
+    """Through module-level imports, through imports inside functions only (the circle league.cli
+    made with the server's commands, as their code was written), and a package importing itself
+    (`from package import submodule` in its own __init__)."""
     assert cycles({"league": {"league.compat"}, "league.compat": {"league.evaluation"},
                    "league.evaluation": {"league"}}) == [["league", "league.compat", "league.evaluation"]]
+    in_functions = {
+        "league.cli": imports_of("def add_commands(subparsers):\n    from league.server.cli import add_commands\n",
+                                 "league.cli"),
+        "league.server.cli": imports_of("def main():\n    from league.cli import main\n", "league.server.cli"),
+    }
+    assert cycles(in_functions) == [["league.cli", "league.server.cli"]]
+    itself = imports_of("from league.server.api.routes import health\n", "league.server.api.routes", is_package=True)
+    assert cycles({"league.server.api.routes": itself, "league.server.api.routes.health": set()}) == [
+        ["league.server.api.routes"]]

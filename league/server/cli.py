@@ -22,10 +22,10 @@ from league.server.config import (
     Settings, database_origin, database_setting, describe_settings, load_settings, setting_sources,
     settings_markdown, unknown_variables,
 )
+from league.exit_codes import EXIT_ERROR, EXIT_OUTDATED
 from league.server.db.models import INSTRUCTOR, STUDENT
 
 log = logging.getLogger("league.server")
-EXIT_OUTDATED = 3  # a worker that stopped because the database's schema changed under it (logged why)
 
 
 def add_commands(subparsers) -> None:
@@ -276,7 +276,7 @@ def run_worker(args: argparse.Namespace) -> int:
             log.info("worker: running on CPUs %s", ",".join(map(str, sorted(pin_to_cpus(cpus)))))
         except ValueError as error:
             print(f"league worker: --cpus {cpus!r}: {error}", file=sys.stderr)
-            return 2
+            return EXIT_ERROR
     engine, revision = _open(settings, sources, lambda text: log.info("worker: %s", text))
     check_schema(revision)  # workers never migrate: `league serve` or `league migrate` does
     lower_session_priority(settings.job_nice)
@@ -571,9 +571,9 @@ def _confirmed(prompt: str, expected: str) -> bool:
 
 
 def main(argv: list[str] | None = None) -> int:
-    from league.cli import add_version, main as run
+    from league.command import add_version, run
 
     parser = argparse.ArgumentParser(prog="python -m league.server", description="MicroRacer League server")
     add_version(parser)
     add_commands(parser.add_subparsers(dest="command", required=True))
-    return run(argv, parser)
+    return run(parser, argv)

@@ -15,7 +15,7 @@ import sys
 import pytest
 
 from league.agents import load_agent
-from league.client import EXIT_AUTH, EXIT_OK, EXIT_REFUSED, EXIT_REJECTED, EXIT_UNREACHABLE, EXIT_USAGE
+from league.exit_codes import EXIT_AUTH, EXIT_ERROR, EXIT_OK, EXIT_REFUSED, EXIT_REJECTED, EXIT_UNREACHABLE
 from league.server.api.deps import UNKNOWN_TOKEN
 from league.evaluation import metrics_run
 
@@ -216,7 +216,7 @@ def test_the_terminal_names_what_changed_and_says_when_an_upload_was_late(sqlite
     a late upload is said late by `submit` and `submissions`; `--check` counts Canvas's matches."""
     from datetime import datetime, timedelta, timezone
 
-    from league.client import local_time
+    from league.client.output import local_time
 
     title, now = unique("Late"), datetime.now(timezone.utc)
     env = {"LEAGUE_SERVER": sqlite_server.url, "LEAGUE_TOKEN": sqlite_server.instructor_token}
@@ -261,11 +261,11 @@ def test_the_terminal_names_what_changed_and_says_when_an_upload_was_late(sqlite
                         r"\d+ only a name, matched only if Canvas spells it the same: .*\n", check.stdout), check.stdout
     assert names["tardy"] in check.stdout.split("only a name")[1]  # created without ids
     wrong = league("grades", title, "--check", config=tmp_path, **env)
-    assert wrong.returncode == EXIT_USAGE and "--format canvas --check" in wrong.stderr
+    assert wrong.returncode == EXIT_ERROR and "--format canvas --check" in wrong.stderr
 
 
 def test_time_left_is_rounded_down_and_the_last_minute_is_under_a_minute():
-    from league.client import time_left, upload_time_left
+    from league.client.assignments import time_left, upload_time_left
 
     now = "2026-12-01T12:00:00+00:00"
     assert [time_left(until, now) for until in ("2026-12-01T12:00:59+00:00", "2026-12-01T12:01:59+00:00",
@@ -408,7 +408,7 @@ def test_every_console_action_has_a_command_jobs_audit_rerun_privacy(sqlite_serv
         assert cancelled.returncode == EXIT_OK, cancelled.stderr
         assert cancelled.stderr.startswith(f"job {waiting[0]['id']} (evaluate) cancelled")
     nothing = league("rerun", config=tmp_path, **teacher)
-    assert nothing.returncode == EXIT_USAGE and "give a SUBMISSION id or --all" in nothing.stderr
+    assert nothing.returncode == EXIT_ERROR and "give a SUBMISSION id or --all" in nothing.stderr
 
     shown = league("privacy", config=tmp_path, **teacher)
     assert shown.stdout == "members\n"  # the default

@@ -22,7 +22,7 @@ from pathlib import Path
 import httpx
 import pytest
 
-from league.client import EXIT_OK, EXIT_USAGE
+from league.exit_codes import EXIT_ERROR, EXIT_OK
 
 from ..server.api_calls import unique
 from ..server.backends import TEST_SETTINGS
@@ -137,7 +137,7 @@ def test_check_without_the_server_extra_alone_and_with_a_saved_server_that_is_do
     assert offline.stderr.rstrip().endswith("; checking against the league's default limits")
 
     scripted = student.give(export("jit-script", tmp_path))
-    no_torch = student.run("league", "check", scripted.name, "--server", down, expect=EXIT_USAGE)
+    no_torch = student.run("league", "check", scripted.name, "--server", down, expect=EXIT_ERROR)
     assert "checking torchscript models here needs torch: pip install torch --index-url " \
            "https://download.pytorch.org/whl/cpu" in no_torch.stderr
 

@@ -151,8 +151,9 @@ def test_the_automatic_assignment_closes_once_the_instructor_makes_one_unless_ke
     """Issue 30: a new course's `default` takes uploads until its instructor creates an assignment; then
     an upload without an assignment goes to theirs (API and `league submit`), and `default` refuses
     students, unless the instructor keeps it open; then several are open and the upload must name one."""
-    from league import client as cli_client
+    from league.client.api import Api
     from league.cli import main
+    from league.exit_codes import EXIT_ERROR
 
     course = unique("course")
     _, prof_token = league.user("prof", role=INSTRUCTOR, course_name=course)
@@ -188,7 +189,7 @@ def test_the_automatic_assignment_closes_once_the_instructor_makes_one_unless_ke
     assert (mine[alone.json()["id"]], mine[to_sprint.json()["id"]]) == (automatic["id"], sprint["id"])
 
     # `league submit` without --assignment: the list and the flag to use, before anything is uploaded
-    monkeypatch.setattr(cli_client.Api, "__init__",
+    monkeypatch.setattr(Api, "__init__",
                         lambda self, conn, timeout=60: setattr(self, "conn", conn) or setattr(
                             self, "http", league.client(conn.token)))
     monkeypatch.setenv("LEAGUE_SERVER", "http://testserver")
@@ -196,7 +197,7 @@ def test_the_automatic_assignment_closes_once_the_instructor_makes_one_unless_ke
     model = tmp_path / "agent.onnx"
     model.write_bytes(b"not really onnx")
     capsys.readouterr()
-    assert main(["submit", str(model), "--no-check"]) == cli_client.EXIT_USAGE
+    assert main(["submit", str(model), "--no-check"]) == EXIT_ERROR
     assert capsys.readouterr().err == ("league: error: several assignments are open to you: default, Sprint; say "
                                        "which with --assignment NAME, e.g. league submit FILE --assignment default\n")
     assert len(mine) == len(league.client(student_token).get("/api/submissions").json())  # nothing uploaded
@@ -393,13 +394,14 @@ def test_assignment_settings_are_validated_and_names_unique(league):
 def test_the_cli_creates_extends_lists_and_selects(league, clock, monkeypatch, capsys):
     """`league assignments create|extend|publish`, `league assignments`, `league select`, against the app
     itself (the CLI's HTTP client given the app's transport)."""
-    from league import client as cli_client
+    from league.client.api import Api
     from league.cli import main
+    from league.exit_codes import EXIT_REFUSED
 
     def api_on_the_app(self, conn, timeout: float = 60):
         self.conn, self.http = conn, league.client(conn.token)
 
-    monkeypatch.setattr(cli_client.Api, "__init__", api_on_the_app)
+    monkeypatch.setattr(Api, "__init__", api_on_the_app)
     monkeypatch.setenv("LEAGUE_SERVER", "http://testserver")
     student_user, student_token = league.user("cli")
     name = unique("cli-hw")
@@ -423,7 +425,7 @@ def test_the_cli_creates_extends_lists_and_selects(league, clock, monkeypatch, c
     selected = league_cli(student_token, "select", str(agent))
     assert f"your final submission is {agent}" in selected
     monkeypatch.setenv("LEAGUE_TOKEN", league.instructor_token)
-    assert main(["assignments", "publish", name]) == cli_client.EXIT_REFUSED  # students may still upload
+    assert main(["assignments", "publish", name]) == EXIT_REFUSED  # students may still upload
 
 
 def test_an_assignments_board_is_shown_as_the_courses_board_visibility_allows(league):

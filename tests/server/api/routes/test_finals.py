@@ -192,13 +192,13 @@ def test_uploads_queued_at_the_due_time_become_finals_graded_before_the_assignme
 def my_grade_in_the_terminal(league, client, assignment: str, monkeypatch, capsys) -> str:
     """`league grades NAME` as the client's student, against the app itself (the CLI's HTTP client
     given the app's transport)."""
-    from league import client as cli_client
+    from league.client.api import Api
     from league.cli import main
 
     def api_on_the_app(self, conn, timeout: float = 60):
         self.conn, self.http = conn, league.client(conn.token)
 
-    monkeypatch.setattr(cli_client.Api, "__init__", api_on_the_app)
+    monkeypatch.setattr(Api, "__init__", api_on_the_app)
     monkeypatch.setenv("LEAGUE_SERVER", "http://testserver")
     monkeypatch.setenv("LEAGUE_TOKEN", client.headers["Authorization"].removeprefix("Bearer "))
     capsys.readouterr()
