@@ -635,7 +635,8 @@ def load_agent(path_or_name: str | os.PathLike, name: str | None = None, obs_dim
 
     Args:
         path_or_name: ``"heuristic"`` (``"heuristic-lidar"`` for its lidar form), or the path of
-            an ONNX file (``.onnx``) or a TorchScript file (``.pt``, ``.pth``, ``.ts``, ``.jit``).
+            an ONNX file (``.onnx``) or a TorchScript file (``.pt`` and the others of
+            ``league.constants.MODEL_SUFFIXES``).
             The format is recognised from the file's content first, its extension second.
         name: the agent's display name (default: the file's stem).
         obs_dim: force 5 or 20; by default ONNX models declare it in their input shape and

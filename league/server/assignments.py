@@ -22,8 +22,8 @@ from sqlalchemy.orm import Session
 from league.server import audit, gradebook, results, standings
 from league.server.db import crud
 from league.server.db.models import (
-    DONE, FAILED, INSTRUCTOR, PENDING, PRIVATE, PUBLIC, QUEUED, READY, REJECTED, RUNNING, STUDENT, VALIDATING,
-    Assignment, Course, Evaluation, StudentAssignment, Submission, User, utcnow,
+    DONE, FAILED, INSTRUCTOR, PENDING, PRIVATE_TRACKS, PUBLIC_TRACKS, QUEUED, READY, REJECTED, RUNNING, STUDENT,
+    VALIDATING, Assignment, Course, Evaluation, StudentAssignment, Submission, User, utcnow,
 )
 
 log = logging.getLogger("league.server.assignments")
@@ -280,7 +280,7 @@ def _unsettled(session: Session, assignment: Assignment, submission_ids: set[int
     validating = session.scalars(select(Submission.id).where(Submission.id.in_(ids),
                                                              Submission.status.in_((PENDING, VALIDATING))))
     evaluating = session.scalars(select(Evaluation.submission_id).where(
-        Evaluation.submission_id.in_(ids), Evaluation.assignment_id == assignment.id, Evaluation.track == PUBLIC,
+        Evaluation.submission_id.in_(ids), Evaluation.assignment_id == assignment.id, Evaluation.track == PUBLIC_TRACKS,
         Evaluation.status.in_((QUEUED, RUNNING))))
     return set(validating) | set(evaluating)
 
@@ -296,7 +296,7 @@ def _decide(session: Session, assignment: Assignment, row: StudentAssignment, su
     settings = assignment.private_settings()
     evaluation, job = crud.create_evaluation(
         session, submission=session.get(Submission, submission_id), assignment=assignment, settings=settings,
-        result_key=results.settings_key(settings), max_attempts=max_attempts, track=PRIVATE)
+        result_key=results.settings_key(settings), max_attempts=max_attempts, track=PRIVATE_TRACKS)
     session.execute(update(StudentAssignment).where(StudentAssignment.id == row.id)
                     .values(final_evaluation_id=evaluation.id))
     return job.id

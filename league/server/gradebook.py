@@ -15,7 +15,8 @@ from sqlalchemy.orm import Session
 from league.server import grades, results
 from league.server.db import crud
 from league.server.db.models import (
-    DONE, LOW, PRIVATE, QUEUED, RUNNING, STUDENT, Assignment, Evaluation, Job, StudentAssignment, Submission, User,
+    DONE, LOW, PRIVATE_TRACKS, QUEUED, RUNNING, STUDENT, Assignment, Evaluation, Job, StudentAssignment, Submission,
+    User,
 )
 
 
@@ -41,7 +42,7 @@ def private_results(session: Session, assignment: Assignment,
     if not submission_ids:
         return current, other
     for evaluation in session.scalars(select(Evaluation).where(
-            Evaluation.assignment_id == assignment.id, Evaluation.track == PRIVATE, Evaluation.status == DONE,
+            Evaluation.assignment_id == assignment.id, Evaluation.track == PRIVATE_TRACKS, Evaluation.status == DONE,
             Evaluation.submission_id.in_(submission_ids)).order_by(Evaluation.id)):
         if evaluation.result_key == key:
             current[evaluation.submission_id] = evaluation  # ordered by id: the newest wins
@@ -119,7 +120,7 @@ def queue_missing_evaluations(session: Session, *, assignment: Assignment, max_a
     of the current private settings (done, running or queued). In the caller's transaction."""
     key = private_key(assignment)
     covered = set(session.scalars(select(Evaluation.submission_id).where(
-        Evaluation.assignment_id == assignment.id, Evaluation.track == PRIVATE, Evaluation.result_key == key,
+        Evaluation.assignment_id == assignment.id, Evaluation.track == PRIVATE_TRACKS, Evaluation.result_key == key,
         Evaluation.status.in_((DONE, RUNNING, QUEUED)))))
     rows = crud.student_assignments(session, assignment_id=assignment.id).values()
     finals = [row.final_submission_id for row in rows if row.final_at is not None and row.final_submission_id]
@@ -129,6 +130,6 @@ def queue_missing_evaluations(session: Session, *, assignment: Assignment, max_a
         if submission.id not in covered:
             _, job = crud.create_evaluation(session, submission=submission, assignment=assignment,
                                             settings=assignment.private_settings(), result_key=key,
-                                            max_attempts=max_attempts, priority=LOW, track=PRIVATE)
+                                            max_attempts=max_attempts, priority=LOW, track=PRIVATE_TRACKS)
             jobs.append(job)
     return jobs

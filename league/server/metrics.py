@@ -33,7 +33,7 @@ from league.server.api.deps import SessionsDep, SettingsDep
 from league.server.config import Settings
 from league.server.db import crud
 from league.server.db.models import (
-    DONE, FAILED, INSTRUCTOR, QUEUED, EpisodeResult, Job, Submission, utcnow,
+    DONE, FAILED, INSTRUCTOR, QUEUED, READY, REJECTED, EpisodeResult, Job, Submission, utcnow,
 )
 from league.server.db.session import head_revision
 from league.server.jobs import registry
@@ -48,7 +48,7 @@ UNRECORDED = "unrecorded"  # the failure label of jobs that failed before jobs.f
 REQUEST_BUCKETS = (0.005, 0.01, 0.025, 0.05, 0.1, 0.25, 0.5, 1, 2.5, 5, 10, 30)
 UNMATCHED = "unmatched"  # the route label of a path no route serves (bounded: not the raw path)
 # the validation of an upload, by the submission's status: what its sandbox made of it
-VALIDATION_OUTCOMES = {"ready": "ok", "rejected": "rejected", "failed": "failed"}
+VALIDATION_OUTCOMES = {READY: "ok", REJECTED: "rejected", FAILED: "failed"}
 
 router = APIRouter()
 

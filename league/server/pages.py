@@ -19,6 +19,9 @@ from fastapi.staticfiles import StaticFiles
 from starlette.templating import Jinja2Templates
 
 import league
+from league import statuses
+from league.championship import DEFAULT_POINTS
+from league.constants import MODEL_SUFFIXES
 from league.evaluation import OUTCOME_TEXT
 from league.render import CAR_COLORS
 from league.server.config import MB, Settings
@@ -39,13 +42,17 @@ def web_dir() -> Path:
 
 
 def page_facts(settings: Settings) -> dict[str, Any]:
-    """What the templates show of the server and the toolkit: the upload limit; the car colours (the
-    race viewer's cars look as in `league race --save race.gif`); the outcome texts (a car's end is
-    worded as the toolkit words it), as JSON; the version the footer names."""
+    """What the templates show of the server and the toolkit: the upload limit and the model files it
+    takes; the car colours (the race viewer's cars look as in `league race --save race.gif`); the outcome
+    texts (a car's end is worded as the toolkit words it) and the status words (league.statuses: what the
+    API answers), as JSON; the default points table of a championship; the version the footer names."""
     return {"version": league.__version__,
             "upload_limit": f"{settings.max_upload_bytes / MB:g} MB", "max_upload_bytes": settings.max_upload_bytes,
+            "model_suffixes": ",".join(MODEL_SUFFIXES),
             "car_colors": " ".join("#{:02x}{:02x}{:02x}".format(*color) for color in CAR_COLORS),
-            "outcome_text": json.dumps(OUTCOME_TEXT, separators=(",", ":"))}
+            "outcome_text": json.dumps(OUTCOME_TEXT, separators=(",", ":")),
+            "statuses": json.dumps(statuses.by_name(), separators=(",", ":")),
+            "default_points": ", ".join(map(str, DEFAULT_POINTS))}
 
 
 def mount_web(app: FastAPI, settings: Settings, directory: Path | None = None) -> None:

@@ -23,10 +23,10 @@ from dataclasses import dataclass, field
 from typing import Any
 
 from league.server.accounts import clean_name
-from league.server.db.models import BASELINE, INSTRUCTORS, MEMBERS, PUBLIC
+from league.server.db.models import BASELINE, VISIBILITY_INSTRUCTORS, VISIBILITY_MEMBERS, VISIBILITY_PUBLIC
 
-AUDIENCE = {PUBLIC: "anyone", MEMBERS: "the course's students and instructors, logged in",
-            INSTRUCTORS: "the course's instructors only"}
+AUDIENCE = {VISIBILITY_PUBLIC: "anyone", VISIBILITY_MEMBERS: "the course's students and instructors, logged in",
+            VISIBILITY_INSTRUCTORS: "the course's instructors only"}
 PSEUDONYMS = 999_999  # "Student 1" to "Student 999999": a course of 1,000 leaves 99.9 % of them free
 PSEUDONYM = re.compile(r"student\s*\d+", re.IGNORECASE)
 UNKNOWN = "(unknown)"  # an owner whose account is gone, or has no pseudonym in the course

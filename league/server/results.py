@@ -20,7 +20,7 @@ from sqlalchemy.orm import Session
 
 from league.evaluation import result_key
 from league.server.db import crud
-from league.server.db.models import BASELINE, LOW, NORMAL, PUBLIC, READY, Assignment, Job, Submission
+from league.server.db.models import BASELINE, LOW, NORMAL, PUBLIC_TRACKS, READY, Assignment, Job, Submission
 
 log = logging.getLogger("league.server.results")
 SUPERSEDED = ("superseded: the evaluation settings changed before it ran, "
@@ -82,7 +82,7 @@ def queue_evaluation(session: Session, *, submission: Submission, max_attempts: 
     settings = assignment.evaluation_settings()
     _, job = crud.create_evaluation(session, submission=submission, assignment=assignment, settings=settings,
                                     result_key=settings_key(settings), max_attempts=max_attempts, priority=priority,
-                                    track=PUBLIC)
+                                    track=PUBLIC_TRACKS)
     return job
 
 

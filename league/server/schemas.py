@@ -6,6 +6,9 @@ from typing import Annotated, Any, Literal
 
 from pydantic import AwareDatetime, BaseModel, ConfigDict, Field, PlainSerializer, model_validator
 
+from league.championship import DEFAULT_POINTS
+from league.server.db.models import BOARD_VISIBILITIES
+
 DbId = Annotated[int, Field(ge=1, le=2**63 - 1)]  # a row's id: a 64-bit integer
 # a UTC time shown with its zone as "+00:00" (assignments' times); taken with any zone, never without one
 UtcTime = Annotated[AwareDatetime, PlainSerializer(lambda t: t.astimezone(timezone.utc).isoformat(timespec="seconds"),
@@ -49,7 +52,7 @@ class UserUpdate(BaseModel):
 
 
 class PrivacySettings(BaseModel):
-    board_visibility: Literal["public", "members", "instructors"] = Field(
+    board_visibility: Literal[BOARD_VISIBILITIES] = Field(
         description="who sees the course's boards (leaderboard, races and replays, championships and standings): "
                     "public (anyone; visitors see display names or pseudonyms, never names), members (its "
                     "logged-in students and instructors) or instructors (only; a student still sees their own races)")
@@ -329,7 +332,7 @@ class ChampionshipCreate(BaseModel):
     name: str = Field(min_length=1, max_length=100)
     env_options: dict[str, Any] = Field(default_factory=dict)
     heat_size: int = Field(10, ge=2, description="cars per heat; a larger field is split into balanced heats")
-    points: list[int] = Field(default_factory=lambda: [25, 18, 15, 12, 10, 8, 6, 4, 2, 1], min_length=1,
+    points: list[int] = Field(default_factory=lambda: list(DEFAULT_POINTS), min_length=1,
                               max_length=100, description="points by finishing position in a heat")
     include_baselines: bool = True
     seed: int | None = Field(None, ge=0, lt=2**63, description="draws the rounds' heats (who races whom); "

@@ -15,7 +15,7 @@ from league import championship as rules
 from league.server import results
 from league.server.db import crud
 from league.server.db.models import (
-    BASELINE, DELETED, DONE, PUBLIC, STUDENT, Assignment, Championship, ChampionshipRound,
+    BASELINE, DELETED, DONE, PUBLIC_TRACKS, STUDENT, Assignment, Championship, ChampionshipRound,
 )
 
 
@@ -87,15 +87,15 @@ def leaderboard_rows(session: Session, *, course_id: int | None) -> list[dict]:
     return [] if assignment is None else assignment_board(session, assignment)
 
 
-def assignment_board(session: Session, assignment: Assignment, track: str = PUBLIC) -> list[dict]:
+def assignment_board(session: Session, assignment: Assignment, track: str = PUBLIC_TRACKS) -> list[dict]:
     """Each student's best evaluated submission of the assignment (completion rate, then mean return),
     and every bundled baseline as a reference row; best first, with the course-wide rating (a
     student's best agent that never raced shows the rating of their agent that raced last). Only
     results of the assignment's current settings rank (league.server.results); a student or baseline
     whose results are all of other settings follows the ranked rows, stale and unranked, by name.
-    The private board (`track` PRIVATE; show it only once published) ranks the students' finals on
+    The private board (`track` PRIVATE_TRACKS; show it only once published) ranks the students' finals on
     the private tracks."""
-    settings = assignment.evaluation_settings() if track == PUBLIC else assignment.private_settings()
+    settings = assignment.evaluation_settings() if track == PUBLIC_TRACKS else assignment.private_settings()
     ranked: dict[tuple[str, int], Any] = {}
     stale: dict[tuple[str, int], Any] = {}
     # the newest finished evaluation: a re-run in progress does not take an agent off the board

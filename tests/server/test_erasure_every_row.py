@@ -24,8 +24,8 @@ from sqlalchemy import LargeBinary, make_url, select, update
 from league.server.app import catch_up
 from league.server.db import crud
 from league.server.db.models import (
-    PRIVATE, READY, STUDENT, Assignment, Base, Championship, Evaluation, Job, Race, StudentAssignment, Submission,
-    SubmissionProbe, User,
+    PRIVATE_TRACKS, READY, STUDENT, Assignment, Base, Championship, Evaluation, Job, Race, StudentAssignment,
+    Submission, SubmissionProbe, User,
 )
 from league.server.rounds import create_race
 from league.server.storage import BlobStore
@@ -178,7 +178,7 @@ def build_course(league, clock) -> dict:
 
     clock.set(EXTENDED + timedelta(seconds=1))  # every due time passed: the finals freeze, the private tests run
     catch_up(league.app.state.league)
-    for job_id, settings in queued_jobs(league, everyone, PRIVATE):
+    for job_id, settings in queued_jobs(league, everyone, PRIVATE_TRACKS):
         league.finish_job(job_id, evaluation_outcome(3, settings=settings))
     with league.client(league.instructor_token) as instructor:
         assert instructor.post(f"/api/assignments/{hw['id']}/publish").status_code == 200

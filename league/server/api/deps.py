@@ -16,7 +16,7 @@ from league.server.api.watch import ProcessWatch
 from league.server.clock import Clock
 from league.server.config import Settings
 from league.server.db import crud
-from league.server.db.models import INSTRUCTOR, INSTRUCTORS, PUBLIC, STUDENT, Course, User
+from league.server.db.models import INSTRUCTOR, VISIBILITY_INSTRUCTORS, VISIBILITY_PUBLIC, STUDENT, Course, User
 from league.server.privacy import AUDIENCE, Names
 from league.server.jobs.queue import JobQueue
 from league.server.services import League
@@ -166,9 +166,9 @@ def board_names(session: Session, viewer: User | None, course: Course, *, owns: 
     who `owns` what is shown (a race with their car), see public names."""
     visibility = course.board_visibility
     member = viewer is not None and viewer.course_id == course.id and viewer.role in (STUDENT, INSTRUCTOR)
-    if member and (viewer.role == INSTRUCTOR or visibility != INSTRUCTORS):
+    if member and (viewer.role == INSTRUCTOR or visibility != VISIBILITY_INSTRUCTORS):
         return Names(real=True)
-    if visibility == PUBLIC or owns:
+    if visibility == VISIBILITY_PUBLIC or owns:
         return Names(real=False, viewer_id=viewer.id if viewer else None,
                      display_names=crud.display_names(session, course_id=course.id),
                      pseudonyms=crud.pseudonyms(session, course_id=course.id))

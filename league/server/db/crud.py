@@ -13,9 +13,9 @@ from sqlalchemy.orm import Session
 
 from league.server.accounts import clean_email, clean_name, clean_student_id
 from league.server.db.models import (
-    BASELINE, DONE, EVALUATE, FAILED, MEMBERS, NORMAL, PUBLIC, QUEUED, RACE, READY, REJECTED, RUNNING, STUDENT,
-    VALIDATE, Assignment, Blob, Championship, ChampionshipRound, Course, EpisodeResult, Evaluation, Job, Race,
-    StudentAssignment, Submission, User, private_test, utcnow,
+    BASELINE, DONE, EVALUATE, FAILED, NORMAL, PUBLIC_TRACKS, QUEUED, RACE, READY, REJECTED, RUNNING, STUDENT,
+    VALIDATE, VISIBILITY_MEMBERS, Assignment, Blob, Championship, ChampionshipRound, Course, EpisodeResult, Evaluation,
+    Job, Race, StudentAssignment, Submission, User, private_test, utcnow,
 )
 from league.server.privacy import clean_display_name, draw_pseudonym
 from league.server.security import hash_token, new_token
@@ -45,7 +45,7 @@ def get_or_create_course(session: Session, *, name: str, evaluation: dict[str, A
     assignment with the `evaluation` settings."""
     course = session.scalar(select(Course).where(Course.name == name))
     if course is None:
-        course = Course(name=name, board_visibility=board_visibility or MEMBERS)
+        course = Course(name=name, board_visibility=board_visibility or VISIBILITY_MEMBERS)
         session.add(course)
         session.flush()
         create_assignment(session, course=course, name=DEFAULT_ASSIGNMENT, seed=evaluation["seed"],
@@ -347,7 +347,7 @@ def create_job(session: Session, *, kind: str, owner_id: int | None, submission_
 
 def create_evaluation(session: Session, *, submission: Submission, assignment: Assignment, settings: dict[str, Any],
                       result_key: str, max_attempts: int, priority: int = NORMAL,
-                      track: str = PUBLIC) -> tuple[Evaluation, Job]:
+                      track: str = PUBLIC_TRACKS) -> tuple[Evaluation, Job]:
     evaluation = Evaluation(submission_id=submission.id, course_id=assignment.course_id, assignment_id=assignment.id,
                             track=track, settings=settings, result_key=result_key, status=QUEUED)
     session.add(evaluation)
@@ -361,7 +361,7 @@ def latest_evaluation(session: Session, *, submission_id: int, result_key: str |
                       course_id: int | None = None) -> Evaluation | None:
     """The submission's newest public evaluation of `result_key` if it has one, else its newest public one
     (of `course_id`'s assignments only, when given: a baseline's, which each course evaluates for itself)."""
-    query = select(Evaluation).where(Evaluation.submission_id == submission_id, Evaluation.track == PUBLIC)
+    query = select(Evaluation).where(Evaluation.submission_id == submission_id, Evaluation.track == PUBLIC_TRACKS)
     if course_id is not None:
         query = query.where(Evaluation.course_id == course_id)
     return session.scalar(query.order_by((Evaluation.result_key == result_key).desc(), Evaluation.id.desc()).limit(1))
@@ -383,7 +383,7 @@ def latest_evaluations(session: Session, *, submission_ids: list[int], result_ke
     if not submission_ids:
         return {}
     newest = select(func.max(Evaluation.id)).where(Evaluation.submission_id.in_(submission_ids),
-                                                   Evaluation.track == PUBLIC)
+                                                   Evaluation.track == PUBLIC_TRACKS)
     if course_id is not None:
         newest = newest.where(Evaluation.course_id == course_id)
     newest = newest.group_by(Evaluation.submission_id, Evaluation.result_key)
@@ -399,7 +399,7 @@ def submissions_with_results(session: Session, *, result_key: str, course_id: in
     """Submissions with a public evaluation of `result_key` done, running or queued, in the course (each
     course's results are its own: a baseline evaluated in another course is not in this one)."""
     return set(session.scalars(select(Evaluation.submission_id).distinct().where(
-        Evaluation.result_key == result_key, Evaluation.track == PUBLIC, Evaluation.course_id == course_id,
+        Evaluation.result_key == result_key, Evaluation.track == PUBLIC_TRACKS, Evaluation.course_id == course_id,
         Evaluation.status.in_((DONE, RUNNING, QUEUED)))))
 
 
@@ -408,8 +408,8 @@ def queued_evaluations(session: Session, *, assignment_id: int, other_than: str)
     not `other_than`: normal priority first, then the oldest."""
     return list(session.execute(
         select(Evaluation.id, Evaluation.submission_id, Job.id).join(Job, Job.evaluation_id == Evaluation.id)
-        .where(Evaluation.assignment_id == assignment_id, Evaluation.track == PUBLIC, Evaluation.status == QUEUED,
-               Job.status == QUEUED, Evaluation.result_key != other_than)
+        .where(Evaluation.assignment_id == assignment_id, Evaluation.track == PUBLIC_TRACKS,
+               Evaluation.status == QUEUED, Job.status == QUEUED, Evaluation.result_key != other_than)
         .order_by(Job.priority, Evaluation.id)))
 
 
@@ -535,7 +535,7 @@ def _shown_evaluation_statement(by_course: bool, keyless: bool):
     """latest_evaluation's query, of the columns a status answer shows."""
     key = bindparam("result_key")
     query = select(*(_evaluation.c[name] for name in STATUS_EVALUATION_COLUMNS)).where(
-        _evaluation.c.submission_id == bindparam("submission_id"), _evaluation.c.track == PUBLIC)
+        _evaluation.c.submission_id == bindparam("submission_id"), _evaluation.c.track == PUBLIC_TRACKS)
     if by_course:
         query = query.where(_evaluation.c.course_id == bindparam("course_id"))
     matches = _evaluation.c.result_key.is_(None) if keyless else _evaluation.c.result_key == key
@@ -570,7 +570,7 @@ def active_students(session: Session, *, course_id: int | None) -> list[User]:
 
 
 def leaderboard_entries(session: Session, *, assignment: Assignment, result_key: str | None,
-                        track: str = PUBLIC) -> list[Any]:
+                        track: str = PUBLIC_TRACKS) -> list[Any]:
     """Every ready submission of the assignment's active students and of the baselines' account with a
     finished evaluation of `track` (private: of the finals' evaluations only), newest first, with its
     owner and the figures of its newest finished evaluation of `result_key`, else (`stale`) of its
@@ -580,7 +580,7 @@ def leaderboard_entries(session: Session, *, assignment: Assignment, result_key:
     # finished evaluations (not `id IN (subquery)`, which SQLite's planner ran 50x slower: 111 ms
     # against 2 ms for 600 evaluations)
     evaluations = (Evaluation.track == track) & (Evaluation.course_id == assignment.course_id)  # the course's own
-    if track != PUBLIC:
+    if track != PUBLIC_TRACKS:
         evaluations &= Evaluation.id.in_(select(StudentAssignment.final_evaluation_id).where(
             StudentAssignment.assignment_id == assignment.id))
     newest = (select(Evaluation.submission_id, func.max(Evaluation.id).label("any_id"),

@@ -15,15 +15,13 @@ from sqlalchemy import (
 from sqlalchemy.orm import DeclarativeBase, Mapped, mapped_column, relationship
 from sqlalchemy.types import TypeDecorator
 
+# the statuses stored here (submissions, evaluations, jobs, races, rounds) have their home in league.statuses, which
+# the client and the pages read too; the server's modules import them from here, beside the models that store them
+from league.statuses import DONE, FAILED, PENDING, QUEUED, READY, REJECTED, RUNNING, VALIDATING  # noqa: F401
+
 # roles
 INSTRUCTOR, STUDENT, BASELINE = "instructor", "student", "baseline"
 DELETED = "deleted student"  # what races and standings show for a deleted student (league.server.erasure)
-
-# submission statuses (what students see)
-PENDING, VALIDATING, READY, REJECTED, FAILED = "pending", "validating", "ready", "rejected", "failed"
-
-# evaluation and job statuses
-QUEUED, RUNNING, DONE = "queued", "running", "done"
 
 # why a job failed (jobs.failure): it cannot succeed (the handler said so), an error on every attempt, its worker
 # stopped heart-beating on every attempt, no worker of this version knows its kind, an instructor cancelled it
@@ -38,11 +36,14 @@ SECRET_PROBE = "secret_probe"  # a submission on its assignments' secret probe s
 # job priorities: a low one is claimed only when no normal one waits
 NORMAL, LOW = 0, 1
 
-# who sees a course's boards (league.server.privacy): anyone, its logged-in users, its instructors
-PUBLIC, MEMBERS, INSTRUCTORS = "public", "members", "instructors"
+# who sees a course's boards (courses.board_visibility; league.server.privacy): anyone, its logged-in users,
+# its instructors
+VISIBILITY_PUBLIC, VISIBILITY_MEMBERS, VISIBILITY_INSTRUCTORS = "public", "members", "instructors"
+BOARD_VISIBILITIES = (VISIBILITY_PUBLIC, VISIBILITY_MEMBERS, VISIBILITY_INSTRUCTORS)
 
-# an evaluation's tracks: an assignment's public validation seed (PUBLIC, the same word), or its private test seed
-PRIVATE = "private"
+# which of an assignment's tracks an evaluation drove (evaluations.track): its public ones (`seed`: the public
+# board, reproducible with `league evaluate`) or its private test's (`private_seed`: finals, the private board)
+PUBLIC_TRACKS, PRIVATE_TRACKS = "public", "private"
 
 
 def utcnow() -> datetime:
@@ -78,7 +79,8 @@ class Course(Base):
     id: Mapped[int] = mapped_column(primary_key=True)
     name: Mapped[str] = mapped_column(String(100), unique=True)
     # who sees its boards; the server default is what courses older than the setting were (migration 0012)
-    board_visibility: Mapped[str] = mapped_column(String(20), default=MEMBERS, server_default=PUBLIC)
+    board_visibility: Mapped[str] = mapped_column(String(20), default=VISIBILITY_MEMBERS,
+                                                  server_default=VISIBILITY_PUBLIC)
     # keyed the "Student N" pseudonyms until migration 0020 gave each user a random one (users.pseudonym);
     # unused since, kept as dropping a column referred to by foreign keys copies the table on SQLite
     pseudonym_key: Mapped[int] = mapped_column(BigInteger, nullable=True, default=lambda: secrets.randbits(62))
@@ -261,7 +263,7 @@ class SubmissionProbe(Base):
 class Evaluation(Base):
     """One `metrics_run` of a submission with an assignment's settings; re-runs add new rows.
 
-    `track` PRIVATE: the assignment's private test of a final (league.server.assignments); no answer
+    `track` PRIVATE_TRACKS: the assignment's private test of a final (league.server.assignments); no answer
     a student can obtain shows one before the assignment is published.
 
     `result_key` (league.evaluation.result_key: the settings and the simulator's version) is what
@@ -276,7 +278,7 @@ class Evaluation(Base):
     submission_id: Mapped[int] = mapped_column(ForeignKey("submissions.id"), index=True)
     course_id: Mapped[int | None] = mapped_column(ForeignKey("courses.id"))
     assignment_id: Mapped[int | None] = mapped_column(ForeignKey("assignments.id"), default=None)  # whose settings
-    track: Mapped[str] = mapped_column(String(10), default=PUBLIC, server_default=PUBLIC)
+    track: Mapped[str] = mapped_column(String(10), default=PUBLIC_TRACKS, server_default=PUBLIC_TRACKS)
     settings: Mapped[dict[str, Any]] = mapped_column()  # {"seed", "episodes", "env_options"} as requested
     status: Mapped[str] = mapped_column(String(20), default=QUEUED)
     error: Mapped[str | None] = mapped_column(Text, default=None)
@@ -302,7 +304,7 @@ class Evaluation(Base):
 def private_test() -> ColumnElement[bool]:
     """Whether a job (outer-joined to its evaluation) is the private test of a final: the league's own
     job, not its owner's (no in-flight limit, no turn among their jobs; league.server.assignments)."""
-    return func.coalesce(Evaluation.track, "") == PRIVATE
+    return func.coalesce(Evaluation.track, "") == PRIVATE_TRACKS
 
 
 class EpisodeResult(Base):

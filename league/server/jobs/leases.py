@@ -28,7 +28,7 @@ from sqlalchemy.orm import Session, aliased, sessionmaker
 
 from league.server.db.models import (
     CANCELLED, CANNOT_SUCCEED, DONE, ERROR, EVALUATE, FAILED, QUEUED, RUNNING, UNKNOWN_KIND, VALIDATE, WORKER_LOST,
-    PRIVATE, Evaluation, Job, private_test, utcnow,
+    PRIVATE_TRACKS, Evaluation, Job, private_test, utcnow,
 )
 
 log = logging.getLogger("league.server.jobs")
@@ -65,7 +65,8 @@ def first_turns(session: Session, limit: int) -> list[int]:
     earlier = aliased(Job)
 
     def is_private_test(job: Any) -> ColumnElement[bool]:  # private_test() without a join: ids stay in order
-        return select(Evaluation.id).where(Evaluation.id == job.evaluation_id, Evaluation.track == PRIVATE).exists()
+        return select(Evaluation.id).where(Evaluation.id == job.evaluation_id,
+                                           Evaluation.track == PRIVATE_TRACKS).exists()
 
     def before_it(same_owner: ColumnElement[bool]) -> ColumnElement[bool]:
         """A job of its owner and priority is running, or queued before it (two lookups by owner)."""

@@ -295,7 +295,7 @@ class AnswerReader:
 
 
 class ForkServer:
-    """sandbox_child.py's fork server: one per thread that starts sandboxes, since the kernel's
+    """child.py's fork server: one per thread that starts sandboxes, since the kernel's
     parent-death signal follows the thread that started a process; it ends with that thread."""
 
     _threads = threading.local()
@@ -338,7 +338,7 @@ class ForkServer:
         self._lock = threading.Lock()
 
     def spawn(self, args: list[str], workdir: Path, env: dict[str, str]) -> ForkedProcess:
-        """A sandbox process running sandbox_child.py `args` in `workdir`, with pipes to its stdio,
+        """A sandbox process running child.py `args` in `workdir`, with pipes to its stdio,
         on the CPUs the calling thread may use now (league.server.jobs.placement moves job threads)."""
         self._follow_thread_affinity()
         (stdin, to_stdin), (from_stdout, stdout), (from_stderr, stderr) = (os.pipe() for _ in range(3))

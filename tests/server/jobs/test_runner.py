@@ -12,7 +12,7 @@ from sqlalchemy import select
 from league.server.config import Settings
 from league.server.db import crud
 from league.server.db.models import (
-    DONE, FAILED, LOW, PRIVATE, PUBLIC, QUEUED, RUNNING, Evaluation, Job, Submission, utcnow,
+    DONE, FAILED, LOW, PRIVATE_TRACKS, PUBLIC_TRACKS, QUEUED, RUNNING, Evaluation, Job, Submission, utcnow,
 )
 from league.server.db.session import make_engine, make_sessionmaker, migrate
 from league.server.jobs.leases import (
@@ -278,7 +278,7 @@ def test_the_first_turns_read_from_the_index_are_the_ranking_of_every_job(contex
         session.flush()
         for _ in range(160):
             owner = rng.choice([*students, None])
-            track = rng.choice([PUBLIC, PRIVATE]) if owner is not None and rng.random() < 0.3 else None
+            track = rng.choice([PUBLIC_TRACKS, PRIVATE_TRACKS]) if owner is not None and rng.random() < 0.3 else None
             evaluation_id = None
             if track is not None:
                 evaluation = Evaluation(submission_id=submission.id, track=track, settings={}, result_key="k")

@@ -17,7 +17,7 @@ from league.server.assignments import (
     UploadRefused, final_choices, private_visible, publish, select_final, user_window,
 )
 from league.server.db import crud
-from league.server.db.models import PRIVATE, PUBLIC, STUDENT, Assignment, Evaluation, User
+from league.server.db.models import PRIVATE_TRACKS, PUBLIC_TRACKS, STUDENT, Assignment, Evaluation, User
 from league.server.results import change_settings
 from league.server.schemas import (
     AssignmentBoard, AssignmentCreate, AssignmentOut, AssignmentTimes, AssignmentUpdate, EvaluationOut, ExtensionIn,
@@ -220,7 +220,7 @@ def publish_assignment(assignment_id: Id, clock: ClockDep, instructor: Instructo
 def board_rows(session: SessionDep, assignment: Assignment, board: str) -> list[dict]:
     if board == "private" and assignment.published_at is None:
         raise HTTPException(status.HTTP_404_NOT_FOUND, f"the private board of {assignment.name} is not published")
-    return assignment_board(session, assignment, PRIVATE if board == "private" else PUBLIC)
+    return assignment_board(session, assignment, PRIVATE_TRACKS if board == "private" else PUBLIC_TRACKS)
 
 
 @router.get("/{assignment_id}/board", response_model=AssignmentBoard)
@@ -255,7 +255,7 @@ def read_board_csv(assignment_id: Id, session: SessionDep, instructor: Instructo
     """The board as grades (instructors): one line per student of your course, as /api/leaderboard.csv.
     The private board: before publication too (instructors see it)."""
     assignment = course_assignment(session, instructor, assignment_id)
-    track = PRIVATE if board == "private" else PUBLIC
+    track = PRIVATE_TRACKS if board == "private" else PUBLIC_TRACKS
     rows = grade_rows(session, assignment_board(session, assignment, track), course_id=assignment.course_id,
                       columns=LEADERBOARD_GRADES)
     return csv_response(LEADERBOARD_GRADES, rows, f"{assignment.name}-{board}.csv")

@@ -9,7 +9,7 @@ from league.server.api.deps import (
     CurrentUser, InstructorUser, QueueDep, SessionDep, SettingsDep, check_env_options, user_course,
 )
 from league.server.db import crud
-from league.server.db.models import LOW, NORMAL, PUBLIC, READY, Assignment, Evaluation, Submission, User
+from league.server.db.models import LOW, NORMAL, PUBLIC_TRACKS, READY, Assignment, Evaluation, Submission, User
 from league.server.results import change_settings, queue_evaluation
 from league.server.schemas import EvaluationSettings, EvaluationSettingsChange, RerunOut, RerunRequest, UploadLimits
 
@@ -85,7 +85,7 @@ def rerun_evaluations(body: RerunRequest, instructor: InstructorUser, session: S
 def latest_result(session: SessionDep, submission_id: int) -> dict | None:
     """The submission's latest public result, as the audit log keeps what a re-run replaces."""
     latest = session.scalar(select(Evaluation).where(Evaluation.submission_id == submission_id,
-                                                     Evaluation.track == PUBLIC).order_by(Evaluation.id.desc()))
+                                                     Evaluation.track == PUBLIC_TRACKS).order_by(Evaluation.id.desc()))
     return None if latest is None else audit.snapshot(latest, ["id", "status", "completed", "mean_return"])
 
 

@@ -12,9 +12,10 @@ from league.server.db.models import Job
 from league.server.jobs import leases
 from league.server.jobs.handlers import HANDLERS
 from league.server.schemas import JobOut
+from league.statuses import JOB_STATUSES
 
 router = APIRouter(prefix="/jobs", tags=["jobs"])
-JobStatus = Literal["queued", "running", "done", "failed"]
+JobStatus = Literal[JOB_STATUSES]
 
 
 @router.get("", response_model=list[JobOut])

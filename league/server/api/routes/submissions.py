@@ -23,7 +23,7 @@ from league.server.assignments import UploadRefused, check_upload, private_visib
 from league.server.db import crud
 from league.server.logs import log_refused_upload
 from league.server.db.models import (
-    BASELINE, INSTRUCTOR, PUBLIC, READY, STUDENT, Assignment, Evaluation, Submission, User,
+    BASELINE, INSTRUCTOR, PUBLIC_TRACKS, READY, STUDENT, Assignment, Evaluation, Submission, User,
 )
 from league.server.results import settings_key, submissions_current_keys
 from league.server.rounds import active_submission_ids
@@ -255,7 +255,7 @@ def read_episodes(submission_id: Id, request: Request, user: CurrentUser, sessio
                   if evaluation_id is None else session.get(Evaluation, evaluation_id))
     if evaluation is None or evaluation.submission_id != submission.id or (
             course_id is not None and evaluation.course_id != course_id) or (
-            evaluation.track != PUBLIC
+            evaluation.track != PUBLIC_TRACKS
             and not private_visible(session.get(Assignment, evaluation.assignment_id), user)):
         raise HTTPException(status.HTTP_404_NOT_FOUND, "no such evaluation of this submission")
     rows, total = crud.episode_page(session, evaluation_id=evaluation.id, offset=offset, limit=limit)

@@ -16,7 +16,7 @@ from league.evaluation import episode_seeds, league_versions
 from league.server.app import create_app
 from league.server.db import crud
 from league.server.db.models import (
-    DONE, INSTRUCTOR, PRIVATE, READY, Assignment, Evaluation, Job, StudentAssignment, User,
+    DONE, INSTRUCTOR, PRIVATE_TRACKS, READY, Assignment, Evaluation, Job, StudentAssignment, User,
 )
 from league.server.jobs.evaluate import EvaluationOutcome
 from league.server.results import settings_key
@@ -232,7 +232,7 @@ def private_jobs(league, assignment_id: int) -> dict[int, int]:
     with league.sessions() as session:
         rows = session.execute(
             crud.select(Job.submission_id, Job.id).join(Evaluation, Job.evaluation_id == Evaluation.id)
-            .where(Evaluation.assignment_id == assignment_id, Evaluation.track == PRIVATE))
+            .where(Evaluation.assignment_id == assignment_id, Evaluation.track == PRIVATE_TRACKS))
         return dict(rows.all())
 
 

@@ -26,8 +26,8 @@ from league.server.assignments import private_visible
 from league.server.courses import add_course
 from league.server.db import crud
 from league.server.db.models import (
-    BASELINE, DONE, INSTRUCTOR, PRIVATE, READY, Assignment, AuditEvent, Championship, Course, Evaluation, Job, Race,
-    StudentAssignment, Submission, User,
+    BASELINE, DONE, INSTRUCTOR, PRIVATE_TRACKS, READY, Assignment, AuditEvent, Championship, Course, Evaluation, Job,
+    Race, StudentAssignment, Submission, User,
 )
 from league.server.jobs.evaluate import EvaluationOutcome
 from league.server.results import settings_key
@@ -103,7 +103,7 @@ def private_evaluations(league, assignment_id: int, owner_role: str | None = Non
         query = (select(Evaluation.submission_id, Evaluation.id, Job.id).join(Job, Job.evaluation_id == Evaluation.id)
                  .join(Submission, Submission.id == Evaluation.submission_id)
                  .join(User, User.id == Submission.owner_id)
-                 .where(Evaluation.assignment_id == assignment_id, Evaluation.track == PRIVATE))
+                 .where(Evaluation.assignment_id == assignment_id, Evaluation.track == PRIVATE_TRACKS))
         if owner_role is not None:
             query = query.where(User.role == owner_role)
         return {submission: (evaluation, job) for submission, evaluation, job in session.execute(query)}

@@ -15,7 +15,8 @@ import pytest
 from league.server.app import catch_up
 from league.server.db import crud
 from league.server.db.models import (
-    DONE, EVALUATE, PRIVATE, PUBLIC, QUEUED, VALIDATE, Assignment, Evaluation, Job, StudentAssignment, Submission,
+    DONE, EVALUATE, PRIVATE_TRACKS, PUBLIC_TRACKS, QUEUED, VALIDATE, Assignment, Evaluation, Job, StudentAssignment,
+    Submission,
 )
 from league.server.jobs.runner import close_due_now
 from league.validation.report import ValidationReport
@@ -64,7 +65,7 @@ def queued(league, kind: str, track: str | None = None) -> dict[int, int]:
 def settings_of(league, assignment_id: int, track: str) -> dict:
     with league.sessions() as session:
         assignment = session.get(Assignment, assignment_id)
-        return assignment.private_settings() if track == PRIVATE else assignment.evaluation_settings()
+        return assignment.private_settings() if track == PRIVATE_TRACKS else assignment.evaluation_settings()
 
 
 def final_rows(league, assignment_id: int) -> dict[int, StudentAssignment]:
@@ -132,27 +133,27 @@ def test_uploads_queued_at_the_due_time_become_finals_graded_before_the_assignme
     table = grades(instructor, hw)
     assert table[names["cy"]]["status"] == "no final"  # their only candidate dropped out: decided at once
     assert (table[names["ann"]]["status"], table[names["bob"]]["status"]) == ("pending", "pending")
-    public = queued(league, EVALUATE, PUBLIC)
+    public = queued(league, EVALUATE, PUBLIC_TRACKS)
     everyone = {i for ids in uploads.values() for i in ids}  # (the baselines' jobs wait too)
     assert set(public) & everyone == {*uploads["ann"], uploads["bob"][1]}
     figures = {uploads["ann"][0]: 3, uploads["ann"][1]: 2, uploads["bob"][1]: 1}  # ann's first is her best
     for submission_id, completed in figures.items():
         assert published_at(instructor, hw) is None
         league.finish_job(public[submission_id],
-                          evaluation_outcome(completed, EPISODES, settings_of(league, hw, PUBLIC)))
+                          evaluation_outcome(completed, EPISODES, settings_of(league, hw, PUBLIC_TRACKS)))
 
     # each final decided as its last candidate's evaluation ended, and its private evaluation queued
     rows = final_rows(league, hw)
     decided = {key: rows[user[key].id].final_submission_id for key in ("ann", "bob", "cy", "dee")}
     assert decided == {"ann": uploads["ann"][0], "bob": uploads["bob"][1], "cy": None, "dee": None}
-    private = queued(league, EVALUATE, PRIVATE)
+    private = queued(league, EVALUATE, PRIVATE_TRACKS)
     assert set(private) & everyone == {uploads["ann"][0], uploads["bob"][1]}
     assert catch_up(league.app.state.league) == []  # nothing more to decide, nothing to publish yet
     assert published_at(instructor, hw) is None and grades(instructor, hw)[names["ann"]]["status"] == "pending"
     own = students["ann"][1].get(f"/api/assignments/{hw}").json()["final"]
     assert (own["submission_id"], own["decided"]) == (uploads["ann"][0], True)
 
-    private_settings = settings_of(league, hw, PRIVATE)
+    private_settings = settings_of(league, hw, PRIVATE_TRACKS)
     league.finish_job(private[uploads["ann"][0]], evaluation_outcome(4, EPISODES, private_settings))
     assert published_at(instructor, hw) is None  # bob's private evaluation still runs
     league.finish_job(private[uploads["bob"][1]], evaluation_outcome(2, EPISODES, private_settings))
@@ -171,9 +172,9 @@ def test_uploads_queued_at_the_due_time_become_finals_graded_before_the_assignme
     assert (table[names["ann"]]["status"], table[names["ann"]]["points"], table[names["ann"]]["revised"]) == (
         "stale", None, True)
     assert instructor.put(f"/api/assignments/{hw}/rubric", json=RUBRIC).status_code == 200  # queues the re-runs
-    again = queued(league, EVALUATE, PRIVATE)
+    again = queued(league, EVALUATE, PRIVATE_TRACKS)
     assert set(again) & everyone == {uploads["ann"][0], uploads["bob"][1]}
-    private_settings = settings_of(league, hw, PRIVATE)
+    private_settings = settings_of(league, hw, PRIVATE_TRACKS)
     league.finish_job(again[uploads["ann"][0]], evaluation_outcome(3, EPISODES - 1, private_settings))
     league.finish_job(again[uploads["bob"][1]], evaluation_outcome(3, EPISODES - 1, private_settings))
     table = grades(instructor, hw)
@@ -226,18 +227,18 @@ def test_a_selected_final_is_decided_at_the_due_time_and_a_late_evaluation_never
     late = upload(slow, name)
     clock.set(due + SECOND)
     jobs = catch_up(league.app.state.league)
-    private = queued(league, EVALUATE, PRIVATE)
+    private = queued(league, EVALUATE, PRIVATE_TRACKS)
     assert private.get(chosen) in jobs and late not in private
     assert instructor.post(f"/api/assignments/{hw}/publish").status_code == 200  # by hand, before all is done
     table = grades(instructor, hw)
     assert (table[slow_user.name]["status"], table[slow_user.name]["points"]) == ("pending", None)
 
     league.finish_job(queued(league, VALIDATE)[late], ValidationReport(True, 5, None, "validated in a test"))
-    league.finish_job(queued(league, EVALUATE, PUBLIC)[late],
-                      evaluation_outcome(1, EPISODES, settings_of(league, hw, PUBLIC)))
-    league.finish_job(queued(league, EVALUATE, PRIVATE)[late],
-                      evaluation_outcome(1, EPISODES, settings_of(league, hw, PRIVATE)))
-    league.finish_job(private[chosen], evaluation_outcome(4, EPISODES, settings_of(league, hw, PRIVATE)))
+    league.finish_job(queued(league, EVALUATE, PUBLIC_TRACKS)[late],
+                      evaluation_outcome(1, EPISODES, settings_of(league, hw, PUBLIC_TRACKS)))
+    league.finish_job(queued(league, EVALUATE, PRIVATE_TRACKS)[late],
+                      evaluation_outcome(1, EPISODES, settings_of(league, hw, PRIVATE_TRACKS)))
+    league.finish_job(private[chosen], evaluation_outcome(4, EPISODES, settings_of(league, hw, PRIVATE_TRACKS)))
     table = grades(instructor, hw)
     assert (table[slow_user.name]["status"], table[slow_user.name]["points"], table[slow_user.name]["revised"]) == (
         "graded", 2.5, True)
@@ -262,7 +263,7 @@ def test_due_time_passes_of_several_processes_at_once_decide_each_final_once(lea
         league.finish_job(validations[submission_id], ValidationReport(True, 5, None, "validated in a test"))
     clock.set(due + SECOND)
     assert catch_up(league.app.state.league) == []  # frozen: every public evaluation still queued
-    public = queued(league, EVALUATE, PUBLIC)
+    public = queued(league, EVALUATE, PUBLIC_TRACKS)
     with league.sessions.begin() as session:  # they end without their jobs' own passes (as an older worker's)
         for k, submission_id in enumerate(ids):
             job = session.get(Job, public[submission_id])
@@ -283,7 +284,7 @@ def test_due_time_passes_of_several_processes_at_once_decide_each_final_once(lea
         hw = session.scalar(crud.select(Assignment.id).where(Assignment.name == name))
         private = session.execute(crud.select(Evaluation.submission_id, Job.id).join(
             Job, Job.evaluation_id == Evaluation.id).where(Evaluation.assignment_id == hw,
-                                                           Evaluation.track == PRIVATE)).all()
+                                                           Evaluation.track == PRIVATE_TRACKS)).all()
     assert sorted(submission_id for submission_id, _ in private) == sorted(ids)  # each once
     assert len(set(queued_by_passes)) == len(queued_by_passes) and set(queued_by_passes) <= {j for _, j in private}
     assert all(row.final_submission_id in ids for row in final_rows(league, hw).values()

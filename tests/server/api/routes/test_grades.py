@@ -13,7 +13,7 @@ from datetime import datetime, timezone
 from league.server.assignments import close_due
 from league.server.db import crud
 from league.server.db.models import (
-    BASELINE, DONE, INSTRUCTOR, PRIVATE, READY, Assignment, Evaluation, Job, Submission, User,
+    BASELINE, DONE, INSTRUCTOR, PRIVATE_TRACKS, READY, Assignment, Evaluation, Job, Submission, User,
 )
 from league.server.results import settings_key
 from league.server.grades import CANVAS_STUDENT_COLUMNS, GENERIC_COLUMNS
@@ -161,7 +161,7 @@ def test_the_baselines_are_reference_lines_once_evaluated_on_the_private_tracks(
                    .join(Evaluation, Evaluation.id == Job.evaluation_id)
                    .join(Submission, Submission.id == Evaluation.submission_id)
                    .join(User, User.id == Submission.owner_id)
-                   .filter(User.role == BASELINE, Evaluation.track == PRIVATE,
+                   .filter(User.role == BASELINE, Evaluation.track == PRIVATE_TRACKS,
                            Evaluation.assignment_id == course.assignment["id"], Job.status == "queued")]
     assert job_ids, "setting the rubric queues the baselines' private evaluations"
     for job_id in job_ids:
@@ -286,7 +286,7 @@ def test_grades_never_mix_results_of_two_settings(app_league):
     with app_league.sessions() as session:
         queued = dict(session.query(Submission.owner_id, Job.id).join(Job, Job.submission_id == Submission.id)
                       .join(Evaluation, Evaluation.id == Job.evaluation_id)
-                      .filter(Evaluation.assignment_id == course.assignment["id"], Evaluation.track == PRIVATE,
+                      .filter(Evaluation.assignment_id == course.assignment["id"], Evaluation.track == PRIVATE_TRACKS,
                               Evaluation.result_key == settings_key(settings), Job.status == "queued").all())
     assert {course.user("ann").id, course.user("bob").id} <= set(queued)
     app_league.finish_job(queued[course.user("ann").id], evaluation_outcome(6, 8, settings))  # ann's runs first

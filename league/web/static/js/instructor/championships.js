@@ -6,6 +6,7 @@ import { api } from "../api.js";
 import { $, badge, element, focusOn, onSubmit, replaceKeepingFocus, say } from "../dom.js";
 import { count } from "../format.js";
 import { Poller } from "../poller.js";
+import { DONE, FAILED, PENDING, RUNNING } from "../statuses.js";
 import { EnvOptionsFields, describeOptions } from "./env-options.js";
 
 const ROUND_POLL_MS = 1000;
@@ -75,7 +76,7 @@ async function refreshChampionships() {
   replaceKeepingFocus($("championships"), ...details.sort((a, b) => b.id - a.id).map(championshipCard));
   for (const championship of details) {
     for (const round of championship.rounds || []) {
-      if (round.status === "pending" || round.status === "running") watchRound(championship.id, round.number);
+      if (round.status === PENDING || round.status === RUNNING) watchRound(championship.id, round.number);
     }
   }
 }
@@ -150,11 +151,11 @@ function watchRound(championshipId, number, name = null) {
     const round = await api(`/api/championships/${championshipId}/rounds/${number}`);
     const item = document.querySelector(`[data-championship="${championshipId}"] [data-round="${number}"]`);
     if (item) fillRound(item, round);
-    if (name && (round.heats_done !== said || round.status === "done" || round.status === "failed")) {
+    if (name && (round.heats_done !== said || round.status === DONE || round.status === FAILED)) {
       said = round.heats_done;
       sayProgress(name, round);
     }
-    if (round.status === "done" || round.status === "failed") {
+    if (round.status === DONE || round.status === FAILED) {
       watched.delete(key);
       await refreshChampionships();
       return false;
@@ -167,9 +168,9 @@ function watchRound(championshipId, number, name = null) {
 
 function sayProgress(name, round) {
   const heats = `${round.heats_done} of ${count(round.heats_total, "heat")} done`;
-  if (round.status === "done") {
+  if (round.status === DONE) {
     say($("championships-message"), `Round ${round.number} of ${name} is over: ${heats}; the standings are updated.`, "success");
-  } else if (round.status === "failed") {
+  } else if (round.status === FAILED) {
     say($("championships-message"), `Round ${round.number} of ${name} failed: ${heats}. The Jobs table says why.`, "error");
   } else {
     say($("championships-message"), `Round ${round.number} of ${name}: ${heats}.`, "info");

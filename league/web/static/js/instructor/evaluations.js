@@ -4,6 +4,7 @@ import { api } from "../api.js";
 import { $, badge, element, onClick, onSubmit, replaceKeepingFocus, say } from "../dom.js";
 import { count, number } from "../format.js";
 import { Poller } from "../poller.js";
+import { DONE, ENDED, FAILED, PENDING, READY, VALIDATING } from "../statuses.js";
 import { EnvOptionsFields, describeOptions } from "./env-options.js";
 
 const FAST_POLL_MS = 2000;
@@ -36,8 +37,8 @@ export async function setUpEvaluations() {
   async function refreshSubmissions() {
     const submissions = await api("/api/submissions?all=true");
     replaceKeepingFocus($("all-submissions").tBodies[0], ...submissions.map((s) => submissionRow(s, submissionsPoller)));
-    const busy = submissions.some((s) => ["pending", "validating"].includes(s.status) ||
-      (s.status === "ready" && !["done", "failed"].includes(s.evaluation?.status)));
+    const busy = submissions.some((s) => [PENDING, VALIDATING].includes(s.status) ||
+      (s.status === READY && !ENDED.includes(s.evaluation?.status)));
     submissionsPoller.interval = busy ? FAST_POLL_MS : SLOW_POLL_MS;
   }
 }
@@ -60,7 +61,7 @@ function setUpRerunAll(savedSettings, submissionsPoller) {
 
 /** Re-running the whole course queues a job per submission: say how many, and with what, first. */
 async function askToRerunAll(settings) {
-  const ready = (await api("/api/submissions?all=true")).filter((s) => s.status === "ready").length;
+  const ready = (await api("/api/submissions?all=true")).filter((s) => s.status === READY).length;
   if (!ready) {
     say($("settings-message"), "There is no ready submission to evaluate again.", "info");
     return;
@@ -80,9 +81,9 @@ function showSettings(settings, options) {
 
 function submissionRow(s, poller) {
   const evaluation = s.evaluation;
-  const done = evaluation?.status === "done";
+  const done = evaluation?.status === DONE;
   const actions = element("span", { className: "row" });
-  if (s.status === "ready") {
+  if (s.status === READY) {
     const rerun = element("button", { className: "secondary small", text: "Re-run",
       attrs: { type: "button", "aria-label": `Re-run the evaluation of ${s.name} (${s.owner})`, "data-focus-key": `rerun-${s.id}` } });
     rerun.addEventListener("click", async () => {
@@ -102,7 +103,7 @@ function submissionRow(s, poller) {
     element("td", {}, badge(s.status), reason(s.error)),
     element("td", {}, ...(evaluation ? [badge(evaluation.status), evaluation.stale ? badge("stale") : null]
       : [element("span", { className: "muted", text: "–" })]),
-      reason(evaluation?.status === "failed" ? evaluation.error : null)),
+      reason(evaluation?.status === FAILED ? evaluation.error : null)),
     element("td", { className: "num", text: done ? `${evaluation.completed}/${evaluation.episodes_total}` : "–" }),
     element("td", { className: "num", text: done ? number(evaluation.mean_return) : "–" }),
     element("td", {}, actions));

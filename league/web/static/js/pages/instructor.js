@@ -53,7 +53,7 @@ async function start() {
   const parts = [setUpStudents(me), setUpEvaluations(), setUpAssignments(), setUpPrivacy(), setUpChampionships(),
     setUpGrades(), jobs.poll(), setUpAudit()];
   const results = await Promise.allSettled(parts);
-  const failures = results.filter((r) => r.status === "rejected").map((r) => r.reason.message);
+  const failures = results.filter((r) => "reason" in r).map((r) => r.reason.message); // the rejected parts
   if (failures.length) say($("page-message"), failures.join(" "), "error");
 }
 

@@ -9,6 +9,7 @@ import { Player } from "../player.js";
 import { RacePainter } from "../race-painter.js";
 import { Replay } from "../replay.js";
 import { optionalUser, showAccount } from "../session.js";
+import { FAILED, PENDING, RUNNING } from "../statuses.js";
 import { dropZone } from "../upload-zone.js";
 
 const RACE_POLL_MS = 1500;
@@ -30,7 +31,7 @@ async function loadRace() {
     say($("race-message"), `Race ${raceId}: ${error.message}`, "error");
     return;
   }
-  if (race.status === "failed") {
+  if (race.status === FAILED) {
     say($("race-message"), `This race failed: ${race.error || "no reason recorded"}`, "error");
     return;
   }
@@ -45,7 +46,7 @@ async function loadRace() {
 async function raceWhenOver() {
   for (;;) {
     const race = await api(`/api/races/${encodeURIComponent(raceId)}`, { loginOn401: false }); // the board's visibility decides
-    const over = race.status !== "pending" && race.status !== "running";
+    const over = race.status !== PENDING && race.status !== RUNNING;
     const sealed = race.round !== null && race.seed === null;
     if (over && !sealed) return race;
     const names = (race.entrants || []).map((e) => e.name).join(", ");

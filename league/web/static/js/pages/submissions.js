@@ -8,6 +8,7 @@ import { showEpisodeChart } from "../episode-chart.js";
 import { count, dateTime, number, outcomeText, uploadTimeLeft, zonedTime } from "../format.js";
 import { Poller } from "../poller.js";
 import { requireUser, showAccount } from "../session.js";
+import { DONE, ENDED, FAILED, QUEUED, READY, REJECTED, RUNNING, VALIDATED } from "../statuses.js";
 import { dropZone } from "../upload-zone.js";
 
 const FAST_POLL_MS = 1000; // while something is being validated or evaluated
@@ -26,9 +27,9 @@ let quotaKey = null; // the submissions' ids and statuses when the quota was las
 
 /** Validated and, when ready, evaluated (or the evaluation failed): nothing more will change. */
 function settled(submission) {
-  if (!["ready", "rejected", "failed"].includes(submission.status)) return false;
-  if (submission.status !== "ready") return true;
-  return ["done", "failed"].includes(submission.evaluation?.status);
+  if (!VALIDATED.includes(submission.status)) return false;
+  if (submission.status !== READY) return true;
+  return ENDED.includes(submission.evaluation?.status);
 }
 
 // --------------------------------------------------------------------------- the list
@@ -89,7 +90,7 @@ function finalCell(a) {
   // frozen at the close time, decided once every upload made before it is validated and evaluated
   const state = !final.frozen_at ? "" : final.decided ? ", frozen" : ", frozen: decided once your uploads are evaluated";
   const cell = element("div", {}, element("span", { text: text + state }));
-  const ready = submissions.filter((s) => s.assignment_id === a.id && s.status === "ready");
+  const ready = submissions.filter((s) => s.assignment_id === a.id && s.status === READY);
   if (final.frozen_at || !["open", "late"].includes(a.state) || !ready.length) return cell;
   const menu = element("select", { attrs: { id: `final-${a.id}`, "aria-label": `Final submission of ${a.name}`,
                                             "data-focus-key": `final-${a.id}` } },
@@ -132,7 +133,7 @@ async function myGrade(a) {
 function privateResult(a, grade) {
   if (!a.published_at) return "after publication";
   const evaluation = a.final?.evaluation;
-  const result = evaluation?.status === "done"
+  const result = evaluation?.status === DONE
     ? `${evaluation.completed}/${evaluation.episodes_total} laps, return ${number(evaluation.mean_return, 2)}` : "–";
   if (!grade || grade.points === null) return result;
   const rank = grade.rank ? `, rank ${grade.rank} of ${grade.students}` : "";
@@ -162,7 +163,7 @@ function renderList() {
   }
   replaceKeepingFocus(body, ...submissions.map((s) => {
     const evaluation = s.evaluation;
-    const done = evaluation?.status === "done";
+    const done = evaluation?.status === DONE;
     const open = element("button", { className: "secondary small", text: s.name,
       attrs: { type: "button", "aria-label": `Show ${s.name}`, "aria-controls": "detail", "data-focus-key": `show-${s.id}` } });
     open.addEventListener("click", () => select(s.id));
@@ -182,8 +183,8 @@ function renderList() {
 function statusBadges(s) {
   const cell = element("span", { className: "row" }, badge(s.status));
   const evaluation = s.evaluation?.status;
-  if (s.status === "ready" && evaluation !== "done") {
-    cell.append(badge(evaluation === "failed" ? "failed" : "running", evaluation === "failed" ? "evaluation failed" : "evaluating"));
+  if (s.status === READY && evaluation !== DONE) {
+    cell.append(badge(evaluation === FAILED ? FAILED : RUNNING, evaluation === FAILED ? "evaluation failed" : "evaluating"));
   }
   if (s.evaluation?.stale) cell.append(badge("stale"));
   if (s.late) cell.append(badge("late"));
@@ -193,14 +194,14 @@ function statusBadges(s) {
 function championshipCell(s) {
   const cell = element("span", { className: "row" });
   if (s.active) cell.append(badge("active"));
-  else if (s.status === "ready") {
+  else if (s.status === READY) {
     const use = element("button", { className: "secondary small", text: "Make active",
       attrs: { type: "button", "aria-label": `Make active: ${s.name} races in championships`,
                "data-focus-key": `active-${s.id}`, "data-focus-next": `show-${s.id}` } }); // gone once it is
     use.addEventListener("click", () => update(s, { active: true }));
     cell.append(use);
   }
-  if ("public" in s && s.status === "ready") {
+  if ("public" in s && s.status === READY) {
     const box = element("input", { attrs: { type: "checkbox", checked: s.public, "data-focus-key": `public-${s.id}` } });
     box.addEventListener("change", () => update(s, { public: box.checked }));
     cell.append(element("label", { className: "checks small" }, box, "public opponent"));
@@ -237,7 +238,7 @@ async function refreshDetail() {
   $("detail-facts").textContent = [s.filename, s.kind, `${(s.size / 1024).toFixed(1)} KB`, `sha256 ${s.sha256.slice(0, 12)}…`,
     s.obs_dim ? `observation size ${s.obs_dim}` : null,
     `uploaded ${dateTime(s.created_at)}${s.late ? " (late: after your due time)" : ""}`].filter(Boolean).join(" · ");
-  say($("detail-error"), s.error ? `${s.status === "rejected" ? "Rejected" : "Failed"}: ${s.error}` : "", "error");
+  say($("detail-error"), s.error ? `${s.status === REJECTED ? "Rejected" : "Failed"}: ${s.error}` : "", "error");
   showLog("validation-log", s.log);
   if (focusDetailOf === s.id) {
     focusDetailOf = null;
@@ -253,12 +254,12 @@ function showLog(id, text) {
 
 async function renderEvaluation(s) {
   const evaluation = s.evaluation;
-  $("evaluation").hidden = s.status !== "ready";
+  $("evaluation").hidden = s.status !== READY;
   showLog("evaluation-log", evaluation?.log);
-  say($("evaluation-error"), evaluation?.status === "failed" ? `The evaluation failed: ${evaluation.error}` : "", "error");
-  if (!evaluation || evaluation.status !== "done") {
-    $("evaluation-summary").replaceChildren(evaluation ? badge(evaluation.status) : badge("queued"),
-      evaluation?.status === "failed" ? "" : " The evaluation runs as soon as a worker is free; this page updates by itself.");
+  say($("evaluation-error"), evaluation?.status === FAILED ? `The evaluation failed: ${evaluation.error}` : "", "error");
+  if (!evaluation || evaluation.status !== DONE) {
+    $("evaluation-summary").replaceChildren(evaluation ? badge(evaluation.status) : badge(QUEUED),
+      evaluation?.status === FAILED ? "" : " The evaluation runs as soon as a worker is free; this page updates by itself.");
     if (evaluation) showProvenance(evaluation);
     else $("evaluation-provenance").textContent = "";
     $("chart-box").hidden = true;
@@ -313,10 +314,10 @@ async function allEpisodes(link, total) {
 /** Say (in the upload's status box, read out politely) how the last upload's validation, then its evaluation, ended. */
 function reportUpload() {
   const s = lastUpload && submissions.find((item) => item.id === lastUpload.id);
-  if (!s || !["ready", "rejected", "failed"].includes(s.status)) return;
+  if (!s || !VALIDATED.includes(s.status)) return;
   const { filename } = lastUpload;
   const late = s.late ? " It was uploaded late (after your due time): the late penalty applies if it is your final." : "";
-  if (s.status !== "ready") {
+  if (s.status !== READY) {
     say($("upload-message"), `${filename} was ${s.status}: ${s.error}`, "error");
     lastUpload = null;
   } else if (!lastUpload.validated) {
@@ -324,11 +325,11 @@ function reportUpload() {
     lastUpload.validated = true;
   }
   const evaluation = s.evaluation;
-  if (s.status !== "ready" || !["done", "failed"].includes(evaluation?.status)) return;
-  say($("upload-message"), evaluation.status === "done"
+  if (s.status !== READY || !ENDED.includes(evaluation?.status)) return;
+  say($("upload-message"), evaluation.status === DONE
     ? `${filename} is evaluated: ${evaluation.completed} of ${count(evaluation.episodes_total, "lap")} completed, ` +
       `mean return ${number(evaluation.mean_return)}.${late}`
-    : `${filename} passed validation, but its evaluation failed: ${evaluation.error}`, evaluation.status === "done" ? "success" : "error");
+    : `${filename} passed validation, but its evaluation failed: ${evaluation.error}`, evaluation.status === DONE ? "success" : "error");
   lastUpload = null;
 }
 
@@ -387,7 +388,7 @@ onSubmit($("upload-form"), async () => {
 
 function fillRaceAgents() {
   const select = $("race-agent");
-  const ready = submissions.filter((s) => s.status === "ready");
+  const ready = submissions.filter((s) => s.status === READY);
   const previous = select.value;
   select.replaceChildren(...ready.map((s) => element("option", { text: `${s.name} (#${s.id})`, attrs: { value: s.id } })));
   if (ready.some((s) => String(s.id) === previous)) select.value = previous;
