@@ -11,6 +11,8 @@ from league.client.assignments import find_assignment
 from league.client.output import local_time, print_table
 from league.command import add_env_switches, env_options
 from league.exit_codes import EXIT_ERROR, EXIT_OK, EXIT_REJECTED, EXIT_TIMEOUT
+from league.championship import DEFAULT_POINTS
+from league.statuses import ENDED, FAILED
 
 
 def run_standings(args: argparse.Namespace) -> int:
@@ -85,7 +87,7 @@ def watch_round(api: Api, championship: int, number: int, timeout: float, progre
             bar.total = round_["heats_total"]
             bar.set_description_str(f"round {number}: {round_['status']}")
             bar.update(round_["heats_done"] - bar.n)
-            if round_["status"] in ("done", "failed"):
+            if round_["status"] in ENDED:
                 return round_
             if time.monotonic() > deadline:
                 raise ClientError(f"round {number} is still {round_['status']} after {timeout:g} s "
@@ -96,7 +98,7 @@ def watch_round(api: Api, championship: int, number: int, timeout: float, progre
 
 def report_round(round_: dict) -> int:
     heats = f"{round_['heats_done']}/{round_['heats_total']} heats done"
-    if round_["status"] == "failed":
+    if round_["status"] == FAILED:
         print(f"round {round_['number']} failed ({heats}): the instructor console's Jobs table says why")
         return EXIT_REJECTED
     print(f"round {round_['number']} is over ({heats}); races {' '.join(str(i) for i in round_['race_ids'])}")
@@ -148,7 +150,7 @@ def add_commands(command) -> None:
     created = championships.add_argument_group("create")
     created.add_argument("--heat-size", type=int, metavar="N", help="cars per heat (default 10)")
     created.add_argument("--points", type=points_table, metavar="P1,P2,...",
-                         help="points by finishing position in a heat (default 25,18,15,12,10,8,6,4,2,1)")
+                         help=f"points by finishing position in a heat (default {','.join(map(str, DEFAULT_POINTS))})")
     created.add_argument("--seed", type=int, help="draws the heats (default: drawn by the server)")
     created.add_argument("--assignment", metavar="NAME",
                          help="race each student's final submission of this assignment (default: active ones)")

@@ -9,6 +9,7 @@ import sys
 from league.client.api import Api, ClientError, connection
 from league.client.output import local_time, print_table
 from league.exit_codes import EXIT_ERROR, EXIT_OK
+from league.statuses import JOB_STATUSES
 
 
 def run_integrity(args: argparse.Namespace) -> int:
@@ -97,7 +98,7 @@ def add_commands(command) -> None:
 
     jobs = command("jobs", "instructors: the course's latest jobs (validations, evaluations, races); cancel one",
                    run_jobs)
-    jobs.add_argument("--status", choices=["queued", "running", "done", "failed"], help="only jobs of this status")
+    jobs.add_argument("--status", choices=JOB_STATUSES, help="only jobs of this status")
     jobs.add_argument("--limit", type=int, default=100, help="how many, newest first (default 100, at most 1000)")
     jobs.add_argument("--cancel", type=int, metavar="JOB", help="cancel this queued or running job")
     jobs.add_argument("--csv", action="store_true", help="print CSV")

@@ -10,6 +10,7 @@ from pathlib import Path
 
 from league.client.api import Api, ClientError, connection
 from league.exit_codes import EXIT_OK, EXIT_REJECTED, EXIT_TIMEOUT
+from league.statuses import ENDED, FAILED
 
 
 def run_race_server(args: argparse.Namespace) -> int:
@@ -19,13 +20,13 @@ def run_race_server(args: argparse.Namespace) -> int:
         print(f"race {created['id']}: {api.conn.server}/races/{created['id']}", file=sys.stderr)
         deadline = time.monotonic() + args.timeout
         race = api.get(f"/api/races/{created['id']}")
-        while race["status"] not in ("done", "failed"):
+        while race["status"] not in ENDED:
             if time.monotonic() > deadline:
                 raise ClientError(f"race {created['id']} is still {race['status']} after {args.timeout:g} s",
                                   EXIT_TIMEOUT)
             time.sleep(1.0)
             race = api.get(f"/api/races/{created['id']}")
-        if race["status"] == "failed":
+        if race["status"] == FAILED:
             print(f"race {race['id']} failed: {race['error']}")
             return EXIT_REJECTED
         if args.replay:

@@ -16,12 +16,13 @@ from league.client.api import Api, ClientError, connection
 from league.client.check import check_files, check_limits, check_report
 from league.client.output import print_table
 from league.exit_codes import EXIT_ERROR, EXIT_OK, EXIT_REJECTED, EXIT_TIMEOUT
+from league.statuses import DONE, ENDED, PENDING, QUEUED, READY, RUNNING, VALIDATED, VALIDATING
 
 if TYPE_CHECKING:
     from league.validation.files import Upload
 
-TERMINAL = {"ready", "rejected", "failed"}
-STAGES = ["pending", "validating", "ready", "evaluation queued", "evaluation running", "done"]
+TERMINAL = set(VALIDATED)  # a submission whose validation is over
+STAGES = [PENDING, VALIDATING, READY, f"evaluation {QUEUED}", f"evaluation {RUNNING}", DONE]
 EPISODE_PAGE = 1000  # the most the server gives in one page
 LATE_NOTE = "; late (after your due time): the late penalty applies if it is your final"
 
@@ -44,7 +45,7 @@ def run_submit(args: argparse.Namespace) -> int:
             return EXIT_OK
         submission = wait_settled(api, created["id"], args.timeout, progress=not args.no_progress)
         evaluation = submission.get("evaluation")
-        if evaluation and evaluation["status"] == "done":  # the status answer links to its episodes
+        if evaluation and evaluation["status"] == DONE:  # the status answer links to its episodes
             evaluation["episodes"] = all_episodes(api, submission["links"]["episodes"])
     return report_submission(submission, args.json)
 
@@ -104,16 +105,16 @@ def all_episodes(api: Api, link: str) -> list[dict]:
 
 def stage(submission: dict) -> str:
     evaluation = submission.get("evaluation") or {}
-    if submission["status"] != "ready":
+    if submission["status"] != READY:
         return submission["status"]
-    done = "done" if evaluation.get("status") == "done" else f"evaluation {evaluation.get('status', 'queued')}"
+    done = DONE if evaluation.get("status") == DONE else f"evaluation {evaluation.get('status', QUEUED)}"
     return f"{done} (stale: other settings)" if evaluation.get("stale") else done
 
 
 def settled(submission: dict) -> bool:
     evaluation = submission.get("evaluation") or {}
-    return submission["status"] in TERMINAL and (submission["status"] != "ready"
-                                                 or evaluation.get("status") in ("done", "failed"))
+    return submission["status"] in TERMINAL and (submission["status"] != READY
+                                                 or evaluation.get("status") in ENDED)
 
 
 def wait_settled(api: Api, submission_id: int, timeout: float, progress: bool = True) -> dict:
@@ -146,9 +147,9 @@ def report_submission(submission: dict, as_json: bool) -> int:
     evaluation = submission.get("evaluation")
     if as_json:
         print(json.dumps(submission, indent=2))
-    elif submission["status"] != "ready":
+    elif submission["status"] != READY:
         print(f"submission {submission['id']} was {submission['status']}: {submission['error']}")
-    elif evaluation["status"] != "done":
+    elif evaluation["status"] != DONE:
         print(f"submission {submission['id']} is ready, but its evaluation failed: {evaluation['error']}")
     else:
         # the server's record, as `league evaluate` prints its own: the same result key, the same tracks
@@ -159,7 +160,7 @@ def report_submission(submission: dict, as_json: bool) -> int:
     if submission["late"] and not as_json:
         print(f"submission {submission['id']} was uploaded late (after your due time): the late penalty applies "
               "if it is your final")
-    ok = submission["status"] == "ready" and evaluation and evaluation["status"] == "done"
+    ok = submission["status"] == READY and evaluation and evaluation["status"] == DONE
     return EXIT_OK if ok else EXIT_REJECTED
 
 
@@ -173,7 +174,7 @@ def run_submissions(args: argparse.Namespace) -> int:
 
 
 def _figures(evaluation: dict | None) -> list:
-    if not evaluation or evaluation["status"] != "done":
+    if not evaluation or evaluation["status"] != DONE:
         return ["", "", ""]
     return [f"{evaluation['completed']}/{evaluation['episodes_total']}", f"{evaluation['mean_return']:.3f}",
             f"{evaluation['mean_speed']:.3f}"]
