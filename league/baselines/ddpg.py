@@ -5,7 +5,7 @@ Lillicrap et al., "Continuous control with deep reinforcement learning", 2016
 switched off, and this module reuses `td3.py` rather than copying it: `Args` subclasses
 `td3.Args` with one critic (`n_critics=1`: no clipped double-Q), no policy delay
 (`policy_frequency=1`) and no target policy smoothing (`policy_noise=0`); the learner is
-`td3.TD3` and the training loop `td3.train`. What is DDPG's own here are the thesis' networks
+`td3.TD3`, trained by the off-policy loop of `common/off_policy.py`. What is DDPG's own here are the thesis' networks
 (section 4.1): a two-tower actor and a critic that processes the state and the action apart
 before joining them.
 Thesis: section 1.7.1 (algorithm), section 4.1 (networks), table 4.1 (hyperparameters).

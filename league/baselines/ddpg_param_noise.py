@@ -9,7 +9,7 @@ The learning is DDPG's, that is TD3's with its tricks switched off (`ddpg.py`): 
 subclasses `ddpg.Args` (no action noise), `ParamNoiseDDPG` subclasses `td3.TD3` and overrides
 only acting, the actor update (which adapts σ), the end of an episode, the observation
 statistics' fit and the checkpoint state (for its perturbed copies), and the training loop is
-`td3.train`.
+the shared off-policy one (`common/off_policy.py`).
 Thesis: section 4.1 (DDPG2: the actor of TD3, the critic of DDPG), table 4.1 (std 0.2).
 
     league train ddpg_param_noise --steps 50000 --seed 1 --out runs/ddpg2-1

@@ -22,12 +22,11 @@ import torch.nn.functional as F
 from torch import nn
 
 from league.baselines.common.args import LR_FINAL_HELP, CommonArgs, obs_dim_of, option
-from league.baselines.common.buffers import ReplayBuffer
-from league.baselines.common.cars import make_cars
-from league.baselines.common.networks import (ObservationNormalizer, adam, anneal_learning_rates, fit_normalizers, mlp,
+from league.baselines.common import off_policy
+from league.baselines.common.networks import (ObservationNormalizer, adam, fit_normalizers, mlp,
                                                polyak_update)
 from league.baselines.common.run import Run
-from league.baselines.common.seeding import seed_everything
+from league.baselines.common.off_policy import OffPolicyLearner
 from league.baselines.sac import ACT_DIM, Actor, DeterministicActor
 
 
@@ -116,7 +115,7 @@ def critic_loss(q: torch.Tensor, std: torch.Tensor, target_q: torch.Tensor, targ
 # --------------------------------------------------------------------------- the learner
 
 
-class DSAC:
+class DSAC(OffPolicyLearner):
     """Networks, optimizers and updates of Duan et al. (2021), Algorithm 1 (thesis figure 1.7)."""
 
     def __init__(self, obs_dim: int, args: Args):
@@ -134,8 +133,9 @@ class DSAC:
         self.a_optimizer = adam([self.log_alpha], lr=args.q_lr)
         self.optimizers = [self.q_optimizer, self.actor_optimizer, self.a_optimizer]
         self.alpha = args.alpha
+        self._policy = DeterministicActor(self.actor, obs_dim)
 
-    def update_critic(self, data) -> dict:
+    def update_critics(self, data) -> dict:
         with torch.no_grad():
             next_actions, next_log_pi = self.actor_target.get_action(data.next_observations)
             next_q, next_std = self.qf_target(data.next_observations, next_actions)
@@ -172,10 +172,17 @@ class DSAC:
     def fit_normalizers(self, observations: np.ndarray) -> None:
         fit_normalizers([self.actor, self.actor_target, self.qf, self.qf_target], observations)
 
-    def act(self, obs: np.ndarray) -> np.ndarray:
+    def act(self, obs: np.ndarray, rng: np.random.Generator | None = None) -> np.ndarray:
+        """Actions sampled from the policy (its own noise: `rng` is not used)."""
         with torch.no_grad():
             actions, _ = self.actor.get_action(torch.from_numpy(obs))
         return actions.numpy()
+
+    def logged(self) -> dict:
+        return {"alpha": self.alpha}
+
+    def policy(self) -> DeterministicActor:
+        return self._policy
 
     def state_dict(self) -> dict:
         return {name: getattr(self, name).state_dict() for name in NETWORKS} | {"log_alpha": self.log_alpha.detach()}
@@ -191,54 +198,9 @@ class DSAC:
 NETWORKS = ("actor", "actor_target", "qf", "qf_target", "q_optimizer", "actor_optimizer", "a_optimizer")
 
 
-# --------------------------------------------------------------------------- training loop
+# --------------------------------------------------------------------------- training
 
 
 def train(args: Args, run: Run) -> dict:
-    seed_everything(args.seed)
-    obs_dim = obs_dim_of(args)
-    agent = DSAC(obs_dim, args)
-    rb = ReplayBuffer(args.buffer_size, obs_dim, ACT_DIM, seed=args.seed)
-    action_rng = np.random.default_rng(args.seed)  # the random actions before learning starts
-    policy = DeterministicActor(agent.actor, obs_dim)
-    global_step = 0
-    if run.resume:
-        global_step, state = run.load_checkpoint()
-        agent.load_state_dict(state["agent"])
-        rb.load_state_dict(state["rb"])
-        action_rng.bit_generator.state = state["action_rng"]
-    cars = make_cars(args, seed_offset=global_step)
-    obs = cars.reset()
-    run.open_progress(args.steps, global_step)
-    losses: dict = {}
-
-    def state() -> dict:
-        return {"agent": agent.state_dict(), "rb": rb.state_dict(), "action_rng": action_rng.bit_generator.state}
-
-    while global_step < args.steps:
-        if global_step < args.learning_starts:
-            actions = action_rng.uniform(-1, 1, (args.envs, ACT_DIM)).astype(np.float32)
-        else:
-            actions = agent.act(obs)
-        step = cars.step(actions)
-        # Only a crash ends the return: the target bootstraps through the finish line (Pardo et al. 2018).
-        rb.add(obs, actions, step.rewards, step.next_obs, step.terminated & ~step.finished)
-        obs = cars.obs.copy()
-        for _ in range(args.envs):  # one gradient update per transition collected
-            global_step += 1
-            if global_step == args.learning_starts and args.normalize_obs:
-                agent.fit_normalizers(rb.observations[:rb.size])
-            if global_step > args.learning_starts:
-                anneal_learning_rates(agent.optimizers, global_step, args.steps, args.lr_final_fraction)
-                data = rb.sample(args.batch_size)
-                losses = losses | agent.update_critic(data)
-                if global_step % args.policy_frequency == 0:
-                    losses |= agent.update_actor(data)
-        run.record(global_step, cars.pop_episodes())
-        if losses and global_step % args.log_every < args.envs:
-            run.log_losses(global_step, **{k: float(v) for k, v in losses.items()}, alpha=agent.alpha)
-        if run.evaluation_due(global_step):
-            run.evaluate(global_step, policy)
-        if run.checkpoint_due(global_step):
-            run.save_checkpoint(global_step, state())
-    return run.finish(global_step, policy, state())
+    """The shared off-policy loop (league.baselines.common.off_policy) with this learner."""
+    return off_policy.train(args, run, lambda args: DSAC(obs_dim_of(args), args))

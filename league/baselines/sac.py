@@ -20,14 +20,11 @@ import torch.nn.functional as F
 from torch import nn
 
 from league.baselines.common.args import LR_FINAL_HELP, CommonArgs, obs_dim_of, option
-from league.baselines.common.buffers import ReplayBuffer
-from league.baselines.common.cars import make_cars
-from league.baselines.common.networks import (ObservationNormalizer, adam, anneal_learning_rates, fit_normalizers, mlp,
+from league.baselines.common import off_policy
+from league.baselines.common.networks import (ObservationNormalizer, adam, fit_normalizers, mlp,
                                                polyak_update)
 from league.baselines.common.run import Run
-from league.baselines.common.seeding import seed_everything
-
-ACT_DIM = 2  # [acceleration, turn]
+from league.baselines.common.off_policy import ACT_DIM, OffPolicyLearner
 LOG_STD_MAX = 2  # bounds of the actor's log standard deviation (CleanRL, SpinningUp)
 LOG_STD_MIN = -5
 
@@ -117,7 +114,7 @@ def make_policy(args: Args) -> DeterministicActor:
 # --------------------------------------------------------------------------- the learner
 
 
-class SoftActorCritic:
+class SoftActorCritic(OffPolicyLearner):
     """Networks, optimizers and the updates of Haarnoja et al. (2018b), Algorithm 1."""
 
     def __init__(self, obs_dim: int, args: Args):
@@ -136,6 +133,7 @@ class SoftActorCritic:
         self.a_optimizer = adam([self.log_alpha], lr=args.q_lr)
         self.optimizers = [self.q_optimizer, self.actor_optimizer, self.a_optimizer]
         self.alpha = args.alpha
+        self._policy = DeterministicActor(self.actor, obs_dim)
 
     def update_critics(self, data) -> dict:
         """J_Q = E[(Q_i(s, a) − y)²], y = r + γ (1 − d)(min_i Q_targ,i(s', ã') − α log π(ã'|s')), ã' ~ π(·|s')."""
@@ -175,16 +173,24 @@ class SoftActorCritic:
             losses["alpha_loss"] = alpha_loss.detach()
         return losses
 
-    def update_targets(self) -> None:
+    def after_update(self) -> None:
+        """The critics' targets follow at every gradient step (the actor has none)."""
         polyak_update(self.q_params, self.q_target_params, self.args.tau)
 
     def fit_normalizers(self, observations: np.ndarray) -> None:
         fit_normalizers([self.actor, self.qf1, self.qf2, self.qf1_target, self.qf2_target], observations)
 
-    def act(self, obs: np.ndarray) -> np.ndarray:
+    def act(self, obs: np.ndarray, rng: np.random.Generator | None = None) -> np.ndarray:
+        """Actions sampled from the policy (its own noise: `rng` is not used)."""
         with torch.no_grad():
             actions, _ = self.actor.get_action(torch.from_numpy(obs))
         return actions.numpy()
+
+    def logged(self) -> dict:
+        return {"alpha": self.alpha}
+
+    def policy(self) -> DeterministicActor:
+        return self._policy
 
     def state_dict(self) -> dict:
         return {name: getattr(self, name).state_dict() for name in NETWORKS} | {"log_alpha": self.log_alpha.detach()}
@@ -200,57 +206,9 @@ class SoftActorCritic:
 NETWORKS = ("actor", "qf1", "qf2", "qf1_target", "qf2_target", "q_optimizer", "actor_optimizer", "a_optimizer")
 
 
-# --------------------------------------------------------------------------- training loop
+# --------------------------------------------------------------------------- training
 
 
 def train(args: Args, run: Run) -> dict:
-    seed_everything(args.seed)
-    obs_dim = obs_dim_of(args)
-    agent = SoftActorCritic(obs_dim, args)
-    rb = ReplayBuffer(args.buffer_size, obs_dim, ACT_DIM, seed=args.seed)
-    action_rng = np.random.default_rng(args.seed)  # the random actions before learning starts
-    policy = DeterministicActor(agent.actor, obs_dim)
-    global_step = 0
-    if run.resume:
-        global_step, state = run.load_checkpoint()
-        agent.load_state_dict(state["agent"])
-        rb.load_state_dict(state["rb"])
-        action_rng.bit_generator.state = state["action_rng"]
-    cars = make_cars(args, seed_offset=global_step)
-    obs = cars.reset()
-    run.open_progress(args.steps, global_step)
-    losses: dict = {}
-
-    def state() -> dict:
-        return {"agent": agent.state_dict(), "rb": rb.state_dict(), "action_rng": action_rng.bit_generator.state}
-
-    while global_step < args.steps:
-        if global_step < args.learning_starts:
-            actions = action_rng.uniform(-1, 1, (args.envs, ACT_DIM)).astype(np.float32)
-        else:
-            actions = agent.act(obs)
-        step = cars.step(actions)
-        # Only a crash ends the return: the finish line (like a time limit) is an arbitrary cut
-        # of a road that goes on, so the target bootstraps through it (Pardo et al. 2018).
-        dones = step.terminated & ~step.finished
-        rb.add(obs, actions, step.rewards, step.next_obs, dones)
-        obs = cars.obs.copy()
-        for _ in range(args.envs):  # one gradient update per transition collected
-            global_step += 1
-            if global_step == args.learning_starts and args.normalize_obs:
-                agent.fit_normalizers(rb.observations[:rb.size])
-            if global_step > args.learning_starts:
-                anneal_learning_rates(agent.optimizers, global_step, args.steps, args.lr_final_fraction)
-                data = rb.sample(args.batch_size)
-                losses = losses | agent.update_critics(data)
-                if global_step % args.policy_frequency == 0:
-                    losses |= agent.update_actor(data)
-                agent.update_targets()
-        run.record(global_step, cars.pop_episodes())
-        if losses and global_step % args.log_every < args.envs:
-            run.log_losses(global_step, **{k: float(v) for k, v in losses.items()}, alpha=agent.alpha)
-        if run.evaluation_due(global_step):
-            run.evaluate(global_step, policy)
-        if run.checkpoint_due(global_step):
-            run.save_checkpoint(global_step, state())
-    return run.finish(global_step, policy, state())
+    """The shared off-policy loop (league.baselines.common.off_policy) with this learner."""
+    return off_policy.train(args, run, lambda args: SoftActorCritic(obs_dim_of(args), args))

@@ -20,14 +20,10 @@ import torch.nn.functional as F
 from torch import nn
 
 from league.baselines.common.args import LR_FINAL_HELP, CommonArgs, obs_dim_of, option
-from league.baselines.common.buffers import ReplayBuffer
-from league.baselines.common.cars import make_cars
-from league.baselines.common.networks import (ObservationNormalizer, adam, anneal_learning_rates, fit_normalizers, mlp,
-                                               polyak_update)
+from league.baselines.common import off_policy
+from league.baselines.common.networks import ObservationNormalizer, adam, fit_normalizers, mlp, polyak_update
+from league.baselines.common.off_policy import ACT_DIM, OffPolicyLearner
 from league.baselines.common.run import Run
-from league.baselines.common.seeding import seed_everything
-
-ACT_DIM = 2  # [acceleration, turn]
 
 
 @dataclass
@@ -90,7 +86,7 @@ def make_learner(args: Args) -> TD3:
 # --------------------------------------------------------------------------- the learner
 
 
-class TD3:
+class TD3(OffPolicyLearner):
     """Networks, optimizers and updates of Fujimoto et al. (2018), Algorithm 1.
 
     With one critic, ``policy_frequency=1`` and ``policy_noise=0`` this is DDPG
@@ -149,9 +145,6 @@ class TD3:
         noise = rng.normal(0.0, self.args.exploration_noise, actions.shape)
         return np.clip(actions + noise, -1, 1).astype(np.float32)
 
-    def episode_ended(self) -> None:
-        """A hook for exploration that changes per episode (parameter noise)."""
-
     def state_dict(self) -> dict:
         return {name: getattr(self, name).state_dict() for name in NETWORKS}
 
@@ -163,58 +156,10 @@ class TD3:
 NETWORKS = ("actor", "actor_target", "critics", "critics_target", "q_optimizer", "actor_optimizer")
 
 
-# --------------------------------------------------------------------------- training loop
+# --------------------------------------------------------------------------- training
 
 
 def train(args: Args, run: Run, make: callable = make_learner) -> dict:
-    """The off-policy loop of TD3 and DDPG: act with noise, store, one update per transition."""
-    seed_everything(args.seed)
-    obs_dim = obs_dim_of(args)
-    agent = make(args)
-    rb = ReplayBuffer(args.buffer_size, obs_dim, ACT_DIM, seed=args.seed)
-    action_rng = np.random.default_rng(args.seed)  # random actions, then exploration noise
-    global_step = 0
-    if run.resume:
-        global_step, state = run.load_checkpoint()
-        agent.load_state_dict(state["agent"])
-        rb.load_state_dict(state["rb"])
-        action_rng.bit_generator.state = state["action_rng"]
-    cars = make_cars(args, seed_offset=global_step)
-    obs = cars.reset()
-    run.open_progress(args.steps, global_step)
-    losses: dict = {}
-
-    def state() -> dict:
-        return {"agent": agent.state_dict(), "rb": rb.state_dict(), "action_rng": action_rng.bit_generator.state}
-
-    while global_step < args.steps:
-        if global_step < args.learning_starts:
-            actions = action_rng.uniform(-1, 1, (args.envs, ACT_DIM)).astype(np.float32)
-        else:
-            actions = agent.act(obs, action_rng)
-        step = cars.step(actions)
-        # Only a crash ends the return: the finish line is an arbitrary cut of a road that goes
-        # on, so the target bootstraps through it, as through a time limit (Pardo et al. 2018).
-        rb.add(obs, actions, step.rewards, step.next_obs, step.terminated & ~step.finished)
-        obs = cars.obs.copy()
-        for _ in range(args.envs):  # one gradient update per transition collected
-            global_step += 1
-            if global_step == args.learning_starts and args.normalize_obs:
-                agent.fit_normalizers(rb.observations[:rb.size])
-            if global_step > args.learning_starts:
-                anneal_learning_rates(agent.optimizers, global_step, args.steps, args.lr_final_fraction)
-                data = rb.sample(args.batch_size)
-                losses = losses | agent.update_critics(data)
-                if global_step % args.policy_frequency == 0:
-                    losses |= agent.update_actor(data)
-        episodes = cars.pop_episodes()
-        if episodes:
-            agent.episode_ended()
-        run.record(global_step, episodes)
-        if losses and global_step % args.log_every < args.envs:
-            run.log_losses(global_step, **{k: float(v) for k, v in losses.items()})
-        if run.evaluation_due(global_step):
-            run.evaluate(global_step, agent.actor)
-        if run.checkpoint_due(global_step):
-            run.save_checkpoint(global_step, state())
-    return run.finish(global_step, agent.actor, state())
+    """The shared off-policy loop (league.baselines.common.off_policy) with a TD3 learner, or with
+    the learner `make` builds (DDPG's, DDPG with parameter noise's)."""
+    return off_policy.train(args, run, make)

@@ -1,5 +1,7 @@
 """What the baselines really share, one module per concern (as ``stable_baselines3.common``):
 
+- `off_policy`: the training loop of TD3, DDPG, DDPG with parameter noise, SAC and DSAC, and the
+  `OffPolicyLearner` each of them provides;
 - `args`: `CommonArgs` (the arguments every algorithm has), `option`, their checks, `TrainError`;
 - `cars`: the environment wrapper, K cars collecting at once, each on its own tracks;
 - `buffers`: the replay buffer of the off-policy algorithms;
@@ -11,6 +13,6 @@
 - `export`: the deterministic actor to ONNX or TorchScript, checked against the torch actor;
 - `plots`: the training curves.
 
-Nothing algorithm-specific lives here: the networks, losses and training loops are in one file
-per algorithm, readable top to bottom.
+Nothing algorithm-specific lives here: the networks, losses and updates are in one file per
+algorithm (PPO's loop too: it is the one on-policy algorithm).
 """
