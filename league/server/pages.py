@@ -21,7 +21,7 @@ from starlette.templating import Jinja2Templates
 import league
 from league.evaluation import OUTCOME_TEXT
 from league.render import CAR_COLORS
-from league.server.config import MB, Settings
+from league.server.core.config import MB, Settings
 
 # Pages may talk to and load from their own server only; no inline scripts or styles.
 PAGE_HEADERS = {
