@@ -24,12 +24,13 @@ from dotenv import dotenv_values
 from pydantic import Field, PrivateAttr, SecretStr, ValidationError, field_validator, model_validator
 from pydantic_settings import BaseSettings, SettingsConfigDict
 
+import league
 from league.constants import TRACK_CACHE_SIZE
 from league.validation.limits import MAX_UPLOAD_MB, SandboxLimits
 
 MB = 1024 * 1024
 LIMITS = SandboxLimits()  # the league's defaults (the toolkit's: `league check` uses them without a server)
-BUNDLED_BASELINES = Path(__file__).resolve().parents[1] / "baselines" / "agents"  # package data: travels with it
+BUNDLED_BASELINES = Path(league.__file__).resolve().parent / "baselines" / "agents"  # package data: travels with it
 ENV_PREFIX, ENV_FILE = "LEAGUE_", ".env"
 # LEAGUE_* variables that other parts of the package read (not server settings)
 OTHER_VARIABLES = {
