@@ -43,7 +43,7 @@ def build(app, students: int) -> tuple[str, list[int]]:
     from league.server.db.models import BASELINE, INSTRUCTOR, READY, STUDENT, StudentAssignment, Submission, User
 
     due = datetime(2001, 1, 1, tzinfo=timezone.utc)
-    with app.state.league.sessions.begin() as session:
+    with app.state.services.sessions.begin() as session:
         course = crud.first_course(session)
         _, token = crud.create_user(session, name="prof", role=INSTRUCTOR, course=course)
         users = [crud.create_user(session, name=f"student {k:03d}", role=STUDENT, course=course)[0]
@@ -76,9 +76,9 @@ def build(app, students: int) -> tuple[str, list[int]]:
 
 def private_test(session, assignment, submission, *, completed: int, mean_return: float):
     """A finished private evaluation of 20 episodes, as a worker leaves it (no episode rows)."""
+    from league.server.course.results import settings_key
     from league.server.db import crud
     from league.server.db.models import DONE, PRIVATE
-    from league.server.results import settings_key
 
     settings = assignment.private_settings()
     evaluation, job = crud.create_evaluation(session, submission=submission, assignment=assignment, settings=settings,
@@ -119,7 +119,7 @@ def parse(argv: list[str] | None) -> argparse.Namespace:
 
 def measure(args: argparse.Namespace) -> GradesFigures:
     from league.server.app import create_app
-    from league.server.config import Settings
+    from league.server.core.config import Settings
     from league.server.db.session import make_engine, migrate
 
     with tempfile.TemporaryDirectory() as folder, database(args.backend, Path(folder)) as database_url:

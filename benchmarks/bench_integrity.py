@@ -2,7 +2,7 @@
 
     python benchmarks/bench_integrity.py [--submissions 200 600 3000] [--repeats 3]
 
-(a) Behaviour distances (league.server.integrity.behaviour_distances) on the public probe set and
+(a) Behaviour distances (league.server.course.integrity.behaviour_distances) on the public probe set and
     on a secret set (league.validation.probes.secret_probe_observations, drawn on private tracks),
     the agents run in this process: one network exported to ONNX and to TorchScript; thesis-size
     drivers that steer alike and hold different speeds (league.testing.thesis_driver); the bundled
@@ -11,7 +11,7 @@
     TorchScript re-export, a probe-aware copy that answers the public set otherwise), and beside
     them the max-abs difference the report used before (whose tolerance was 1e-3). The tolerance
     (integrity_tolerance) must sit far above the copies and far below the distinct agents.
-(b) league.server.integrity.integrity_report over N submissions of a course, each with actions
+(b) league.server.course.integrity.integrity_report over N submissions of a course, each with actions
     on the public set (64 probes) and on its assignment's secret set (192) (N/3 students, random actions, 5 % of
     them copies of another student's file, 5 % another student's actions rescaled, offset and
     noisy): the wall time of the report (the behaviour distance matrix, 256 rows at a time, by
@@ -33,8 +33,8 @@ import numpy as np
 
 from _league import run_script
 from league.agents import export_onnx, export_torchscript, load_agent
-from league.server.config import BUNDLED_BASELINES, Settings
-from league.server.integrity import Candidate, behaviour_distances, integrity_report
+from league.server.core.config import BUNDLED_BASELINES, Settings
+from league.server.course.integrity import Candidate, behaviour_distances, integrity_report
 from league.testing import disguised_copies, thesis_driver
 from league.validation.probes import (
     PROBES, SECRET_PROBES, observations_key, probe_actions_bytes, probe_actions_from_bytes, probe_key,

@@ -32,7 +32,7 @@
     side by side (the same heats; each round a track of its own);
 --round-track-seed N: every round's track is N instead of the secret draw, in both trees: the API
     is started through benchmarks/_fixed_track.py, a launcher that replaces
-    league.server.rounds.draw_track_seed in that process only (nothing in league/ reads an
+    league.server.course.races.draw_track_seed in that process only (nothing in league/ reads an
     override); (a) and (b0) race track N too (else TRACK_SEED); checked on each round's summary.
 (c) GET /api/leaderboard at 200 requests/s on loopback (open loop) while rounds are raced by
     two workers: target p99 <= 50 ms.

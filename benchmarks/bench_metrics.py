@@ -104,7 +104,7 @@ def measure(args: argparse.Namespace) -> MetricsFigures:
     from fastapi.testclient import TestClient
 
     from league.server.app import create_app
-    from league.server.config import Settings
+    from league.server.core.config import Settings
     from league.server.db.session import make_engine, migrate
 
     with tempfile.TemporaryDirectory() as folder, database(args.backend, Path(folder)) as database_url:
@@ -116,7 +116,7 @@ def measure(args: argparse.Namespace) -> MetricsFigures:
         app = create_app(settings)
         with TestClient(app) as client:
             begin = time.perf_counter()
-            fill(app.state.league.sessions, args)
+            fill(app.state.services.sessions, args)
             written = time.perf_counter() - begin
             timed(client, "/metrics", "bench", 2)  # warm: the first queries' plans and caches
             ms = {label: timed(client, path, "bench", args.scrapes) for label, path in REQUESTS}

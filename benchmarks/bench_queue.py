@@ -55,8 +55,8 @@ def queue_one(sessions) -> int:
     """A re-evaluation of the baseline, committed as a queued row only."""
     from sqlalchemy import select
 
+    from league.server.course.results import queue_evaluation
     from league.server.db.models import Submission
-    from league.server.results import queue_evaluation
 
     with sessions.begin() as session:
         baseline = session.scalars(select(Submission).order_by(Submission.id)).first()

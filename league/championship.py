@@ -1,6 +1,6 @@
 """Championship rules: heats, points, standings and ratings.
 
-Pure functions over plain data, so the league server's standings (league.server.standings) can
+Pure functions over plain data, so the league server's standings (league.server.course.standings) can
 be recomputed at any time from the stored classifications.
 """
 from __future__ import annotations

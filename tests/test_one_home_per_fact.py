@@ -149,7 +149,7 @@ def test_the_detectors_catch_a_copy():
 
 def test_the_pages_get_the_facts(tmp_path):
     """What the pages read instead: the layout's data-statuses and the templates' values."""
-    from league.server.config import Settings
+    from league.server.core.config import Settings
     from league.server.pages import page_facts
 
     facts = page_facts(Settings(data_dir=tmp_path))

@@ -25,41 +25,41 @@ from league.server.api.routes.tracks import MAX_TRACK_BYTES
 from league.server.api.watch import ProcessWatch, SchemaGuard, database_error
 from league.server import metrics
 from league.server.bootstrap import bootstrap
-from league.server.config import Settings, load_settings
+from league.server.core.config import Settings, load_settings
+from league.server.course.roster import MAX_ROSTER_BYTES
 from league.server.db.session import check_schema, revision_of
 from league.server.jobs.runner import close_due_now
 from league.server.jobs.worker import sweep_store
 from league.server.pages import mount_web
-from league.server.roster import MAX_ROSTER_BYTES
 from league.server.sandbox.process import ForkServer, sandbox_isolation
-from league.server.services import League, open_league
+from league.server.services import Services, open_services
 
 MULTIPART_SLACK = 64 * 1024  # bytes of multipart framing and form fields allowed on top of the file
 
 
-def prepare_league(league_: League) -> None:
+def prepare_league(services: Services) -> None:
     """Check the schema (`league serve` or `league migrate` brought it up to date), create the store,
     register the baselines on first start (idempotent)."""
-    with league_.engine.connect() as connection:
+    with services.engine.connect() as connection:
         check_schema(revision_of(connection))
-    league_.store.ensure()
-    bootstrap(league_.settings, league_.sessions, league_.queue, league_.store)
-    catch_up(league_)
-    sweep_store(league_.sessions, league_.store)
-    sandbox_isolation(league_.settings.sandbox_uid_base)  # logged, and shown by /api/health
+    services.store.ensure()
+    bootstrap(services.settings, services.sessions, services.queue, services.store)
+    catch_up(services)
+    sweep_store(services.sessions, services.store)
+    sandbox_isolation(services.settings.sandbox_uid_base)  # logged, and shown by /api/health
     ForkServer.release_this_thread()  # (the probe's: the API runs no sandbox)
 
 
-def catch_up(league_: League) -> list[int]:
+def catch_up(services: Services) -> list[int]:
     """Freeze and queue the private tests of the due times that passed while the league was down (the
     reaper's passes do it while it runs)."""
-    return close_due_now(league_.sessions, league_.queue, max_attempts=league_.settings.max_job_attempts,
-                         now=league_.clock.now())
+    return close_due_now(services.sessions, services.queue, max_attempts=services.settings.max_job_attempts,
+                         now=services.clock.now())
 
 
 @asynccontextmanager
 async def lifespan(app: FastAPI):
-    await run_in_threadpool(prepare_league, app.state.league)
+    await run_in_threadpool(prepare_league, app.state.services)
     await run_in_threadpool(app.state.watch.start)
     # The startup's objects (modules, the app, its routes and schemas) live as long as the process: out of
     # the collector's sight, a full collection no longer walks them in the middle of answers (halves the
@@ -67,26 +67,26 @@ async def lifespan(app: FastAPI):
     gc.freeze()
     yield
     await run_in_threadpool(app.state.watch.stop)
-    app.state.league.engine.dispose()
+    app.state.services.engine.dispose()
 
 
-def create_app(settings: Settings | None = None, league_: League | None = None) -> FastAPI:
+def create_app(settings: Settings | None = None, services: Services | None = None) -> FastAPI:
     settings = settings or load_settings()
-    league_ = league_ or open_league(settings)
+    services = services or open_services(settings)
     app = FastAPIOffline(title="MicroRacer League", version=league.__version__, lifespan=lifespan,  # /docs: no CDN
                          description="Upload TorchScript or ONNX agents; they are validated in a sandbox and "
                                      "evaluated on the course's tracks.")
     # what the routes' dependencies (league.server.api.deps) hand them
-    app.state.league = league_
+    app.state.services = services
     app.state.cache = ResponseCache(settings.public_cache_s, settings.public_cache_max_age_s)
-    app.state.watch = ProcessWatch(league_)  # this process in the workers table; the schema under it
+    app.state.watch = ProcessWatch(services)  # this process in the workers table; the schema under it
     app.include_router(api_router, prefix="/api")
     app.add_exception_handler(StarletteHTTPException, _http_error)
     app.add_exception_handler(RequestValidationError, _validation_error)
     app.add_exception_handler(DBAPIError, database_error)
     mount_web(app, settings)
-    app.add_middleware(StatusAnswers, league_=league_)  # inside the metrics' timer (installed next)
-    metrics.install(app, league_.sessions, settings.worker_silent_after_s)
+    app.add_middleware(StatusAnswers, services=services)  # inside the metrics' timer (installed next)
+    metrics.install(app, services.sessions, settings.worker_silent_after_s)
     app.add_middleware(BodyLimits, default=Limit.of(64 * KB), limits=body_limits(settings),
                        read_timeout_s=settings.request_body_timeout_s)
     app.add_middleware(SchemaGuard, watch=app.state.watch)

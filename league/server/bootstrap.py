@@ -14,11 +14,11 @@ from sqlalchemy.exc import IntegrityError
 from sqlalchemy.orm import Session, sessionmaker
 
 from league.agents import export_heuristic_onnx
-from league.server.config import Settings
+from league.server.core.config import Settings
 from league.server.db import crud
 from league.server.db.models import BASELINE, Course
-from league.server.storage import BlobStore
 from league.server.jobs.queue import JobQueue
+from league.server.storage import BlobStore
 from league.validation.files import model_kind_of
 
 log = logging.getLogger("league.server.bootstrap")

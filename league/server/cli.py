@@ -18,7 +18,7 @@ from sqlalchemy import Engine
 from sqlalchemy.engine import make_url
 from sqlalchemy.orm import Session, sessionmaker
 
-from league.server.config import (
+from league.server.core.config import (
     Settings, database_origin, database_setting, describe_settings, load_settings, setting_sources,
     settings_markdown, unknown_variables,
 )
@@ -166,9 +166,9 @@ def add_commands(subparsers) -> None:
 
 
 def _logged_setup(args: argparse.Namespace) -> tuple[Settings, dict[str, str]]:
-    """serve's and worker's settings, then their logging as the settings say (league/server/logs.py);
+    """serve's and worker's settings, then their logging as the settings say (league/server/core/logs.py);
     the settings' warnings are logged in that format."""
-    from league.server.logs import configure
+    from league.server.core.logs import configure
 
     warnings: list[str] = []
     settings, sources = _setup(args, warnings.append)
@@ -228,9 +228,9 @@ def run_serve(args: argparse.Namespace) -> int:
 
     from league.server.api.connections import connection_limits, uvicorn_protocols
     from league.server.app import create_app
-    from league.server.services import open_league
+    from league.server.core.logs import settings_log_config
     from league.server.db.session import migrate
-    from league.server.logs import settings_log_config
+    from league.server.services import open_services
     from league.server.supervise import ChildWorker
 
     settings, sources = _logged_setup(args)
@@ -239,8 +239,8 @@ def run_serve(args: argparse.Namespace) -> int:
     before, after = migrate(engine, guard=process_guard(settings, force=False))
     if before != after:
         log.info("database migrated from revision %s to %s", before, after)
-    league_ = open_league(settings, engine)
-    app = create_app(settings, league_)
+    services = open_services(settings, engine)
+    app = create_app(settings, services)
     worker = None if args.no_worker else ChildWorker(args.threads, args.data_dir, settings.log_file)
     app.state.supervisor = worker  # its restarts at /metrics
     if worker is not None:
@@ -381,7 +381,7 @@ def run_restore(args: argparse.Namespace) -> int:
 
 def _record_admin(engine, command: str, **details) -> None:
     """An admin command's event in the audit log (backups and restores: they can change every grade)."""
-    from league.server import audit
+    from league.server.course import audit
     from league.server.db.session import make_sessionmaker
 
     action = {"backup": audit.BACKUP, "restore": audit.RESTORE}[command]
@@ -400,8 +400,8 @@ def run_config(args: argparse.Namespace) -> int:
 
 def _add_user(sessions: sessionmaker[Session], name: str, role: str, course_name: str | None = None,
               **identity: str | None) -> int:
-    from league.server import audit
-    from league.server.courses import CourseRefused, existing_course
+    from league.server.course import audit
+    from league.server.course.courses import CourseRefused, existing_course
     from league.server.db import crud
 
     with sessions.begin() as session:
@@ -425,8 +425,8 @@ def run_users_add(args: argparse.Namespace) -> int:
 
 
 def run_courses_add(args: argparse.Namespace) -> int:
-    from league.server import audit
-    from league.server.courses import CourseRefused, add_course
+    from league.server.course import audit
+    from league.server.course.courses import CourseRefused, add_course
     from league.server.jobs.queue import JobQueue
 
     sessions = _sessions(args)
@@ -448,7 +448,7 @@ def run_courses_add(args: argparse.Namespace) -> int:
 
 
 def run_courses_list(args: argparse.Namespace) -> int:
-    from league.server.courses import course_counts
+    from league.server.course.courses import course_counts
 
     with _sessions(args)() as session:
         for course, instructors, students in course_counts(session):
@@ -458,9 +458,9 @@ def run_courses_list(args: argparse.Namespace) -> int:
 
 
 def run_users_import(args: argparse.Namespace) -> int:
-    from league.server import audit
-    from league.server.courses import CourseRefused, existing_course
-    from league.server.roster import MAX_ROSTER_BYTES, RosterError, import_roster, read_roster
+    from league.server.course import audit
+    from league.server.course.courses import CourseRefused, existing_course
+    from league.server.course.roster import MAX_ROSTER_BYTES, RosterError, import_roster, read_roster
     from league.spreadsheet import csv_text
 
     try:
@@ -510,7 +510,7 @@ def run_users_list(args: argparse.Namespace) -> int:
 
 
 def run_users_revoke(args: argparse.Namespace) -> int:
-    from league.server import audit
+    from league.server.course import audit
     from league.server.db import crud
 
     with _sessions(args).begin() as session:
@@ -526,9 +526,9 @@ def run_users_revoke(args: argparse.Namespace) -> int:
 
 
 def run_users_delete(args: argparse.Namespace) -> int:
-    from league.server import audit
+    from league.server.course import audit
+    from league.server.course.erasure import DeletionRefused, delete_student, write_out
     from league.server.db import crud
-    from league.server.erasure import DeletionRefused, delete_student, write_out
     from league.server.storage import BlobStore
 
     sessions = _sessions(args)

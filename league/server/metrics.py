@@ -30,15 +30,15 @@ from starlette.routing import Mount
 
 import league
 from league.server.api.deps import SessionsDep, SettingsDep
-from league.server.config import Settings
+from league.server.core.config import Settings
 from league.server.db import crud
 from league.server.db.models import (
     DONE, FAILED, INSTRUCTOR, QUEUED, READY, REJECTED, EpisodeResult, Job, Submission, utcnow,
 )
+from league.server.core.logs import log_access
 from league.server.db.session import head_revision
 from league.server.jobs import registry
 from league.server.jobs.leases import queue_depth
-from league.server.logs import log_access
 
 # job durations (seconds): a validation takes seconds, an evaluation of 100 episodes minutes, a race about one
 JOB_BUCKETS = (1, 2, 5, 10, 20, 30, 60, 120, 300, 600, 1200, 1800, 3600)
@@ -199,7 +199,7 @@ def workers(session: Session, silent_after_s: float) -> Iterator:
 
 class RequestLatency:
     """ASGI middleware: the API's answer times by method, route template and status, each answer also
-    written to the access log (league.server.logs.log_access): one measure for both."""
+    written to the access log (league.server.core.logs.log_access): one measure for both."""
 
     def __init__(self, app, histogram: Histogram):
         self.app, self.histogram = app, histogram

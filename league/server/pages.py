@@ -24,7 +24,7 @@ from league.championship import DEFAULT_POINTS
 from league.constants import MODEL_SUFFIXES
 from league.evaluation import OUTCOME_TEXT
 from league.render import CAR_COLORS
-from league.server.config import MB, Settings
+from league.server.core.config import MB, Settings
 
 # Pages may talk to and load from their own server only; no inline scripts or styles.
 PAGE_HEADERS = {

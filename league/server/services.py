@@ -8,16 +8,16 @@ from dataclasses import dataclass, field
 from sqlalchemy import Engine
 from sqlalchemy.orm import Session, sessionmaker
 
-from league.server.clock import Clock
-from league.server.config import Settings
+from league.server.core.clock import Clock
+from league.server.core.config import Settings
 from league.server.db.session import make_engine, make_sessionmaker
 from league.server.jobs.queue import JobQueue
 from league.server.storage import BlobStore
 
 
 @dataclass
-class League:
-    """The services of one league (`create_app` keeps it as `app.state.league`)."""
+class Services:
+    """The services of one league (`create_app` keeps it as `app.state.services`)."""
 
     settings: Settings
     engine: Engine
@@ -27,6 +27,6 @@ class League:
     clock: Clock = field(default_factory=Clock)  # what upload windows and due times are decided by
 
 
-def open_league(settings: Settings, engine: Engine | None = None) -> League:
+def open_services(settings: Settings, engine: Engine | None = None) -> Services:
     engine = engine or make_engine(settings.resolved_database_url)
-    return League(settings, engine, make_sessionmaker(engine), JobQueue(engine), BlobStore(settings.data_dir))
+    return Services(settings, engine, make_sessionmaker(engine), JobQueue(engine), BlobStore(settings.data_dir))

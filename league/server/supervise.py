@@ -20,7 +20,7 @@ import threading
 import time
 from pathlib import Path
 
-from league.server.logs import worker_log_file
+from league.server.core.logs import worker_log_file
 
 log = logging.getLogger("league.server")
 PR_SET_PDEATHSIG = 1  # prctl(2)

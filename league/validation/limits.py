@@ -1,7 +1,7 @@
 """What an uploaded model may use: memory, CPU time per observation, per run and to load; and,
 for the server's sandboxes, their user ids, isolation, restarts and log size.
 
-The league's defaults live here, once: a server's settings (league.server.config) default to
+The league's defaults live here, once: a server's settings (league.server.core.config) default to
 them, and `league check` uses them when no server says otherwise.
 """
 from __future__ import annotations

@@ -5,7 +5,7 @@ whatever their files: one network exported to ONNX and to TorchScript differs by
 (~2e-7), two trained agents by far more (0.8 to 2: benchmarks/bench_integrity.py). The server
 records each submission's actions on it in the sandbox that validates it
 (league.server.sandbox.validation) and its integrity report
-compares them (league.server.integrity).
+compares them (league.server.course.integrity).
 
 The observations are drawn once from PROBE_SEED on real tracks: a driver with a target speed of
 its own per track and noisy steering goes round, and every SAMPLE_EVERY-th observation is kept,

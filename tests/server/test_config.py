@@ -6,7 +6,7 @@ from __future__ import annotations
 import pytest
 from pydantic import SecretStr
 
-from league.server.config import (
+from league.server.core.config import (
     ConfigError, Settings, load_settings, setting_sources, settings_markdown, shown_value, unknown_variables,
 )
 from league.validation.limits import SandboxLimits

@@ -11,9 +11,9 @@ from alembic.migration import MigrationContext
 from sqlalchemy import Connection, Engine, MetaData, inspect, text
 from sqlalchemy.exc import IntegrityError
 
+from league.server.course.results import settings_key
 from league.server.db.models import Base
 from league.server.db.session import alembic_config, make_engine, migrate
-from league.server.results import settings_key
 
 from .backends import BACKENDS
 

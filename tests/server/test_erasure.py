@@ -1,4 +1,4 @@
-"""Deleting a student (league.server.erasure, DELETE /api/users/{id}, `league users delete`): their
+"""Deleting a student (league.server.course.erasure, DELETE /api/users/{id}, `league users delete`): their
 data gone from every answer a student or an instructor can read, others' races and standings
 intact (same points), the audit log naming the deletion by id only."""
 from __future__ import annotations
@@ -15,8 +15,8 @@ from league.server.db import crud
 from league.server.db.models import (
     DELETED, DONE, READY, STUDENT, Assignment, AuditEvent, Blob, Evaluation, Job, Race, RaceReplay, Submission, User,
 )
+from league.server.course.races import create_race
 from league.server.jobs.race import car_name
-from league.server.rounds import create_race
 
 from .api.in_process import every_get, in_process_league
 from .api_calls import unique
@@ -186,7 +186,7 @@ def test_an_upload_or_race_of_a_student_deleted_meanwhile_is_refused(tmp_path):
     from fastapi import HTTPException
 
     from league.server.api.deps import lock_account
-    from league.server.erasure import delete_student
+    from league.server.course.erasure import delete_student
 
     with in_process_league("sqlite", tmp_path, bootstrap=False) as league:
         student, _ = league.user("gil")

@@ -27,7 +27,7 @@ from league.server.db.models import (
     PRIVATE_TRACKS, READY, STUDENT, Assignment, Base, Championship, Evaluation, Job, Race, StudentAssignment,
     Submission, SubmissionProbe, User,
 )
-from league.server.rounds import create_race
+from league.server.course.races import create_race
 from league.server.storage import BlobStore
 
 from .api.in_process import evaluation_outcome, every_get, in_process_league
@@ -111,7 +111,7 @@ def evaluated_submission(league, session, owner: User, assignment: Assignment, s
 
 
 def league_key(settings: dict) -> str:
-    from league.server.results import settings_key
+    from league.server.course.results import settings_key
 
     return settings_key(settings)
 
@@ -177,7 +177,7 @@ def build_course(league, clock) -> dict:
     finish_race(league, races["alone"], ids["dora"])
 
     clock.set(EXTENDED + timedelta(seconds=1))  # every due time passed: the finals freeze, the private tests run
-    catch_up(league.app.state.league)
+    catch_up(league.app.state.services)
     for job_id, settings in queued_jobs(league, everyone, PRIVATE_TRACKS):
         league.finish_job(job_id, evaluation_outcome(3, settings=settings))
     with league.client(league.instructor_token) as instructor:
@@ -211,7 +211,7 @@ def delete(league, kind: str, course: dict, tmp_path: Path, monkeypatch) -> None
 def test_a_student_with_a_row_of_every_kind_is_erased_after_due_times_publication_and_championships(
         backend, how, tmp_path, monkeypatch):
     with in_process_league(backend, tmp_path, bootstrap=False) as league:
-        clock = league.app.state.league.clock
+        clock = league.app.state.services.clock
         course = build_course(league, clock)
         dora, ids = course["dora"], course["ids"]
         own_submissions = {"submissions": set(ids["dora"])}

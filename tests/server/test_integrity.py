@@ -10,8 +10,8 @@ import numpy as np
 
 import pytest
 
-from league.server import integrity
-from league.server.integrity import (
+from league.server.course import integrity
+from league.server.course.integrity import (
     BASELINE_COPY, IDENTICAL_FILE, NOT_PROBED, PROBE_FAILED, SAME_BEHAVIOUR, Candidate, behaviour_distances,
     close_pairs, integrity_report,
 )

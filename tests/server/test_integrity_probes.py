@@ -7,8 +7,8 @@ import numpy as np
 import pytest
 from sqlalchemy import func, select
 
+from league.server.course.integrity import secret_key
 from league.server.db.models import PROBE, SECRET_PROBE, Assignment, Job, SubmissionProbe
-from league.server.integrity import secret_key
 from league.server.jobs.probe import ProbeOutcome
 from league.validation.probes import SECRET_PROBES, Probe, probe_actions_bytes, probe_key
 

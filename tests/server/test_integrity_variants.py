@@ -14,8 +14,8 @@ import numpy as np
 import pytest
 
 from league.agents import export_onnx, load_agent
-from league.server.config import BUNDLED_BASELINES, Settings
-from league.server.integrity import (
+from league.server.core.config import BUNDLED_BASELINES, Settings
+from league.server.course.integrity import (
     BASELINE_COPY, Candidate, behaviour_distances, bundled_digests, integrity_report,
 )
 from league.testing import disguised_copies, thesis_driver

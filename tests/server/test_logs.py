@@ -1,4 +1,4 @@
-"""Log lines (league/server/logs.py): the text format and the logging configuration. What the server
+"""Log lines (league/server/core/logs.py): the text format and the logging configuration. What the server
 and its worker write, as JSON lines, is checked on a running league in tests/system/test_logs.py."""
 from __future__ import annotations
 
@@ -6,7 +6,7 @@ import json
 import logging
 import logging.config
 
-from league.server.logs import TextFormatter, log_config, worker_log_file
+from league.server.core.logs import TextFormatter, log_config, worker_log_file
 
 
 def test_text_lines_carry_a_utc_timestamp():

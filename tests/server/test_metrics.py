@@ -12,10 +12,11 @@ from prometheus_client.parser import text_string_to_metric_families
 from sqlalchemy import func, select, update
 
 import league as league_package
-from league.server.db.models import DONE, EpisodeResult, Job, Submission, WorkerProcess, utcnow
+from league.server.core.clock import utcnow
+from league.server.db.models import DONE, EpisodeResult, Job, Submission, WorkerProcess
 from league.server.db.session import head_revision
-from league.server.jobs.handlers import HANDLERS
 from league.server.jobs import registry
+from league.server.jobs.handlers import HANDLERS
 from league.server.jobs.leases import claim
 from league.server.metrics import JOB_BUCKETS
 from league.validation.report import ValidationReport

@@ -16,7 +16,7 @@ from sqlalchemy import text
 
 import league
 from league.server.backup import backup
-from league.server.db.models import utcnow
+from league.server.core.clock import utcnow
 from league.server.db.session import _scripts, head_revision, make_engine, revision_of, upgrade
 
 from ..layout import REPO
@@ -169,7 +169,7 @@ def test_league_backup_of_the_first_schema(kind, tmp_path):
 def test_a_worker_whose_schema_is_migrated_under_it_stops_saying_what_to_do(tmp_path, caplog):
     """A running worker that finds, at a heartbeat, the database at a newer revision stops (as on SIGTERM:
     its running jobs are handed back) and `league worker` exits 3, with the reason logged."""
-    from league.server.config import Settings
+    from league.server.core.config import Settings
     from league.server.db.session import make_sessionmaker, migrate
     from league.server.jobs.queue import JobQueue
     from league.server.jobs.runner import WorkerContext

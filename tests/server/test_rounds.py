@@ -1,4 +1,4 @@
-"""A championship round's track (league/server/rounds.py) is drawn secretly when the round is created
+"""A championship round's track (league/server/course/races.py) is drawn secretly when the round is created
 and is shown once the round is over: before, nothing anyone can read derives it; while its heats are
 raced, no answer (JSON, CSV, replay, log, page) holds its seed or its track; after, the stored seed
 races it again.

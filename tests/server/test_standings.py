@@ -1,11 +1,11 @@
 """The course leaderboard's rows, computed from a real database (both backends), no server."""
 from __future__ import annotations
 
+from league.server.course.results import settings_key
+from league.server.course.standings import leaderboard_rows
 from league.server.db import crud
 from league.server.db.models import BASELINE, DONE, READY, STUDENT, Assignment
 from league.server.db.session import make_engine, make_sessionmaker, migrate
-from league.server.results import settings_key
-from league.server.standings import leaderboard_rows
 
 
 def add_evaluated(session, owner, name: str, completed: int) -> int:

@@ -37,7 +37,7 @@ from .students import PIP_CACHE, Student, export
 URL = "http://127.0.0.1:8000"  # where the README's `league serve` listens
 TORCH_LINE = "pip install torch --index-url https://download.pytorch.org/whl/cpu"
 TORCH_HERE = 'pip install "torch==2.13.0"'  # from PIP_FIND_LINKS, the release the test command installs
-TOKEN = re.compile(r"lg_\S+")  # a line that is a token alone (league/server/security.py's prefix)
+TOKEN = re.compile(r"lg_\S+")  # a line that is a token alone (league/server/core/security.py's prefix)
 # Only to keep the test short: the baselines' and the student's evaluations, 3 episodes each.
 SETTINGS = {"LEAGUE_EVAL_EPISODES": "3"}
 

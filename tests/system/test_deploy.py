@@ -26,7 +26,7 @@ from packaging.utils import canonicalize_name
 from sqlalchemy.engine import make_url
 
 from league.cli import build_parser
-from league.server.config import Settings
+from league.server.core.config import Settings
 from league.server.jobs.alive import alive_file, stale_reason
 
 from ..layout import REPO

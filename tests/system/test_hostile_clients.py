@@ -22,7 +22,7 @@ import httpx
 import numpy as np
 import pytest
 
-from league.server.config import Settings
+from league.server.core.config import Settings
 
 from .network import other_host
 from .ordinary import REPO, OrdinaryLeague, shared_directory

@@ -1,4 +1,4 @@
-"""Log lines (league/server/logs.py): with log_format=json and a log_file every line the server and its
+"""Log lines (league/server/core/logs.py): with log_format=json and a log_file every line the server and its
 worker write is one JSON object with a timestamp, uvicorn's included, the API's in the file and the
 worker's in its own beside it; each answer has an access line with its status, latency and user; job
 lines carry the job, submission, user, outcome and duration; a refused upload is logged with the user,

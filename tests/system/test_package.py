@@ -76,7 +76,7 @@ def test_an_installed_server_started_elsewhere_registers_the_bundled_baselines(i
                # the dependencies come through a .pth path, which sandboxes may not read (by design,
                # sandbox/child.py read_roots): here they run without Landlock
                LEAGUE_SANDBOX_REQUIRE_ISOLATION="false")
-    where = run(str(installed / "bin" / "python"), "-c", "import league.server.config as c; "
+    where = run(str(installed / "bin" / "python"), "-c", "import league.server.core.config as c; "
                 "print(c.__file__); print(c.Settings().resolved_baselines_dir)", env=env, cwd=elsewhere).stdout
     module, baselines_dir = where.split()
     assert Path(module).is_relative_to(installed) and Path(baselines_dir).is_relative_to(installed)

@@ -112,7 +112,7 @@ def test_a_fresh_venv_installs_the_servers_own_package_and_evaluates_as_the_serv
 
 @pytest.mark.long
 def test_check_without_the_server_extra_alone_and_with_a_saved_server_that_is_down(student, tmp_path):
-    no_server = student.run("python", "-c", "import league.server.config", expect=1)
+    no_server = student.run("python", "-c", "import league.server.core.config", expect=1)
     missing = no_server.stderr.rsplit("ModuleNotFoundError: No module named ", 1)[-1].strip("'\n")
     assert missing.split(".")[0] in ("pydantic", "pydantic_settings", "dotenv")  # the onnx and client extras only
     model = student.give(export("onnx", tmp_path))

@@ -30,7 +30,7 @@ from dataclasses import dataclass, replace
 
 from uvicorn.protocols.http.httptools_impl import HttpToolsProtocol
 
-from league.server.config import Settings
+from league.server.core.config import Settings
 
 log = logging.getLogger("league.server.connections")
 MAX_HEAD_BYTES = 32 * 1024  # a request line and headers; browsers send 1-2 KB (nginx allows 32 KB)

@@ -13,57 +13,57 @@ import league
 from league.spreadsheet import csv_text
 from league.server.api.cache import ResponseCache
 from league.server.api.watch import ProcessWatch
-from league.server.clock import Clock
-from league.server.config import Settings
+from league.server.core.clock import Clock
+from league.server.core.config import Settings
+from league.server.course.privacy import AUDIENCE, Names
 from league.server.db import crud
 from league.server.db.models import INSTRUCTOR, VISIBILITY_INSTRUCTORS, VISIBILITY_PUBLIC, STUDENT, Course, User
-from league.server.privacy import AUDIENCE, Names
 from league.server.jobs.queue import JobQueue
-from league.server.services import League
+from league.server.services import Services
 from league.server.storage import BlobStore
 
 MAX_ID = 2**63 - 1  # ids are 64-bit integers in the database: a larger number names nothing
 bearer = HTTPBearer(auto_error=False, description="the API token printed by `league users add` or the roster")
 
 
-# Every route reaches the league's services through these (create_app keeps them as app.state.league
+# Every route reaches the league's services through these (create_app keeps them as app.state.services
 # and the public answers' cache as app.state.cache). The cheap ones are `async def`: FastAPI runs them
 # in the event loop instead of handing each one to the thread pool (a hop that costs more than the
 # work under load).
 
 
-async def get_league(request: Request) -> League:
-    return request.app.state.league
+async def get_services(request: Request) -> Services:
+    return request.app.state.services
 
 
-LeagueDep = Annotated[League, Depends(get_league)]
+ServicesDep = Annotated[Services, Depends(get_services)]
 
 
-async def get_settings(league_: LeagueDep) -> Settings:
-    return league_.settings
+async def get_settings(services: ServicesDep) -> Settings:
+    return services.settings
 
 
-async def get_sessions(league_: LeagueDep) -> sessionmaker[Session]:
+async def get_sessions(services: ServicesDep) -> sessionmaker[Session]:
     """The sessionmaker, for work that opens sessions of its own (in a thread, or one per step)."""
-    return league_.sessions
+    return services.sessions
 
 
-async def get_session(league_: LeagueDep) -> AsyncIterator[Session]:
+async def get_session(services: ServicesDep) -> AsyncIterator[Session]:
     """A session per request; opening one does no I/O (the first query, in the handler's thread, does)."""
-    with league_.sessions() as session:
+    with services.sessions() as session:
         yield session
 
 
-async def get_clock(league_: LeagueDep) -> Clock:
-    return league_.clock
+async def get_clock(services: ServicesDep) -> Clock:
+    return services.clock
 
 
-async def get_queue(league_: LeagueDep) -> JobQueue:
-    return league_.queue
+async def get_queue(services: ServicesDep) -> JobQueue:
+    return services.queue
 
 
-async def get_store(league_: LeagueDep) -> BlobStore:
-    return league_.store
+async def get_store(services: ServicesDep) -> BlobStore:
+    return services.store
 
 
 async def get_cache(request: Request) -> ResponseCache:
@@ -103,7 +103,7 @@ def get_current_user(request: Request, session: SessionDep,
         raise unauthorized(UNKNOWN_TOKEN)
     if not user.active:
         raise unauthorized("this account was revoked")
-    request.state.user_id = user.id  # for the access log (league.server.logs.log_access)
+    request.state.user_id = user.id  # for the access log (league.server.core.logs.log_access)
     # End the lookup's transaction: its connection goes back to the pool. A route that opens a
     # session of its own (an upload) would otherwise hold two at once, and a burst of such requests
     # can take the whole pool and wait on itself until the pool's timeout.
@@ -160,7 +160,7 @@ def board_course(session: Session, viewer: User | None, course_id: int | None = 
 
 def board_names(session: Session, viewer: User | None, course: Course, *, owns: bool = False) -> Names:
     """The check of every route that shows students' names or results (the course's board
-    visibility, league.server.privacy): how `viewer` (None: not logged in) sees the course's
+    visibility, league.server.course.privacy): how `viewer` (None: not logged in) sees the course's
     boards, or a 401 (log in) / 403 (who may see them). Its instructors, and its students unless
     the board is for instructors only, see real names; visitors of a public board, and a student
     who `owns` what is shown (a race with their car), see public names."""

@@ -16,7 +16,7 @@ from sqlalchemy.exc import DBAPIError
 from league.server.db.models import API_PROCESS
 from league.server.jobs import registry
 from league.server.jobs.worker import Periodic, schema_changed
-from league.server.services import League
+from league.server.services import Services
 
 log = logging.getLogger("league.server.api")
 
@@ -25,31 +25,31 @@ class ProcessWatch:
     """Registers this API process, beats every `worker_heartbeat_s`, and keeps `problem`: why this
     process must not answer (its schema is not the database's), or None."""
 
-    def __init__(self, league_: League):
-        self.league = league_
+    def __init__(self, services: Services):
+        self.services = services
         self.process_id: int | None = None
         self.problem: str | None = None
-        self._beat = Periodic("league-api-beat", league_.settings.worker_heartbeat_s, self.beat)
+        self._beat = Periodic("league-api-beat", services.settings.worker_heartbeat_s, self.beat)
 
     def start(self) -> None:
-        self.process_id = registry.register(self.league.sessions, API_PROCESS)
+        self.process_id = registry.register(self.services.sessions, API_PROCESS)
         self._beat.start()
 
     def stop(self) -> None:
         self._beat.stop()
         try:
-            registry.unregister(self.league.sessions, self.process_id)
+            registry.unregister(self.services.sessions, self.process_id)
         except Exception:  # noqa: BLE001 - the database is gone (or its schema): the row expires
             log.warning("could not remove this API process from the workers table", exc_info=True)
 
     def beat(self) -> None:
         self.check()
         if self.problem is None:  # (a newer schema's table may not take our row)
-            self.process_id = registry.beat(self.league.sessions, self.process_id,
-                                            self.league.settings.worker_silent_after_s, API_PROCESS)
+            self.process_id = registry.beat(self.services.sessions, self.process_id,
+                                            self.services.settings.worker_silent_after_s, API_PROCESS)
 
     def check(self) -> str | None:
-        problem = schema_changed(self.league.sessions)
+        problem = schema_changed(self.services.sessions)
         if problem and problem != self.problem:
             log.error("API answering 503: %s", problem)
         self.problem = problem

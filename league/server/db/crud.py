@@ -11,14 +11,14 @@ from sqlalchemy.dialects.postgresql import insert as postgresql_insert
 from sqlalchemy.dialects.sqlite import insert as sqlite_insert
 from sqlalchemy.orm import Session
 
-from league.server.accounts import clean_email, clean_name, clean_student_id
+from league.server.course.accounts import clean_email, clean_name, clean_student_id
 from league.server.db.models import (
     BASELINE, DONE, EVALUATE, FAILED, NORMAL, PUBLIC_TRACKS, QUEUED, RACE, READY, REJECTED, RUNNING, STUDENT,
     VALIDATE, VISIBILITY_MEMBERS, Assignment, Blob, Championship, ChampionshipRound, Course, EpisodeResult, Evaluation,
     Job, Race, StudentAssignment, Submission, User, private_test, utcnow,
 )
-from league.server.privacy import clean_display_name, draw_pseudonym
-from league.server.security import hash_token, new_token
+from league.server.core.security import hash_token, new_token
+from league.server.course.privacy import clean_display_name, draw_pseudonym
 
 DEFAULT_COURSE = "default"
 DEFAULT_ASSIGNMENT = "default"  # a new course's first assignment (migration 0010 made one per course)
@@ -264,7 +264,7 @@ class QuotaUsage:
 def lock_user(session: Session, *, user_id: int) -> bool:
     """Hold the user's row until the transaction ends (PostgreSQL: a row lock; SQLite: the database's
     write lock), so that checking a quota and using it are one step for concurrent requests.
-    False if the user is gone (deleted meanwhile: league.server.erasure)."""
+    False if the user is gone (deleted meanwhile: league.server.course.erasure)."""
     return bool(session.execute(update(User).where(User.id == user_id).values(id=User.id)).rowcount)
 
 

@@ -18,10 +18,11 @@ from sqlalchemy.types import TypeDecorator
 # the statuses stored here (submissions, evaluations, jobs, races, rounds) have their home in league.statuses, which
 # the client and the pages read too; the server's modules import them from here, beside the models that store them
 from league.statuses import DONE, FAILED, PENDING, QUEUED, READY, REJECTED, RUNNING, VALIDATING  # noqa: F401
+from league.server.core.clock import utcnow
 
 # roles
 INSTRUCTOR, STUDENT, BASELINE = "instructor", "student", "baseline"
-DELETED = "deleted student"  # what races and standings show for a deleted student (league.server.erasure)
+DELETED = "deleted student"  # what races and standings show for a deleted student (league.server.course.erasure)
 
 # why a job failed (jobs.failure): it cannot succeed (the handler said so), an error on every attempt, its worker
 # stopped heart-beating on every attempt, no worker of this version knows its kind, an instructor cancelled it
@@ -36,7 +37,7 @@ SECRET_PROBE = "secret_probe"  # a submission on its assignments' secret probe s
 # job priorities: a low one is claimed only when no normal one waits
 NORMAL, LOW = 0, 1
 
-# who sees a course's boards (courses.board_visibility; league.server.privacy): anyone, its logged-in users,
+# who sees a course's boards (courses.board_visibility; league.server.course.privacy): anyone, its logged-in users,
 # its instructors
 VISIBILITY_PUBLIC, VISIBILITY_MEMBERS, VISIBILITY_INSTRUCTORS = "public", "members", "instructors"
 BOARD_VISIBILITIES = (VISIBILITY_PUBLIC, VISIBILITY_MEMBERS, VISIBILITY_INSTRUCTORS)
@@ -44,10 +45,6 @@ BOARD_VISIBILITIES = (VISIBILITY_PUBLIC, VISIBILITY_MEMBERS, VISIBILITY_INSTRUCT
 # which of an assignment's tracks an evaluation drove (evaluations.track): its public ones (`seed`: the public
 # board, reproducible with `league evaluate`) or its private test's (`private_seed`: finals, the private board)
 PUBLIC_TRACKS, PRIVATE_TRACKS = "public", "private"
-
-
-def utcnow() -> datetime:
-    return datetime.now(timezone.utc)
 
 
 class UTCDateTime(TypeDecorator):
@@ -116,7 +113,7 @@ class Assignment(Base):
     daily_quota: Mapped[int | None] = mapped_column(Integer, default=None)  # uploads per student per UTC day
     auto_publish: Mapped[bool] = mapped_column(default=False)
     published_at: Mapped[datetime | None] = mapped_column(default=None)
-    # the grading rubric (league.server.grades.read_rubric reads it); None until the instructor sets one
+    # the grading rubric (league.server.course.grading.read_rubric reads it); None until the instructor sets one
     rubric: Mapped[dict[str, Any] | None] = mapped_column(JSON, default=None)
     # the course's automatic assignment (made with the course, named "default"): it takes no more uploads
     # once the course has an assignment of its instructors', unless they keep it open (assignments.retired)
@@ -135,7 +132,7 @@ class Assignment(Base):
 
 class StudentAssignment(Base):
     """A student's own state in an assignment, one row made when first needed: the extension an
-    instructor gave, the submission they selected, and their final (league.server.assignments).
+    instructor gave, the submission they selected, and their final (league.server.course.assignments).
 
     At their close time the final is frozen (`final_at`, the close time) with its candidates
     (`final_candidates`: the ids of their uploads then, rejected ones aside); it is decided
@@ -177,13 +174,13 @@ class User(Base):
     # how gradebook exports (Canvas, Moodle) identify the student; from the roster, optional
     email: Mapped[str | None] = mapped_column(String(254), default=None)
     student_id: Mapped[str | None] = mapped_column(String(64), default=None)  # Canvas's SIS User ID, Moodle's ID number
-    # Canvas's own ids of the student, from its gradebook export (league.server.roster): the Canvas user
+    # Canvas's own ids of the student, from its gradebook export (league.server.course.roster): the Canvas user
     # ID and the SIS Login ID, which Canvas's gradebook import matches students by before their names
     canvas_id: Mapped[str | None] = mapped_column(String(64), default=None)
     sis_login_id: Mapped[str | None] = mapped_column(String(254), default=None)
-    # what public boards show instead of the name (league.server.privacy); unique in the course
+    # what public boards show instead of the name (league.server.course.privacy); unique in the course
     display_name: Mapped[str | None] = mapped_column(String(100), default=None)
-    # "Student N" on public boards (league.server.privacy): drawn at random when the account is made
+    # "Student N" on public boards (league.server.course.privacy): drawn at random when the account is made
     # (crud.add_user; migration 0020 for older ones), unique in the course; None: no course
     pseudonym: Mapped[int | None] = mapped_column(Integer, default=None)
     token_hash: Mapped[str | None] = mapped_column(String(64), unique=True)  # sha256 hex of the bearer token
@@ -234,7 +231,7 @@ class Submission(Base):
     obs_dim: Mapped[int | None] = mapped_column(Integer, default=None)
     public: Mapped[bool] = mapped_column(default=False)
     # its actions on the probe set named by probe_key (league.validation.probes), float32 (64, 2) bytes;
-    # None with a key: the model failed on it (why: its log); no key: not probed yet (league.server.integrity)
+    # None with a key: the model failed on it (why: its log); no key: not probed yet (league.server.course.integrity)
     probe_key: Mapped[str | None] = mapped_column(String(16), default=None)
     probe_actions: Mapped[bytes | None] = mapped_column(LargeBinary, default=None, deferred=True)
     created_at: Mapped[datetime] = mapped_column(default=utcnow)
@@ -263,12 +260,12 @@ class SubmissionProbe(Base):
 class Evaluation(Base):
     """One `metrics_run` of a submission with an assignment's settings; re-runs add new rows.
 
-    `track` PRIVATE_TRACKS: the assignment's private test of a final (league.server.assignments); no answer
+    `track` PRIVATE_TRACKS: the assignment's private test of a final (league.server.course.assignments); no answer
     a student can obtain shows one before the assignment is published.
 
     `result_key` (league.evaluation.result_key: the settings and the simulator's version) is what
     its results compare by: the requested one while it waits, the one its worker's simulator
-    produced once done. Boards rank only results of their course's current key (league.server.results).
+    produced once done. Boards rank only results of their course's current key (league.server.course.results).
     """
 
     __tablename__ = "evaluations"
@@ -303,7 +300,7 @@ class Evaluation(Base):
 
 def private_test() -> ColumnElement[bool]:
     """Whether a job (outer-joined to its evaluation) is the private test of a final: the league's own
-    job, not its owner's (no in-flight limit, no turn among their jobs; league.server.assignments)."""
+    job, not its owner's (no in-flight limit, no turn among their jobs; league.server.course.assignments)."""
     return func.coalesce(Evaluation.track, "") == PRIVATE_TRACKS
 
 
@@ -458,7 +455,7 @@ class RaceReplay(Base):
 
 
 class AuditEvent(Base):
-    """Who did what to whom (league.server.audit): instructors' actions and admin commands.
+    """Who did what to whom (league.server.course.audit): instructors' actions and admin commands.
 
     `actor_id` has no foreign key: the record outlives the accounts it names. `actor_name` is the
     instructor's (an admin command's: "league CLI"); a deleted student's name is never kept here.

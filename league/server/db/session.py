@@ -61,7 +61,7 @@ def _sqlite_engine(url: str) -> Engine:
         cursor.execute("PRAGMA foreign_keys=ON")
         cursor.execute("PRAGMA busy_timeout=30000")
         # deleted rows are overwritten with zeros, not left in free pages: an erased student's data
-        # (league.server.erasure) is gone from the file, not only from the tables
+        # (league.server.course.erasure) is gone from the file, not only from the tables
         cursor.execute("PRAGMA secure_delete=ON")
         cursor.close()
 

@@ -1,5 +1,5 @@
 """The evaluation job: the toolkit's `metrics_run` of a submission's sandboxed agent, with the
-settings its evaluation holds (league.server.results queues them)."""
+settings its evaluation holds (league.server.course.results queues them)."""
 from __future__ import annotations
 
 from dataclasses import dataclass
@@ -11,8 +11,9 @@ from sqlalchemy.orm import Session
 from league.agents import AgentError
 from league.evaluation import metrics_run
 from league.track import TrackGenerationError
-from league.server.assignments import after_job
-from league.server.db.models import DONE, FAILED, RUNNING, EpisodeResult, Evaluation, Job, utcnow
+from league.server.core.clock import utcnow
+from league.server.course.assignments import after_job
+from league.server.db.models import DONE, FAILED, RUNNING, EpisodeResult, Evaluation, Job
 from league.server.jobs.runner import JobRun
 from league.server.sandbox.agent import SandboxedAgent
 from league.server.sandbox.log import LogBuffer

@@ -1,4 +1,4 @@
-"""The probe jobs, for the integrity report (league.server.integrity), queued at low priority by an
+"""The probe jobs, for the integrity report (league.server.course.integrity), queued at low priority by an
 instructor (POST /api/integrity/probe); the submission's status is left alone.
 
 * `probe`: the public probe set's actions of a submission validated before they were recorded (or

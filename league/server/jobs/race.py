@@ -1,6 +1,6 @@
 """The race job: the toolkit's `league.evaluation.race`, unchanged, with every car's agent in a
 sandbox of its own; an agent that fails is a DNF for its car only. Championship heats are race
-jobs too (league.server.rounds), so workers share a round and a heat is counted once."""
+jobs too (league.server.course.races), so workers share a round and a heat is counted once."""
 from __future__ import annotations
 
 import dataclasses
@@ -19,7 +19,8 @@ from sqlalchemy.orm import Session
 from league.agents import COMPACT_DIM, Agent, AgentError
 from league.evaluation import RaceResult, race
 from league.track import TrackGenerationError
-from league.server.db.models import DONE, FAILED, RUNNING, Job, Race, RaceReplay, Submission, utcnow
+from league.server.core.clock import utcnow
+from league.server.db.models import DONE, FAILED, RUNNING, Job, Race, RaceReplay, Submission
 from league.server.jobs.runner import JobCannotSucceed, JobRun
 from league.server.sandbox.agent import SandboxedAgent
 from league.server.sandbox.log import LogBuffer

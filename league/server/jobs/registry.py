@@ -15,7 +15,8 @@ from sqlalchemy import Connection, MetaData, Table, delete, inspect, select, upd
 from sqlalchemy.orm import Session, sessionmaker
 
 import league
-from league.server.db.models import WORKER_PROCESS, WorkerProcess, utcnow
+from league.server.core.clock import utcnow
+from league.server.db.models import WORKER_PROCESS, WorkerProcess
 from league.server.db.session import DatabaseError
 
 EXPIRE_SILENCES = 2  # a process silent for this many silence windows died without removing its row

@@ -22,14 +22,15 @@ from typing import Any, Protocol
 from sqlalchemy.exc import IntegrityError, OperationalError
 from sqlalchemy.orm import Session, sessionmaker
 
-from league.server.assignments import close_due
-from league.server.config import Settings
+from league.server.core.clock import utcnow
+from league.server.core.config import Settings
+from league.server.core.logs import job_outcome, log_job
+from league.server.course.assignments import close_due
 from league.server.db import crud
-from league.server.db.models import Job, Submission, utcnow
+from league.server.db.models import Job, Submission
 from league.server.jobs import leases
 from league.server.jobs.placement import Placement
 from league.server.jobs.queue import JobQueue
-from league.server.logs import job_outcome, log_job
 from league.server.sandbox.child import set_autogroup_nice
 from league.server.sandbox.process import ForkServer
 from league.server.storage import BlobStore
@@ -192,7 +193,7 @@ def release_active(context: WorkerContext) -> list[int]:
 
 def reap(context: WorkerContext) -> list[int]:
     """One reaper pass (league.server.jobs.leases.reap), waking the workers for what it re-queued; and
-    the private tests of the due times that passed (league.server.assignments.close_due)."""
+    the private tests of the due times that passed (league.server.course.assignments.close_due)."""
     requeued = leases.reap(context.sessions, context.handlers, lease_timeout_s=context.settings.lease_timeout_s)
     for job_id in requeued:
         context.queue.enqueue(job_id)

@@ -3,11 +3,11 @@ from __future__ import annotations
 
 from sqlalchemy.orm import Session
 
-from league.server.assignments import after_job
+from league.server.course.assignments import after_job
+from league.server.course.results import queue_evaluation
 from league.server.db import crud
 from league.server.db.models import BASELINE, FAILED, READY, REJECTED, VALIDATING, Job, Submission
 from league.server.jobs.runner import JobRun
-from league.server.results import queue_evaluation
 from league.server.sandbox.validation import validate_model
 from league.validation.report import ValidationReport
 

@@ -18,7 +18,7 @@ from sqlalchemy import Engine
 
 import league
 
-from league.server.config import Settings
+from league.server.core.config import Settings
 from league.server.db import crud
 from league.server.db.session import make_sessionmaker, schema_problem, stored_revision
 from league.server.jobs import alive, registry

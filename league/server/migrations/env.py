@@ -3,7 +3,7 @@ serve`, `init`, `migrate`) or by hand with `alembic -c league/server/alembic.ini
 from alembic import context
 from sqlalchemy import create_engine, pool
 
-from league.server.config import load_settings
+from league.server.core.config import load_settings
 from league.server.db.models import Base, UTCDateTime
 from league.server.db.session import migration_lock
 

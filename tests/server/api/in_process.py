@@ -17,11 +17,11 @@ from pathlib import Path
 from fastapi.testclient import TestClient
 
 from league.server.app import create_app
-from league.server.config import Settings
+from league.server.core.config import Settings
+from league.server.course.results import settings_key
 from league.server.db import crud
 from league.server.db.models import DONE, INSTRUCTOR, READY, REJECTED, STUDENT, Submission, User
 from league.server.db.session import make_engine, make_sessionmaker, migrate
-from league.server.results import settings_key
 
 from ..api_calls import unique
 from ..backends import TEST_SETTINGS, fresh_backend
@@ -65,7 +65,7 @@ class InProcessLeague:
 
     @property
     def sessions(self):
-        return self.app.state.league.sessions
+        return self.app.state.services.sessions
 
     def client(self, token: str | None = None) -> Client:
         headers = {"Authorization": f"Bearer {token}"} if token else {}
@@ -152,7 +152,7 @@ def in_process_league(kind: str, tmp_path: Path, prepare: Callable[[str], None] 
         app_engine.dispose()
         app = create_app(settings)
         with TestClient(app):  # the lifespan: the schema checked, the course, the baselines registered
-            with make_sessionmaker(app.state.league.engine).begin() as session:
+            with make_sessionmaker(app.state.services.engine).begin() as session:
                 _, token = crud.create_user(session, name="prof", role=INSTRUCTOR,
                                             course=crud.first_course(session))
             yield InProcessLeague(app, settings, token)

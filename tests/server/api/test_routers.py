@@ -10,7 +10,7 @@ from fastapi.routing import APIRoute
 
 from league.server.api import routes
 from league.server.app import create_app
-from league.server.config import Settings
+from league.server.core.config import Settings
 
 
 def module_routes() -> set[tuple[str, str]]:

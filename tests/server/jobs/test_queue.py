@@ -9,7 +9,7 @@ from collections import Counter
 import pytest
 
 from league.constants import TRACK_CACHE_SIZE
-from league.server.config import Settings
+from league.server.core.config import Settings
 from league.server.db import crud
 from league.server.db.models import DONE, Job, WorkerProcess
 from league.server.db.session import make_engine, make_sessionmaker, migrate

@@ -9,7 +9,7 @@ from datetime import timedelta
 import pytest
 from sqlalchemy import select
 
-from league.server.config import Settings
+from league.server.core.config import Settings
 from league.server.db import crud
 from league.server.db.models import (
     DONE, FAILED, LOW, PRIVATE_TRACKS, PUBLIC_TRACKS, QUEUED, RUNNING, Evaluation, Job, Submission, utcnow,

@@ -11,10 +11,10 @@ import sys
 from sqlalchemy import delete, update
 
 from league.agents import export_onnx, export_torchscript
-from league.server.config import BUNDLED_BASELINES, Settings
+from league.server.core.config import BUNDLED_BASELINES, Settings
+from league.server.course.integrity import CSV_COLUMNS
 from league.server.db.models import Submission, SubmissionProbe
 from league.server.db.session import make_engine, make_sessionmaker
-from league.server.integrity import CSV_COLUMNS
 from league.testing import onnx_probe_aware, onnx_scaled_last_layer, thesis_driver
 from league.validation.probes import probe_observations
 

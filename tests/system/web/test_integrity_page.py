@@ -8,7 +8,7 @@ import io
 
 from playwright.sync_api import expect
 
-from league.server.integrity import CSV_COLUMNS
+from league.server.course.integrity import CSV_COLUMNS
 
 from ...server.api_calls import unique, upload, wait_for
 from ..servers import instructor_of_a_new_course

@@ -7,23 +7,23 @@ from fastapi import APIRouter, HTTPException, Query, Request, Response, status
 from fastapi.concurrency import run_in_threadpool
 from pydantic import ValidationError
 
-from league.server import audit
 from league.server.api.cache import PRIVATE as PRIVATE_CACHE, PUBLIC as PUBLIC_CACHE, cached_json
+from league.server.course import audit
 from league.server.api.deps import (
     CacheDep, ClockDep, CurrentUser, Id, InstructorUser, OptionalUser, PageNumber, PageSize, QueueDep, SessionDep,
     SessionsDep, SettingsDep, board_course, board_names, check_env_options, csv_response, user_course,
 )
-from league.server.assignments import (
+from league.server.course.assignments import (
     UploadRefused, final_choices, private_visible, publish, select_final, user_window,
 )
+from league.server.course.results import change_settings
 from league.server.db import crud
 from league.server.db.models import PRIVATE_TRACKS, PUBLIC_TRACKS, STUDENT, Assignment, Evaluation, User
-from league.server.results import change_settings
-from league.server.schemas import (
+from league.server.api.schemas import (
     AssignmentBoard, AssignmentCreate, AssignmentOut, AssignmentTimes, AssignmentUpdate, EvaluationOut, ExtensionIn,
     ExtensionOut, FinalOut, SelectionIn,
 )
-from league.server.standings import LEADERBOARD_GRADES, assignment_board, grade_rows
+from league.server.course.standings import LEADERBOARD_GRADES, assignment_board, grade_rows
 
 router = APIRouter(prefix="/assignments", tags=["assignments"])
 Board = Annotated[Literal["public", "private"], Query(description="private: once the assignment is published")]

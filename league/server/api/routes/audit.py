@@ -1,11 +1,11 @@
-"""The audit log, for instructors: who did what (league.server.audit)."""
+"""The audit log, for instructors: who did what (league.server.course.audit)."""
 from __future__ import annotations
 
 from fastapi import APIRouter, Response
 
-from league.server import audit
 from league.server.api.deps import InstructorUser, PageNumber, PageSize, SessionDep, csv_response
-from league.server.schemas import AuditEventOut, AuditPage
+from league.server.api.schemas import AuditEventOut, AuditPage
+from league.server.course import audit
 
 router = APIRouter(prefix="/audit", tags=["audit"])
 CSV_ROWS = 100_000  # the newest events a CSV export holds: a bound on one answer's size

@@ -1,5 +1,5 @@
 """Championships: instructors create them and run rounds; their standings are shown as the course's
-board visibility allows (league.server.privacy)."""
+board visibility allows (league.server.course.privacy)."""
 from __future__ import annotations
 
 import secrets
@@ -10,17 +10,17 @@ from sqlalchemy.exc import IntegrityError
 from sqlalchemy.orm import Session
 
 from league.server.api.cache import PRIVATE, PUBLIC, cached_json
-from league.server import audit
+from league.server.course import audit
 from league.server.api.deps import (
     CacheDep, Id, InstructorUser, OptionalUser, PageNumber, PageSize, QueueDep, SessionDep, SessionsDep, SettingsDep,
     board_course, board_names, check_env_options, csv_response, user_course,
 )
+from league.server.api.schemas import ChampionshipCreate, ChampionshipOut, RoundOut, StandingsPage
+from league.server.course.privacy import Names
+from league.server.course.races import RoundRefused, retry_round, round_summary, start_round
+from league.server.course.standings import STANDINGS_GRADES, grade_rows, standings_rows
 from league.server.db import crud
 from league.server.db.models import Assignment, Championship, ChampionshipRound, User
-from league.server.privacy import Names
-from league.server.rounds import RoundRefused, retry_round, round_summary, start_round
-from league.server.standings import STANDINGS_GRADES, grade_rows, standings_rows
-from league.server.schemas import ChampionshipCreate, ChampionshipOut, RoundOut, StandingsPage
 
 router = APIRouter(prefix="/championships", tags=["championships"])
 

@@ -4,14 +4,14 @@ from __future__ import annotations
 from fastapi import APIRouter, HTTPException, status
 from sqlalchemy import select
 
-from league.server import audit
+from league.server.course import audit
 from league.server.api.deps import (
     CurrentUser, InstructorUser, QueueDep, SessionDep, SettingsDep, check_env_options, user_course,
 )
+from league.server.api.schemas import EvaluationSettings, EvaluationSettingsChange, RerunOut, RerunRequest, UploadLimits
+from league.server.course.results import change_settings, queue_evaluation
 from league.server.db import crud
 from league.server.db.models import LOW, NORMAL, PUBLIC_TRACKS, READY, Assignment, Evaluation, Submission, User
-from league.server.results import change_settings, queue_evaluation
-from league.server.schemas import EvaluationSettings, EvaluationSettingsChange, RerunOut, RerunRequest, UploadLimits
 
 router = APIRouter(tags=["evaluations"])
 

@@ -1,50 +1,50 @@
 """Grades: an assignment's rubric, its grades on the private tracks (JSON and the gradebooks' CSVs),
-a student's own grade once published, and the course's grades (league.server.grades holds the rules)."""
+a student's own grade once published, and the course's grades (league.server.course.grading holds the rules)."""
 from __future__ import annotations
 
 from typing import Annotated, Literal
 
 from fastapi import APIRouter, Body, HTTPException, Query, Response, status
 
-from league.server import audit, grades
+from league.server.course import audit, grading
 from league.server.api.deps import (
     ClockDep, CurrentUser, Id, InstructorUser, QueueDep, SessionDep, SettingsDep, user_course,
 )
 from league.server.api.routes.assignments import assignment_out, course_assignment
+from league.server.api.schemas import AssignmentOut, CanvasMatchOut, GradesOut, MyGradeOut
+from league.server.course.assignment_grades import NoRubric, assignment_grades, queue_missing_evaluations, rubric_of
 from league.server.db import crud
 from league.server.db.models import STUDENT, Assignment
-from league.server.gradebook import NoRubric, assignment_grades, queue_missing_evaluations, rubric_of
-from league.server.schemas import AssignmentOut, CanvasMatchOut, GradesOut, MyGradeOut
 
 router = APIRouter(tags=["grades"])
 Format = Annotated[Literal["generic", "canvas", "moodle"], Query(
     description="generic: every column; canvas, moodle: their gradebooks' CSV import (server README, Grades)")]
 Identifier = Annotated[Literal["email", "idnumber"], Query(
     description="moodle: the user field Moodle matches students by (students without it are left out)")]
-RubricBody = Annotated[grades.PointsRubric | grades.FormulaRubric, Body(discriminator="kind")]
+RubricBody = Annotated[grading.PointsRubric | grading.FormulaRubric, Body(discriminator="kind")]
 CSV = {200: {"content": {"text/csv": {}}}}
 
 
-def graded_or_409(session: SessionDep, assignment: Assignment) -> grades.Graded:
+def graded_or_409(session: SessionDep, assignment: Assignment) -> grading.Graded:
     """The assignment's grades, or 409 saying what to do (no rubric; a formula without a value for
     some student's figures)."""
     try:
-        return grades.Graded(assignment.name, rubric_of(assignment).max_points, assignment_grades(session, assignment))
+        return grading.Graded(assignment.name, rubric_of(assignment).max_points, assignment_grades(session, assignment))
     except NoRubric as error:
         raise HTTPException(status.HTTP_409_CONFLICT, str(error)) from None
-    except grades.FormulaError as error:
+    except grading.FormulaError as error:
         raise HTTPException(status.HTTP_409_CONFLICT, f"{assignment.name}: {error}: set another rubric") from None
 
 
-def csv_file(graded: list[grades.Graded], fmt: str, identifier: str, stem: str, generic: str) -> Response:
+def csv_file(graded: list[grading.Graded], fmt: str, identifier: str, stem: str, generic: str) -> Response:
     """The file of `fmt`: Canvas's or Moodle's import, else the `generic` text. A Moodle file's
     `X-Left-Out` header counts the students it leaves out (without the identifier)."""
     suffix = "" if fmt == "generic" else f"-{fmt}"
     headers, text = {"Content-Disposition": f'attachment; filename="{stem}{suffix}.csv"'}, generic
     if fmt == "canvas":
-        text = grades.canvas_csv(graded)
+        text = grading.canvas_csv(graded)
     elif fmt == "moodle":
-        text, left_out = grades.moodle_csv(graded, identifier=identifier)
+        text, left_out = grading.moodle_csv(graded, identifier=identifier)
         headers["X-Left-Out"] = str(len(left_out))
     return Response(text, media_type="text/csv; charset=utf-8", headers=headers)
 
@@ -88,7 +88,7 @@ def read_grades_csv(assignment_id: Id, instructor: InstructorUser, session: Sess
     Canvas's or Moodle's gradebook import."""
     assignment = course_assignment(session, instructor, assignment_id)
     graded = graded_or_409(session, assignment)
-    return csv_file([graded], format, identifier, f"grades-{assignment.id}", grades.generic_csv(graded.rows))
+    return csv_file([graded], format, identifier, f"grades-{assignment.id}", grading.generic_csv(graded.rows))
 
 
 @router.get("/assignments/{assignment_id}/grades/me", response_model=MyGradeOut)
@@ -111,10 +111,10 @@ def read_course_grades_csv(instructor: InstructorUser, session: SessionDep, form
     """The course's grades (instructors): a line a student, a column for each assignment that has a
     rubric, and the total (generic); or Canvas's or Moodle's import of those columns."""
     graded = course_graded(session, instructor)
-    return csv_file(graded, format, identifier, "grades", grades.course_csv(graded))
+    return csv_file(graded, format, identifier, "grades", grading.course_csv(graded))
 
 
-def course_graded(session: SessionDep, instructor: InstructorUser) -> list[grades.Graded]:
+def course_graded(session: SessionDep, instructor: InstructorUser) -> list[grading.Graded]:
     """The grades of each assignment of the course that has a rubric (409 if none has)."""
     course = user_course(session, instructor)
     graded = [graded_or_409(session, a) for a in crud.course_assignments(session, course_id=course.id)
@@ -125,8 +125,8 @@ def course_graded(session: SessionDep, instructor: InstructorUser) -> list[grade
     return graded
 
 
-def canvas_match_out(graded: list[grades.Graded]) -> CanvasMatchOut:
-    match = grades.canvas_match(graded)
+def canvas_match_out(graded: list[grading.Graded]) -> CanvasMatchOut:
+    match = grading.canvas_match(graded)
     return CanvasMatchOut(students=match.students, by_id=match.by_id, by_email=match.by_email,
                           by_name=match.by_name, summary=match.summary())
 

@@ -5,11 +5,11 @@ from fastapi import APIRouter, Response, status
 
 import league
 from league.server.api.deps import SessionDep, SettingsDep, WatchDep
+from league.server.api.schemas import Health, WorkerOut
 from league.server.db.session import head_revision
 from league.server.jobs.leases import queue_depth
 from league.server.jobs.registry import is_alive, workers
 from league.server.sandbox.process import sandbox_isolation
-from league.server.schemas import Health, WorkerOut
 
 router = APIRouter(tags=["health"])
 

@@ -1,5 +1,5 @@
 """The integrity report (instructors): submissions of different students that are one file or one
-policy (league.server.integrity). Nothing is blocked: the instructor decides."""
+policy (league.server.course.integrity). Nothing is blocked: the instructor decides."""
 from __future__ import annotations
 
 from typing import Annotated
@@ -7,18 +7,18 @@ from typing import Annotated
 from fastapi import APIRouter, Query, Response
 from sqlalchemy.orm import Session
 
-from league.server import audit
+from league.server.course import audit
 from league.server.api.deps import (
     MAX_ID, InstructorUser, QueueDep, SessionDep, SettingsDep, csv_response, user_course,
 )
-from league.server.config import BUNDLED_BASELINES, Settings
-from league.server.db.models import User
+from league.server.core.config import BUNDLED_BASELINES, Settings
 from league.server.db import crud
-from league.server.integrity import (
+from league.server.db.models import User
+from league.server.course.integrity import (
     CSV_COLUMNS, Candidate, Report, bundled_digests, candidates, integrity_report, queue_probes,
     queue_secret_probes, report_rows, secret_unprobed_submissions, unprobed_submissions,
 )
-from league.server.schemas import (
+from league.server.api.schemas import (
     IntegrityGroup, IntegrityReport, IntegritySubmission, ProbesQueued, UncomparedSubmission,
 )
 from league.validation.probes import PROBES

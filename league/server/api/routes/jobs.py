@@ -5,13 +5,13 @@ from typing import Literal
 
 from fastapi import APIRouter, HTTPException, Query, status
 
-from league.server import audit
 from league.server.api.deps import Id, InstructorUser, SessionDep, SessionsDep
+from league.server.api.schemas import JobOut
+from league.server.course import audit
 from league.server.db import crud
 from league.server.db.models import Job
 from league.server.jobs import leases
 from league.server.jobs.handlers import HANDLERS
-from league.server.schemas import JobOut
 from league.statuses import JOB_STATUSES
 
 router = APIRouter(prefix="/jobs", tags=["jobs"])

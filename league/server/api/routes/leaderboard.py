@@ -1,5 +1,5 @@
 """The course leaderboard: each student's best evaluated submission, and the baselines (as the
-course's board visibility allows: league.server.privacy)."""
+course's board visibility allows: league.server.course.privacy)."""
 from __future__ import annotations
 
 from fastapi import APIRouter, Request, Response
@@ -10,8 +10,8 @@ from league.server.api.deps import (
     CacheDep, InstructorUser, OptionalUser, PageNumber, PageSize, SessionDep, SessionsDep, board_course, board_names,
     csv_response, user_course,
 )
-from league.server.standings import LEADERBOARD_GRADES, grade_rows, leaderboard_rows
-from league.server.schemas import LeaderboardPage
+from league.server.api.schemas import LeaderboardPage
+from league.server.course.standings import LEADERBOARD_GRADES, grade_rows, leaderboard_rows
 
 router = APIRouter(tags=["leaderboard"])
 

@@ -9,8 +9,8 @@ from fastapi.responses import FileResponse
 
 import league
 from league.server.api.deps import SettingsDep
+from league.server.api.schemas import PackageFileOut, PackageOut
 from league.server.package import DISTRIBUTION, package_files
-from league.server.schemas import PackageFileOut, PackageOut
 
 router = APIRouter(prefix="/package", tags=["package"])
 EXTRAS = "onnx,client"  # what every student needs: check, submit, evaluate ONNX models (docs/STUDENT_GUIDE.md)

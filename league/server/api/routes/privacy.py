@@ -4,11 +4,11 @@ from __future__ import annotations
 from fastapi import APIRouter, HTTPException, status
 from sqlalchemy.exc import IntegrityError
 
-from league.server import audit
 from league.server.api.deps import CurrentUser, InstructorUser, SessionDep, SettingsDep, user_course
 from league.server.api.routes.users import read_me
+from league.server.api.schemas import PrivacySettings, UserMe, UserUpdate
+from league.server.course import audit
 from league.server.db import crud
-from league.server.schemas import PrivacySettings, UserMe, UserUpdate
 
 router = APIRouter(tags=["privacy"])
 

@@ -18,9 +18,9 @@ from league.server.db import crud
 from league.server.db.models import (
     BASELINE, DONE, FAILED, READY, STUDENT, ChampionshipRound, Race, RaceReplay, Submission, User, utcnow,
 )
-from league.server.privacy import Names
-from league.server.rounds import create_race, track_sealed
-from league.server.schemas import RaceCreate, RaceCreated, RaceOut, RacePage
+from league.server.api.schemas import RaceCreate, RaceCreated, RaceOut, RacePage
+from league.server.course.privacy import Names
+from league.server.course.races import create_race, track_sealed
 
 router = APIRouter(prefix="/races", tags=["races"])
 

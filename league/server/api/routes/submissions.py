@@ -16,19 +16,19 @@ from starlette.types import ASGIApp, Receive, Scope, Send
 
 from league.server.api.cache import PRIVATE, etag_response
 from league.server.api.deps import (
-    MAX_ID, CurrentUser, Id, LeagueDep, SessionDep, bearer, check_jobs_in_flight, check_upload_quota, get_current_user,
-    lock_account, user_course,
+    MAX_ID, CurrentUser, Id, ServicesDep, SessionDep, bearer, check_jobs_in_flight, check_upload_quota,
+    get_current_user, lock_account, user_course,
 )
-from league.server.assignments import UploadRefused, check_upload, private_visible, upload_assignment
+from league.server.core.logs import log_refused_upload
+from league.server.course.assignments import UploadRefused, check_upload, private_visible, upload_assignment
 from league.server.db import crud
-from league.server.logs import log_refused_upload
 from league.server.db.models import (
     BASELINE, INSTRUCTOR, PUBLIC_TRACKS, READY, STUDENT, Assignment, Evaluation, Submission, User,
 )
-from league.server.results import settings_key, submissions_current_keys
-from league.server.rounds import active_submission_ids
-from league.server.services import League
-from league.server.schemas import (
+from league.server.course.races import active_submission_ids
+from league.server.course.results import settings_key, submissions_current_keys
+from league.server.services import Services
+from league.server.api.schemas import (
     DbId, EpisodeOut, EpisodePage, EvaluationOut, EvaluationSummary, SubmissionCreated, SubmissionDetail,
     SubmissionLinks, SubmissionOut, SubmissionUpdate,
 )
@@ -54,7 +54,7 @@ UPLOAD_FORM = {"requestBody": {"required": True, "content": {"multipart/form-dat
 
 
 @router.post("", response_model=SubmissionCreated, status_code=status.HTTP_201_CREATED, openapi_extra=UPLOAD_FORM)
-async def create_submission(request: Request, user: CurrentUser, league_: LeagueDep) -> SubmissionCreated:
+async def create_submission(request: Request, user: CurrentUser, services: ServicesDep) -> SubmissionCreated:
     """Upload a model (multipart `file`, optional `name` and `assignment`) to an assignment: it is
     validated in a sandbox, then evaluated on the assignment's public tracks. The body is read only
     once the token is accepted."""
@@ -69,18 +69,18 @@ async def create_submission(request: Request, user: CurrentUser, league_: League
             if wanted is not None and (not isinstance(wanted, str) or len(wanted) > 100):
                 raise HTTPException(status.HTTP_422_UNPROCESSABLE_CONTENT, "assignment: an id or a name")
             kind = model_kind(file.filename)
-            return await run_in_threadpool(submit, league_, user, file, name, kind, wanted)
+            return await run_in_threadpool(submit, services, user, file, name, kind, wanted)
         except HTTPException as refusal:
             log_refused_upload(user.id, str(refusal.detail), getattr(file, "size", None))
             raise
 
 
-def submit(league_: League, user: User, file: UploadFile, name: str | None, kind: str,
+def submit(services: Services, user: User, file: UploadFile, name: str | None, kind: str,
            wanted: str | None = None) -> SubmissionCreated:
     """Store the file, then, in one transaction holding the student's row, check the assignment's
     window, their quotas and jobs in flight and add the submission: parallel uploads never pass a
     limit. A refused upload's file is not kept."""
-    settings, store = league_.settings, league_.store
+    settings, store = services.settings, services.store
     try:
         sha256, size = store.save(file.file, max_bytes=settings.max_upload_bytes)
     except FileTooLarge as error:
@@ -89,9 +89,9 @@ def submit(league_: League, user: User, file: UploadFile, name: str | None, kind
         raise HTTPException(status.HTTP_400_BAD_REQUEST, "the file is empty") from error
     display_name = (name or "").strip() or PurePath(file.filename).stem
     try:
-        with league_.sessions.begin() as session:
+        with services.sessions.begin() as session:
             lock_account(session, user)
-            now = league_.clock.now()
+            now = services.clock.now()
             try:
                 assignment = upload_assignment(session, user=user, course=user_course(session, user), wanted=wanted,
                                                now=now)
@@ -109,11 +109,11 @@ def submit(league_: League, user: User, file: UploadFile, name: str | None, kind
                                                      late=late, created_at=now)
             created, job_id = SubmissionCreated(id=submission.id, status=submission.status), job.id
     except HTTPException:
-        with league_.sessions() as session:
+        with services.sessions() as session:
             if sha256 not in crud.kept_blobs(session, sha256s=[sha256]):
                 store.remove(sha256)
         raise
-    league_.queue.enqueue(job_id)
+    services.queue.enqueue(job_id)
     return created
 
 
@@ -140,16 +140,16 @@ NOT_MODIFIED = {304: {"description": "unchanged since the ETag sent in If-None-M
 
 
 @router.get("/{submission_id}", response_model=SubmissionDetail, responses=NOT_MODIFIED)
-async def read_submission(submission_id: Id, request: Request, league_: LeagueDep,
+async def read_submission(submission_id: Id, request: Request, services: ServicesDep,
                           credentials: Annotated[HTTPAuthorizationCredentials | None, Depends(bearer)]) -> Response:
     """One submission's status: validation, sandbox log, its evaluation (the newest of the current
     settings, else the newest) with what produced it, and a link to that evaluation's episodes. Poll
     it with the ETag it sent (If-None-Match): 304 while nothing changed."""
     # StatusAnswers answers the readable ones before routing; here come the refusals (and ids written
     # otherwise, "02"): the same as every route's (the token's dependency, readable_submission)
-    answer = await run_in_threadpool(status_answer, league_, request, credentials, submission_id)
+    answer = await run_in_threadpool(status_answer, services, request, credentials, submission_id)
     if answer is None:
-        answer = await run_in_threadpool(refused_status, league_, request, credentials, submission_id)
+        answer = await run_in_threadpool(refused_status, services, request, credentials, submission_id)
     return answer
 
 
@@ -163,8 +163,8 @@ class StatusAnswers:
     refusal, or a database error included, goes on to the app: read_submission answers it as it does
     (the route's own answer is the same, byte for byte: the test sends ids written "02" to it)."""
 
-    def __init__(self, app: ASGIApp, league_: League):
-        self.app, self.league = app, league_
+    def __init__(self, app: ASGIApp, services: Services):
+        self.app, self.services = app, services
         # the matched route, as the router leaves it in the scope: the metrics' route label
         self.route = next(route for route in router.routes if getattr(route, "endpoint", None) is read_submission)
 
@@ -177,7 +177,7 @@ class StatusAnswers:
                 answer = None
                 if credentials is not None:
                     with contextlib.suppress(DBAPIError):  # the route's handler says what it is (database_error)
-                        answer = await run_in_threadpool(status_answer, self.league, request, credentials,
+                        answer = await run_in_threadpool(status_answer, self.services, request, credentials,
                                                          int(found[1]))
                 if answer is not None:
                     scope["route"] = self.route
@@ -186,7 +186,7 @@ class StatusAnswers:
         await self.app(scope, receive, send)
 
 
-def status_answer(league_: League, request: Request, credentials: HTTPAuthorizationCredentials | None,
+def status_answer(services: Services, request: Request, credentials: HTTPAuthorizationCredentials | None,
                   submission_id: int) -> Response | None:
     """The status answer, read with two Core statements (crud.status_row, crud.shown_evaluation_row):
     the token's user, the submission, its owner, the assignment whose results count for it and
@@ -196,7 +196,7 @@ def status_answer(league_: League, request: Request, credentials: HTTPAuthorizat
     refuses it with them)."""
     row = evaluation = key = None
     if credentials is not None:
-        with league_.engine.connect() as connection:
+        with services.engine.connect() as connection:
             row = crud.status_row(connection, token=credentials.credentials, submission_id=submission_id)
             if row_readable(row):
                 key = None if row.counted_assignment_id is None else settings_key(
@@ -226,16 +226,16 @@ def row_readable(row) -> bool:
         row.owner_course_id == row.viewer_course_id or row.owner_course_id is None)
 
 
-def refused_status(league_: League, request: Request, credentials: HTTPAuthorizationCredentials | None,
+def refused_status(services: Services, request: Request, credentials: HTTPAuthorizationCredentials | None,
                    submission_id: int) -> Response:
     """The refusal of a status the Core read did not find readable, by the functions every route refuses
     with (401 for the token, 404 for the submission or the course). If they find it readable after
     all (it changed between the two reads), the status is read once more."""
-    with league_.sessions() as session:
+    with services.sessions() as session:
         user = get_current_user(request, session, credentials)
         submission = readable_submission(session, user, submission_id)
         evaluations_course(session, user, submission)
-    answer = status_answer(league_, request, credentials, submission_id)
+    answer = status_answer(services, request, credentials, submission_id)
     if answer is None:
         raise HTTPException(status.HTTP_404_NOT_FOUND, "no such submission")
     return answer

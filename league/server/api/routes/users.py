@@ -1,4 +1,5 @@
-"""Accounts: who am I; instructors create students (one, or a roster: league/server/roster.py) and revoke them."""
+"""Accounts: who am I; instructors create students (one, or a roster: league/server/course/roster.py) and
+revoke them."""
 from __future__ import annotations
 
 from fastapi import APIRouter, HTTPException, Request, status
@@ -6,13 +7,13 @@ from fastapi.concurrency import run_in_threadpool
 from sqlalchemy.exc import IntegrityError
 from starlette.datastructures import UploadFile  # what a parsed form holds
 
-from league.server import audit
 from league.server.api.deps import CurrentUser, Id, InstructorUser, SessionDep, SessionsDep, SettingsDep, StoreDep
+from league.server.course import audit
+from league.server.course.erasure import DeletionRefused, delete_student, write_out
+from league.server.course.roster import DELIMITERS, MAX_ROSTER_BYTES, RosterError, import_roster, read_roster
 from league.server.db import crud
 from league.server.db.models import STUDENT, User
-from league.server.erasure import DeletionRefused, delete_student, write_out
-from league.server.roster import DELIMITERS, MAX_ROSTER_BYTES, RosterError, import_roster, read_roster
-from league.server.schemas import (
+from league.server.api.schemas import (
     QuotaOut, RosterCreated, RosterFormat, RosterLine, UserCreate, UserCreated, UserMe, UserOut,
 )
 
@@ -139,7 +140,7 @@ def reissue_token(user_id: Id, session: SessionDep, instructor: InstructorUser) 
 
 @router.delete("/{user_id}", status_code=status.HTTP_204_NO_CONTENT)
 def erase_student(user_id: Id, session: SessionDep, instructor: InstructorUser, store: StoreDep) -> None:
-    """Delete a student and their data for good (league.server.erasure): account, token, submissions,
+    """Delete a student and their data for good (league.server.course.erasure): account, token, submissions,
     model files, evaluations; races other students took part in keep their results, the student's cars
     shown as "deleted student". 409 while a championship heat with their car is still to race."""
     user = course_student(session, instructor, user_id)

@@ -1,5 +1,5 @@
 """audit_events: who revoked, cancelled, re-ran, changed settings, created or deleted what
-(league.server.audit); a new table, so existing rows are untouched
+(league.server.course.audit); a new table, so existing rows are untouched
 
 Revision ID: 0015
 Revises: 0008

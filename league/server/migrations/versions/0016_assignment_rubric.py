@@ -1,4 +1,4 @@
-"""assignments.rubric: the grading rubric an instructor sets (league.server.grades: JSON, checked
+"""assignments.rubric: the grading rubric an instructor sets (league.server.course.grading: JSON, checked
 when set); existing assignments have none until one is set
 
 Revision ID: 0016

@@ -18,7 +18,7 @@ down_revision = '0018'
 branch_labels = None
 depends_on = None
 
-PSEUDONYMS = 999_999  # league.server.privacy.PSEUDONYMS, as it was at this revision
+PSEUDONYMS = 999_999  # league.server.course.privacy.PSEUDONYMS, as it was at this revision
 
 
 def upgrade() -> None:

@@ -1,6 +1,6 @@
 """assignments.automatic and assignments.keep_open: a course's automatic assignment ("default", made
 with the course) takes no more uploads once the course has an assignment of its instructors', unless
-they keep it open (league.server.assignments.retired)
+they keep it open (league.server.course.assignments.retired)
 
 automatic: each course's oldest assignment named "default" (the one 0010 or the course's creation
 made). keep_open: an upgrade changes nothing silently (as 0012 kept existing boards public): in a

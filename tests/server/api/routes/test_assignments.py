@@ -18,8 +18,8 @@ from league.server.db import crud
 from league.server.db.models import (
     DONE, INSTRUCTOR, PRIVATE_TRACKS, READY, Assignment, Evaluation, Job, StudentAssignment, User,
 )
+from league.server.course.results import settings_key
 from league.server.jobs.evaluate import EvaluationOutcome
-from league.server.results import settings_key
 
 from ...api_calls import unique
 from ...backends import BACKENDS
@@ -42,8 +42,8 @@ def league(request, tmp_path_factory):
 
 @pytest.fixture(autouse=True)
 def clock(league):
-    yield league.app.state.league.clock
-    league.app.state.league.clock.set(None)
+    yield league.app.state.services.clock
+    league.app.state.services.clock.set(None)
 
 
 def create(league, **fields) -> dict:
@@ -283,7 +283,7 @@ def test_finals_are_frozen_at_the_due_time_tested_privately_and_shown_only_once_
     clock.set(T1 + SECOND)  # the due time passed: the API's start or the reaper's pass freezes the finals
     from league.server.app import catch_up
 
-    assert catch_up(league.app.state.league) and not catch_up(league.app.state.league)  # idempotent
+    assert catch_up(league.app.state.services) and not catch_up(league.app.state.services)  # idempotent
     jobs = private_jobs(league, hw["id"])
     assert set(jobs) == {chosen, strongest}
     late_change = chooser.post(f"/api/assignments/{hw['id']}/selection", json={"submission_id": None})
@@ -330,10 +330,10 @@ def test_a_server_stopped_across_a_due_time_evaluates_the_finals_when_it_starts(
     student_user, _ = league.student()
     agent = ready(league, student_user, hw["id"], completed=3)
     restarted = create_app(league.settings)
-    restarted.state.league.clock.set(T1 + timedelta(days=3))  # it starts three days after the due time
+    restarted.state.services.clock.set(T1 + timedelta(days=3))  # it starts three days after the due time
     with TestClient(restarted):
         pass
-    restarted.state.league.engine.dispose()
+    restarted.state.services.engine.dispose()
     jobs = private_jobs(league, hw["id"])
     assert list(jobs) == [agent]
     with league.sessions() as session:
@@ -346,12 +346,12 @@ def test_a_server_stopped_across_a_due_time_evaluates_the_finals_when_it_starts(
     clock.set(datetime(2040, 1, 1, tzinfo=timezone.utc))
     from league.server.app import catch_up
 
-    catch_up(league.app.state.league)  # earlier tests' students without a final are frozen too
+    catch_up(league.app.state.services)  # earlier tests' students without a final are frozen too
     for job_id in private_jobs(league, hw["id"]).values():
         with league.sessions() as session:
             if session.get(Job, job_id).status == "queued":
                 league.finish_job(job_id, private_outcome({**hw, "private_seed": private_seed_of(league, hw)}, 2, 1.5))
-    catch_up(league.app.state.league)
+    catch_up(league.app.state.services)
     with league.client(league.instructor_token) as instructor:
         assert instructor.get(f"/api/assignments/{hw['id']}").json()["published_at"] == "2040-01-01T00:00:00+00:00"
 
@@ -486,7 +486,7 @@ def test_a_finals_private_test_is_not_its_owners_job_in_flight_nor_takes_their_t
     from league.server.app import catch_up
     from league.server.jobs.leases import fairest_queued
 
-    monkeypatch.setattr(league.app.state.league.settings, "max_jobs_in_flight", 1)
+    monkeypatch.setattr(league.app.state.services.settings, "max_jobs_in_flight", 1)
     hw = create(league, due_at=T1)
     with league.client(league.instructor_token) as instructor:  # her later uploads go there, past hw's due time
         default = next(a for a in instructor.get("/api/assignments").json() if a["automatic"])
@@ -497,7 +497,7 @@ def test_a_finals_private_test_is_not_its_owners_job_in_flight_nor_takes_their_t
     with league.sessions.begin() as session:  # her jobs so far over: only what follows is in flight
         session.execute(Job.__table__.update().where(Job.owner_id == dora_user.id).values(status=DONE))
     clock.set(T1 + SECOND)
-    catch_up(league.app.state.league)
+    catch_up(league.app.state.services)
     (private,) = private_jobs(league, hw["id"]).values()
     first, second = upload(dora, "default"), upload(dora, "default")
     from_ann = upload(ann, "default")

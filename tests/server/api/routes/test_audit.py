@@ -99,7 +99,7 @@ def test_every_change_of_a_grade_or_a_deadline_is_recorded_with_the_values_befor
     from league.server.cli import main
 
     with in_process_league(kind, tmp_path, bootstrap=False) as league:
-        clock = league.app.state.league.clock
+        clock = league.app.state.services.clock
         clock.set(T1 - timedelta(days=1))
         student, _ = league.student("sue")
         agent = league.submission(student)
@@ -122,7 +122,7 @@ def test_every_change_of_a_grade_or_a_deadline_is_recorded_with_the_values_befor
             auto = instructor.post("/api/assignments", json={"name": "auto", "episodes": 4, "due_at": iso(T1),
                                                              "auto_publish": True}).json()
             clock.set(T2 + timedelta(seconds=1))
-            catch_up(league.app.state.league)  # every final frozen: "auto" publishes itself
+            catch_up(league.app.state.services)  # every final frozen: "auto" publishes itself
             steps.append(instructor.post(f"{url}/publish"))
         monkeypatch.setenv("LEAGUE_DATABASE_URL", league.settings.database_url)
         assert main(["backup", str(tmp_path / "league.backup"), "--data-dir", str(league.settings.data_dir)]) == 0

@@ -22,15 +22,15 @@ from sqlalchemy import select
 
 from league.evaluation import episode_seeds, league_versions
 from league.server.app import catch_up
-from league.server.assignments import private_visible
-from league.server.courses import add_course
+from league.server.course.assignments import private_visible
+from league.server.course.courses import add_course
 from league.server.db import crud
 from league.server.db.models import (
     BASELINE, DONE, INSTRUCTOR, PRIVATE_TRACKS, READY, Assignment, AuditEvent, Championship, Course, Evaluation, Job,
     Race, StudentAssignment, Submission, User,
 )
+from league.server.course.results import settings_key
 from league.server.jobs.evaluate import EvaluationOutcome
-from league.server.results import settings_key
 
 from ...api_calls import unique
 from ...backends import BACKENDS
@@ -48,7 +48,7 @@ def league(request, tmp_path_factory):
     with in_process_league(request.param, tmp_path_factory.mktemp(f"courses-{request.param}"),
                            quota_per_day=1000) as league_:
         yield league_
-        league_.app.state.league.clock.set(None)
+        league_.app.state.services.clock.set(None)
 
 
 def ready(league, owner: User, assignment_id: int) -> int:
@@ -138,8 +138,8 @@ def two_courses(league) -> TwoCourses:
         championship = instructor1.post("/api/championships", json={"name": unique("cup"), "heat_size": 2}).json()
         started = instructor1.post(f"/api/championships/{championship['id']}/rounds")
         assert started.status_code == 202, started.text
-        league.app.state.league.clock.set(DUE + timedelta(seconds=1))  # the due time passed: finals frozen
-        catch_up(league.app.state.league)
+        league.app.state.services.clock.set(DUE + timedelta(seconds=1))  # the due time passed: finals frozen
+        catch_up(league.app.state.services)
         finals = private_evaluations(league, hw["id"])
         assert set(finals) == set(submissions)
         league.finish_job(finals[submissions[0]][1], private_outcome(private_seed, STUDENT_FIGURE))  # [1]: queued

@@ -9,10 +9,10 @@ import uuid
 import pytest
 from sqlalchemy import select
 
+from league.server.course.results import SUPERSEDED
 from league.server.db import crud
 from league.server.db.models import BASELINE, EVALUATE, LOW, QUEUED, REJECTED, STUDENT, Job
 from league.server.jobs.leases import fairest_queued
-from league.server.results import SUPERSEDED
 from league.validation.report import ValidationReport
 
 from ..in_process import evaluation_outcome, in_process_league

@@ -42,8 +42,8 @@ def league(request, tmp_path_factory):
 
 @pytest.fixture(autouse=True)
 def clock(league):
-    yield league.app.state.league.clock
-    league.app.state.league.clock.set(None)
+    yield league.app.state.services.clock
+    league.app.state.services.clock.set(None)
 
 
 def upload(client, assignment: str) -> int:
@@ -108,8 +108,8 @@ def test_uploads_queued_at_the_due_time_become_finals_graded_before_the_assignme
                "bob": [upload(students["bob"][1], name), upload(students["bob"][1], name)],
                "cy": [upload(students["cy"][1], name)]}
     clock.set(DUE + SECOND)  # no worker ran: every upload still waits for its validation
-    assert catch_up(league.app.state.league) == []  # frozen, nothing to evaluate privately yet
-    assert catch_up(league.app.state.league) == []  # idempotent
+    assert catch_up(league.app.state.services) == []  # frozen, nothing to evaluate privately yet
+    assert catch_up(league.app.state.services) == []  # idempotent
     rows = final_rows(league, hw)
     for key, ids in uploads.items():
         row = rows[user[key].id]
@@ -148,7 +148,7 @@ def test_uploads_queued_at_the_due_time_become_finals_graded_before_the_assignme
     assert decided == {"ann": uploads["ann"][0], "bob": uploads["bob"][1], "cy": None, "dee": None}
     private = queued(league, EVALUATE, PRIVATE_TRACKS)
     assert set(private) & everyone == {uploads["ann"][0], uploads["bob"][1]}
-    assert catch_up(league.app.state.league) == []  # nothing more to decide, nothing to publish yet
+    assert catch_up(league.app.state.services) == []  # nothing more to decide, nothing to publish yet
     assert published_at(instructor, hw) is None and grades(instructor, hw)[names["ann"]]["status"] == "pending"
     own = students["ann"][1].get(f"/api/assignments/{hw}").json()["final"]
     assert (own["submission_id"], own["decided"]) == (uploads["ann"][0], True)
@@ -226,7 +226,7 @@ def test_a_selected_final_is_decided_at_the_due_time_and_a_late_evaluation_never
     upload(chooser, name)  # still queued at the due time: the selection wins all the same
     late = upload(slow, name)
     clock.set(due + SECOND)
-    jobs = catch_up(league.app.state.league)
+    jobs = catch_up(league.app.state.services)
     private = queued(league, EVALUATE, PRIVATE_TRACKS)
     assert private.get(chosen) in jobs and late not in private
     assert instructor.post(f"/api/assignments/{hw}/publish").status_code == 200  # by hand, before all is done
@@ -262,7 +262,7 @@ def test_due_time_passes_of_several_processes_at_once_decide_each_final_once(lea
     for submission_id in ids:
         league.finish_job(validations[submission_id], ValidationReport(True, 5, None, "validated in a test"))
     clock.set(due + SECOND)
-    assert catch_up(league.app.state.league) == []  # frozen: every public evaluation still queued
+    assert catch_up(league.app.state.services) == []  # frozen: every public evaluation still queued
     public = queued(league, EVALUATE, PUBLIC_TRACKS)
     with league.sessions.begin() as session:  # they end without their jobs' own passes (as an older worker's)
         for k, submission_id in enumerate(ids):
@@ -275,11 +275,11 @@ def test_due_time_passes_of_several_processes_at_once_decide_each_final_once(lea
 
     def one_pass(_) -> list[int]:
         barrier.wait()
-        return close_due_now(league.sessions, league.app.state.league.queue, max_attempts=1, now=due + 2 * SECOND)
+        return close_due_now(league.sessions, league.app.state.services.queue, max_attempts=1, now=due + 2 * SECOND)
 
     with ThreadPoolExecutor(4) as pool:
         queued_by_passes = [job_id for jobs in pool.map(one_pass, range(4)) for job_id in jobs]
-    catch_up(league.app.state.league)  # the next pass: what every pass gave way on, if any
+    catch_up(league.app.state.services)  # the next pass: what every pass gave way on, if any
     with league.sessions() as session:
         hw = session.scalar(crud.select(Assignment.id).where(Assignment.name == name))
         private = session.execute(crud.select(Evaluation.submission_id, Job.id).join(

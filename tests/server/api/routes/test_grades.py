@@ -10,13 +10,13 @@ import uuid
 from dataclasses import dataclass, field
 from datetime import datetime, timezone
 
-from league.server.assignments import close_due
+from league.server.course.assignments import close_due
 from league.server.db import crud
 from league.server.db.models import (
     BASELINE, DONE, INSTRUCTOR, PRIVATE_TRACKS, READY, Assignment, Evaluation, Job, Submission, User,
 )
-from league.server.results import settings_key
-from league.server.grades import CANVAS_STUDENT_COLUMNS, GENERIC_COLUMNS
+from league.server.course.grading import CANVAS_STUDENT_COLUMNS, GENERIC_COLUMNS
+from league.server.course.results import settings_key
 
 from ...api_calls import unique
 from ..in_process import evaluation_outcome

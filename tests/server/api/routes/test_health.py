@@ -11,8 +11,9 @@ import pytest
 from sqlalchemy import text, update
 
 import league as league_package
+from league.server.core.clock import utcnow
 from league.server.db import crud
-from league.server.db.models import Job, WorkerProcess, utcnow
+from league.server.db.models import Job, WorkerProcess
 from league.server.db.session import head_revision
 from league.server.jobs import registry
 
@@ -96,7 +97,7 @@ def test_an_api_whose_schema_is_migrated_under_it_answers_503_saying_what_to_do(
     with in_process_league(kind, tmp_path, worker_heartbeat_s=3600, worker_silent_after_s=7200) as league, \
             league.client(league.instructor_token) as instructor:  # (no beat sees it first: the error does)
         assert instructor.get("/api/leaderboard").status_code == 200
-        with league.app.state.league.engine.begin() as connection:  # what a newer release's migration would do
+        with league.app.state.services.engine.begin() as connection:  # what a newer release's migration would do
             connection.execute(text("ALTER TABLE courses RENAME COLUMN name TO title"))
             connection.execute(text("UPDATE alembic_version SET version_num = '0099'"))
         expected = (f"the database's schema changed under this running process (microracer-league "
@@ -110,7 +111,7 @@ def test_an_api_whose_schema_is_migrated_under_it_answers_503_saying_what_to_do(
         health = instructor.get("/api/health")
         assert (health.status_code, health.json()["status"], health.json()["reason"]) == (503, "outdated", expected)
 
-        with league.app.state.league.engine.begin() as connection:  # rolled back
+        with league.app.state.services.engine.begin() as connection:  # rolled back
             connection.execute(text("ALTER TABLE courses RENAME COLUMN title TO name"))
             connection.execute(text(f"UPDATE alembic_version SET version_num = '{head_revision()}'"))
         assert league.app.state.watch.check() is None  # (what its next beat does)

@@ -101,9 +101,9 @@ def test_colliding_ids_and_a_long_cache_period_every_change_shows_on_the_next_re
     """Students whose user ids equal baseline submission ids (created so on purpose) each keep a row;
     with answers kept for a minute, a finished evaluation and a finished round still show on the very
     next request, the rating column equal to the standings' as soon as the round is done."""
+    from league.server.course.results import queue_evaluation
     from league.server.db import crud
     from league.server.db.models import BASELINE, READY, STUDENT, Job
-    from league.server.results import queue_evaluation
 
     from ..in_process import evaluation_outcome, in_process_league
 

@@ -1,4 +1,4 @@
-"""Privacy of the boards (league/server/privacy.py, deps.board_names): each visibility of a course
+"""Privacy of the boards (league/server/course/privacy.py, deps.board_names): each visibility of a course
 (public, members, instructors) against each viewer (a visitor, a student of another course, a
 student of the course, its instructor) on every route of docs/CONTRACT.md that answers with
 students' names or results; the body of every answer searched for the real names it must not hold.
@@ -15,7 +15,7 @@ from league.server.db import crud
 from league.server.db.models import (
     DONE, INSTRUCTOR, Championship, ChampionshipRound, Course, Race, RaceReplay, User,
 )
-from league.server.privacy import pseudonym
+from league.server.course.privacy import pseudonym
 
 from ...api_calls import unique
 from ...backends import BACKENDS

@@ -157,7 +157,7 @@ def test_a_rejected_uploads_file_is_deleted(app_league, tmp_path):
         assert session.get(Submission, submission_id).status == "rejected"
     with app_league.sessions() as session:
         assert digest not in crud.kept_blobs(session)
-    store = app_league.app.state.league.store
+    store = app_league.app.state.services.store
     assert store.path(digest).exists()
     store.sweep(set(), older_than_s=0)
     assert not store.path(digest).exists()
@@ -166,9 +166,9 @@ def test_a_rejected_uploads_file_is_deleted(app_league, tmp_path):
 def test_the_status_answer_is_small_its_episodes_paged_and_pollers_get_304(app_league):
     """A 100-episode evaluation: the status answer carries its figures and a link, not its episodes,
     and does not grow with them; the link pages through all of them; an unchanged answer is 304."""
+    from league.server.course.results import queue_evaluation
     from league.server.db import crud
     from league.server.db.models import Submission
-    from league.server.results import queue_evaluation
 
     owner, student = app_league.student("poller")
     ready = app_league.submission(owner, evaluated=False)

@@ -22,7 +22,7 @@ from collections.abc import Callable
 from dataclasses import dataclass, field
 from typing import Any
 
-from league.server.accounts import clean_name
+from league.server.course.accounts import clean_name
 from league.server.db.models import BASELINE, VISIBILITY_INSTRUCTORS, VISIBILITY_MEMBERS, VISIBILITY_PUBLIC
 
 AUDIENCE = {VISIBILITY_PUBLIC: "anyone", VISIBILITY_MEMBERS: "the course's students and instructors, logged in",

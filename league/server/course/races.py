@@ -1,5 +1,5 @@
-"""Races and championship rounds on the server: creating races, fixing a round's entrants,
-heats and track, and which submission of a student races.
+"""Races on the server, friendly ones and championship rounds' heats: creating a race (`create_race`,
+for both), fixing a round's entrants, heats and track, and which submission of a student races.
 
 A round is fixed when it is created -- its entrants, its heats and its track seed are stored --
 and each heat is a race job (league.server.jobs.race), so workers share a round's heats, a dead
@@ -16,13 +16,13 @@ import numpy as np
 from sqlalchemy.orm import Session
 
 from league import championship as rules
-from league.server.assignments import final_choices
+from league.server.course.assignments import final_choices
 from league.server.db import crud
 from league.server.db.models import (
     BASELINE, DONE, FAILED, PENDING, RACE, READY, RUNNING, Assignment, Championship, ChampionshipRound, Job, Race,
     Submission, User,
 )
-from league.server.standings import championship_standings
+from league.server.course.standings import championship_standings
 
 
 class RoundRefused(Exception):

@@ -1,6 +1,6 @@
 """Assignments: when a student may upload, which submission counts, and the private test at their close time.
 
-The server's clock decides (league.server.clock). A student's times in an assignment: uploads open
+The server's clock decides (league.server.core.clock). A student's times in an assignment: uploads open
 at `opens_at`; on time until their due time (their extension, else the assignment's `due_at`); late
 until `late_until` when that is after it; closed after (their close time). At their close time their
 final is frozen with its candidates (their uploads), decided once each candidate is validated and
@@ -19,14 +19,14 @@ from datetime import datetime, timedelta
 from sqlalchemy import select, update
 from sqlalchemy.orm import Session
 
-from league.server import audit, gradebook, results, standings
+from league.server.course import assignment_grades, audit, results, standings
 from league.server.db import crud
 from league.server.db.models import (
     DONE, FAILED, INSTRUCTOR, PENDING, PRIVATE_TRACKS, PUBLIC_TRACKS, QUEUED, READY, REJECTED, RUNNING, STUDENT,
     VALIDATING, Assignment, Course, Evaluation, StudentAssignment, Submission, User, utcnow,
 )
 
-log = logging.getLogger("league.server.assignments")
+log = logging.getLogger("league.server.course.assignments")
 
 
 class UploadRefused(Exception):
@@ -363,7 +363,7 @@ def publish(session: Session, *, assignment: Assignment, now: datetime) -> None:
 
 def _publish(session: Session, assignment: Assignment, now: datetime) -> None:
     """Publish (once: a conditional update), keeping each final's private result of that moment:
-    a grade says so when its result changes afterwards (league.server.gradebook)."""
+    a grade says so when its result changes afterwards (league.server.course.assignment_grades)."""
     published = session.execute(update(Assignment).where(Assignment.id == assignment.id,
                                                          Assignment.published_at.is_(None))
                                 .values(published_at=now)).rowcount
@@ -372,7 +372,7 @@ def _publish(session: Session, assignment: Assignment, now: datetime) -> None:
         return
     rows = [row for row in crud.student_assignments(session, assignment_id=assignment.id).values()
             if row.final_submission_id is not None]
-    current, _ = gradebook.private_results(session, assignment, [row.final_submission_id for row in rows])
+    current, _ = assignment_grades.private_results(session, assignment, [row.final_submission_id for row in rows])
     for row in rows:
         evaluation = current.get(row.final_submission_id)
         row.published_evaluation_id = evaluation.id if evaluation is not None else None

@@ -10,7 +10,7 @@ hides the others.
 Canvas's gradebook export (Grades > Export: `Student, ID, SIS User ID, SIS Login ID, Section, <one
 column an assignment>`, then a "Points Possible" line; the names written "Last, First") is read as
 Canvas writes it: its ID (the Canvas user ID), SIS User ID (our student id) and SIS Login ID are
-kept, which the Canvas grade file echoes (league.server.grades), and its lines that are not
+kept, which the Canvas grade file echoes (league.server.course.grading), and its lines that are not
 students (Points Possible, the posting-policy line, the course's Test Student) are set aside.
 Moodle's exports (the participants page's download: `First name, Last name, Email address, ID
 number`; the gradebook's: `First name, Last name, ID number, Institution, Department, Email
@@ -34,7 +34,7 @@ from dataclasses import dataclass, field
 from sqlalchemy import select
 from sqlalchemy.orm import Session
 
-from league.server.accounts import (
+from league.server.course.accounts import (
     clean_canvas_id, clean_email, clean_login, clean_name, clean_student_id, identity_key,
 )
 from league.server.db import crud

@@ -1,7 +1,7 @@
-"""The grades of stored assignments: each student's frozen final and its private result, read from
-the database and graded by league.server.grades (which holds every rule).
+"""An assignment's grades from the database: each student's frozen final and its private result, read
+here and graded by league.server.course.grading (which holds every rule and touches no database).
 
-Only private results of the assignment's **current** private settings count (league.server.results'
+Only private results of the assignment's **current** private settings count (league.server.course.results'
 key): after a change of its settings a final evaluated with the old ones is `stale`, with an empty
 grade, until it is evaluated again; grades never mix results of two settings. Setting the rubric
 queues, at LOW priority, the private evaluations the grades lack (`queue_missing_evaluations`): the
@@ -12,7 +12,7 @@ from __future__ import annotations
 from sqlalchemy import select
 from sqlalchemy.orm import Session
 
-from league.server import grades, results
+from league.server.course import grading, results
 from league.server.db import crud
 from league.server.db.models import (
     DONE, LOW, PRIVATE_TRACKS, QUEUED, RUNNING, STUDENT, Assignment, Evaluation, Job, StudentAssignment, Submission,
@@ -24,10 +24,10 @@ class NoRubric(LookupError):
     """The assignment has no rubric yet."""
 
 
-def rubric_of(assignment: Assignment) -> grades.PointsRubric | grades.FormulaRubric:
+def rubric_of(assignment: Assignment) -> grading.PointsRubric | grading.FormulaRubric:
     if assignment.rubric is None:
         raise NoRubric(f"{assignment.name} has no rubric yet: set one (PUT /api/assignments/{assignment.id}/rubric)")
-    return grades.read_rubric(assignment.rubric)
+    return grading.read_rubric(assignment.rubric)
 
 
 def private_key(assignment: Assignment) -> str:
@@ -58,9 +58,9 @@ def figures(evaluation: Evaluation | None) -> dict:
             "mean_return": evaluation.mean_return, "mean_speed": evaluation.mean_speed}
 
 
-def assignment_entries(session: Session, assignment: Assignment) -> list[grades.Entry]:
+def assignment_entries(session: Session, assignment: Assignment) -> list[grading.Entry]:
     """Every student of the course (revoked ones flagged) with their final, and the baselines with a
-    private result, as league.server.grades reads them."""
+    private result, as league.server.course.grading reads them."""
     students = [u for u in crud.course_users(session, course_id=assignment.course_id) if u.role == STUDENT]
     rows = crud.student_assignments(session, assignment_id=assignment.id)
     frozen = {u.id: rows[u.id] for u in students if u.id in rows and rows[u.id].final_at}
@@ -70,19 +70,19 @@ def assignment_entries(session: Session, assignment: Assignment) -> list[grades.
     current, stale = private_results(session, assignment, list(finals) + [b.id for b in baselines])
     published = assignment.published_at is not None
     entries = [_student_entry(session, u, frozen.get(u.id), finals, current, stale, published) for u in students]
-    entries += [grades.Entry(name=b.name, baseline=True, submission_id=b.id, **figures(current[b.id]))
+    entries += [grading.Entry(name=b.name, baseline=True, submission_id=b.id, **figures(current[b.id]))
                 for b in baselines if b.id in current]
     return entries
 
 
 def _student_entry(session: Session, user: User, row: StudentAssignment | None, finals: dict[int, Submission],
-                   current: dict[int, Evaluation], stale: set[int], published: bool) -> grades.Entry:
+                   current: dict[int, Evaluation], stale: set[int], published: bool) -> grading.Entry:
     # a student revoked before their close time is never frozen (close_due takes active students):
     # they have no final
     closed = row is not None or user.revoked_at is not None
     final = finals.get(row.final_submission_id) if row is not None else None
     evaluation = current.get(final.id) if final else None
-    return grades.Entry(name=user.name, user_id=user.id, email=user.email, student_id=user.student_id,
+    return grading.Entry(name=user.name, user_id=user.id, email=user.email, student_id=user.student_id,
                         canvas_id=user.canvas_id, sis_login_id=user.sis_login_id,
                         revoked=user.revoked_at is not None, closed=closed,
                         deciding=row is not None and row.final_decided_at is None,
@@ -93,7 +93,7 @@ def _student_entry(session: Session, user: User, row: StudentAssignment | None, 
 
 def revision(session: Session, row: StudentAssignment | None, evaluation: Evaluation | None) -> str | None:
     """How a published assignment's grade changed since its publication (None: it did not): its
-    final's private result then (league.server.assignments keeps its id) against the one that counts now."""
+    final's private result then (league.server.course.assignments keeps its id) against the one that counts now."""
     then = row.published_evaluation_id if row is not None else None
     now = evaluation.id if evaluation is not None else None
     if then == now:
@@ -108,10 +108,10 @@ def revision(session: Session, row: StudentAssignment | None, evaluation: Evalua
     return f"re-evaluated after the publication{was}"
 
 
-def assignment_grades(session: Session, assignment: Assignment) -> list[grades.GradeRow]:
-    """The assignment's rows (NoRubric without a rubric; grades.FormulaError if its formula has no
+def assignment_grades(session: Session, assignment: Assignment) -> list[grading.GradeRow]:
+    """The assignment's rows (NoRubric without a rubric; grading.FormulaError if its formula has no
     value for some student's figures)."""
-    return grades.grade(assignment_entries(session, assignment), rubric_of(assignment),
+    return grading.grade(assignment_entries(session, assignment), rubric_of(assignment),
                         late_penalty=assignment.late_penalty)
 
 

@@ -1,13 +1,16 @@
 """The server's clock: what upload windows, quotas and due times are decided by.
 
-One `Clock` per league (League.clock); tests set it (`clock.set(moment)`) instead of sleeping to a
+One `Clock` per league (Services.clock); tests set it (`clock.set(moment)`) instead of sleeping to a
 deadline. Unset, it is the system's UTC time.
 """
 from __future__ import annotations
 
-from datetime import datetime
+from datetime import datetime, timezone
 
-from league.server.db.models import utcnow
+
+def utcnow() -> datetime:
+    """The system's time, aware, in UTC: what every stored time is (the column defaults of db/models.py)."""
+    return datetime.now(timezone.utc)
 
 
 class Clock:

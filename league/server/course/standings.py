@@ -12,7 +12,7 @@ from typing import Any
 from sqlalchemy.orm import Session
 
 from league import championship as rules
-from league.server import results
+from league.server.course import results
 from league.server.db import crud
 from league.server.db.models import (
     BASELINE, DELETED, DONE, PUBLIC_TRACKS, STUDENT, Assignment, Championship, ChampionshipRound,
@@ -91,7 +91,7 @@ def assignment_board(session: Session, assignment: Assignment, track: str = PUBL
     """Each student's best evaluated submission of the assignment (completion rate, then mean return),
     and every bundled baseline as a reference row; best first, with the course-wide rating (a
     student's best agent that never raced shows the rating of their agent that raced last). Only
-    results of the assignment's current settings rank (league.server.results); a student or baseline
+    results of the assignment's current settings rank (league.server.course.results); a student or baseline
     whose results are all of other settings follows the ranked rows, stale and unranked, by name.
     The private board (`track` PRIVATE_TRACKS; show it only once published) ranks the students' finals on
     the private tracks."""
@@ -122,7 +122,7 @@ def best_submissions(session: Session, assignment: Assignment, among: set[int] |
     """Each student's submission that stands best on the assignment's public board, by owner id: as
     assignment_board picks a student's row (their best ranked submission, else their best stale one;
     of equals, the newest), among the submissions of `among` only when given. The rule by which a
-    final is chosen when the student selected none (league.server.assignments)."""
+    final is chosen when the student selected none (league.server.course.assignments)."""
     best: dict[int, Any] = {}
     for entry in crud.leaderboard_entries(session, assignment=assignment, result_key=results.current_key(assignment)):
         if entry.owner_role != STUDENT or (among is not None and entry.id not in among):

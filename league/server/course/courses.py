@@ -12,11 +12,11 @@ from __future__ import annotations
 from sqlalchemy import func, select
 from sqlalchemy.orm import Session
 
-from league.server.accounts import clean_name
-from league.server.config import Settings
+from league.server.core.config import Settings
+from league.server.course.accounts import clean_name
+from league.server.course.results import change_settings
 from league.server.db import crud
 from league.server.db.models import INSTRUCTOR, STUDENT, Course, Job, User
-from league.server.results import change_settings
 
 
 class CourseRefused(ValueError):

@@ -1,4 +1,4 @@
-"""league.server.grades: rubrics, formulas, ranks among students, and the gradebook files (no server)."""
+"""league.server.course.grading: rubrics, formulas, ranks among students, and the gradebook files (no server)."""
 from __future__ import annotations
 
 import csv
@@ -8,7 +8,7 @@ import re
 import pytest
 from pydantic import ValidationError
 
-from league.server.grades import (
+from league.server.course.grading import (
     CANVAS_STUDENT_COLUMNS, GENERIC_COLUMNS, MAX_FORMULA_CHARS, Entry, FormulaError, Graded, canvas_csv, course_csv,
     evaluate_formula, generic_csv, grade, moodle_csv, parse_formula, read_rubric,
 )

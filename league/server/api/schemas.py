@@ -503,7 +503,8 @@ class AssignmentOut(BaseModel):
     state: str = Field("open", description="for you now: upcoming, open, late or closed")
     now: UtcTime = Field(description="the server's clock when answered (time left: my_due_at - now)")
     final: FinalOut | None = Field(None, description="yours (students)")
-    rubric: dict[str, Any] | None = Field(None, description="how it is graded (league.server.grades); null: not set")
+    rubric: dict[str, Any] | None = Field(None, description="how it is graded (league.server.course.grading); "
+                                                            "null: not set")
     automatic: bool = Field(False, description="the course's automatic assignment (made with the course): closed to "
                                                "uploads once the course has assignments of its instructors, unless "
                                                "keep_open")

@@ -22,7 +22,7 @@ from league.evaluation import result_key
 from league.server.db import crud
 from league.server.db.models import BASELINE, LOW, NORMAL, PUBLIC_TRACKS, READY, Assignment, Job, Submission
 
-log = logging.getLogger("league.server.results")
+log = logging.getLogger("league.server.course.results")
 SUPERSEDED = ("superseded: the evaluation settings changed before it ran, "
               "to settings its submission has an evaluation of")
 

@@ -391,7 +391,7 @@ class Entry:
     user_id: int | None = None
     email: str | None = None
     student_id: str | None = None
-    canvas_id: str | None = None  # Canvas's own ids, from its gradebook export (league.server.roster)
+    canvas_id: str | None = None  # Canvas's own ids, from its gradebook export (league.server.course.roster)
     sis_login_id: str | None = None
     baseline: bool = False
     revoked: bool = False
@@ -402,7 +402,7 @@ class Entry:
     late: bool = False
     closed: bool = True
     stale: bool = False
-    deciding: bool = False  # closed, the final not decided yet (league.server.assignments)
+    deciding: bool = False  # closed, the final not decided yet (league.server.course.assignments)
     note: str | None = None  # how its private result changed since the publication (None: it did not)
 
     @property
