@@ -20,14 +20,9 @@ from league.constants import MODEL_SUFFIXES
 PACKAGE = Path(__file__).resolve().parents[1] / "league"
 WORDS = set(statuses.SUBMISSION_STATUSES + statuses.JOB_STATUSES + statuses.RACE_STATUSES)
 SUFFIX = re.compile(r"(?<![\w.])(" + "|".join(re.escape(s) for s in MODEL_SUFFIXES) + r")(?![\w.])")
-# The client still spells the statuses and the points in its help: the lead switches it to league.statuses
-# and DEFAULT_POINTS once it is a package (issue 34, item 2); then this goes.
-NOT_YET = ("league/client",)
-
 
 def package_files(suffix: str) -> list[Path]:
-    return [path for path in sorted(PACKAGE.rglob(f"*{suffix}"))
-            if not str(path.relative_to(PACKAGE.parent)).startswith(NOT_YET)]
+    return sorted(PACKAGE.rglob(f"*{suffix}"))
 
 
 @cache  # each file is parsed once for the three detectors
