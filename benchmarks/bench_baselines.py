@@ -4,8 +4,8 @@ final and the best actor of finished training runs side by side.
     python benchmarks/bench_baselines.py [--updates 3000] [--envs 1] [--warmup 2000]
     python benchmarks/bench_baselines.py --runs runs        # after the training commands of docs/BASELINES.md
 
-Times each part of the loop of `league.baselines.sac.train` on its own: acting, stepping the
-car, storing, sampling, the critic update, the actor and temperature update, and prints
+Times each part of the off-policy loop (league.baselines.common.off_policy) with SAC's learner
+on its own: acting, stepping the car, storing, sampling, the critic update, the actor and temperature update, and prints
 milliseconds per iteration and the share of each. With --runs, exports each run's final actor
 (what `league train` leaves at its end) and its best-validated one to ONNX and evaluates both as
 `league evaluate AGENT --episodes 100 --seed 0` does, per method and seed, beside the thesis' mean.
@@ -72,7 +72,7 @@ def measure(updates: int, envs: int = 1, warmup: int = 2000) -> LoopFigures:
         data = clock("sample", rb.sample, args.batch_size)
         clock("critic update", agent.update_critics, data)
         clock("actor + temperature", agent.update_actor, data)
-        clock("target update", agent.update_targets)
+        clock("target update", agent.after_update)  # the loop's hook: SAC's Polyak step
     return LoopFigures(iterations=updates, threads=torch.get_num_threads(), total_s=time.perf_counter() - total,
                        parts_s=parts)
 
