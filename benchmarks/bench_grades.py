@@ -78,11 +78,11 @@ def private_test(session, assignment, submission, *, completed: int, mean_return
     """A finished private evaluation of 20 episodes, as a worker leaves it (no episode rows)."""
     from league.server.course.results import settings_key
     from league.server.db import crud
-    from league.server.db.models import DONE, PRIVATE
+    from league.server.db.models import DONE, PRIVATE_TRACKS
 
     settings = assignment.private_settings()
     evaluation, job = crud.create_evaluation(session, submission=submission, assignment=assignment, settings=settings,
-                                             result_key=settings_key(settings), max_attempts=1, track=PRIVATE)
+                                             result_key=settings_key(settings), max_attempts=1, track=PRIVATE_TRACKS)
     evaluation.status, evaluation.completed, evaluation.episodes_total = DONE, completed, 20
     evaluation.mean_return, evaluation.mean_steps, evaluation.mean_speed = mean_return, 500.0, 0.3
     job.status = DONE
