@@ -181,6 +181,33 @@ def bench_vector(make, seconds: float) -> tuple[float, float]:
     return rate, steps / in_step
 
 
+def new_tracks_share(sync: float, fresh: float, seconds: float, reset_us: float) -> list[Row]:
+    """What the new tracks cost the 8-env loops, and what that leaves of the ratio to sync.
+
+    Both loops drive the same cars on the same tracks (seeds 0..7, the same driver), so they pay
+    the same new tracks per step: the fresh loop's time per step less that of a loop on a pool
+    of 8 tracks (no new track, the cars still on 8 maps). Take that from both sides and the ratio
+    is what the rest of the loop allows; scale it with the reset, and the reset that 5x needs.
+    """
+    pool = bench_vector(functools.partial(league.make_vector_env, num_envs=8, track_pool=8), seconds)[0]
+    sync_us, fresh_us, pool_us = 8e6 / sync, 8e6 / fresh, 8e6 / pool
+    tracks_us = max(fresh_us - pool_us, 0.0)
+
+    def ratio(reset: float) -> float:  # the 8-env ratio with this reset time instead of today's
+        scaled = tracks_us * reset / reset_us
+        return (sync_us - tracks_us + scaled) / (pool_us + scaled)
+
+    needed = (sync_us - tracks_us - 5 * pool_us) / 4 * reset_us / tracks_us if tracks_us else float("nan")
+    return [
+        Row("league.vector_env, 8 envs, pool of 8 tracks", pool, "steps/s", "(no new tracks: the cars alone)"),
+        Row("  8 envs: new tracks' share of the loop", 100 * tracks_us / fresh_us, "%",
+            f"({tracks_us:.1f} of {fresh_us:.1f} us a step; sync's {sync_us:.1f} us hold the same)"),
+        Row("  8 envs: the ratio to sync were new tracks free", ratio(0.0), "x"),
+        Row("  8 envs: the ratio to sync with a reset of 0.5 ms", ratio(500.0), "x", "(the reset target above)"),
+        Row("  8 envs: the reset 5x needs", needed, "us", "(negative: none would do)"),
+    ]
+
+
 @dataclass
 class Row:
     """One figure, printed as a row: what, its value in `unit`, and its target or comparison."""
@@ -228,6 +255,8 @@ def measure(scale: float = 1.0, reference: Path | None = None, before: Path | No
         rows.append(Row(f"league.vector_env, {num_envs} envs, new track every episode", fresh, "steps/s",
                         f"{fresh / sync:.1f}x sync, target >= 5x"))
         rows.append(Row("  its step calls alone", fresh_steps, "steps/s", f"{fresh_steps / sync_steps:.1f}x sync's"))
+        if num_envs == 8:
+            rows += new_tracks_share(sync, fresh, seconds, reset_us)
     for num_envs, pool_size in ((256, 8), (256, 100)):
         pool, _ = bench_vector(functools.partial(league.make_vector_env, num_envs=num_envs, track_pool=pool_size),
                                seconds)

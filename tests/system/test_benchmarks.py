@@ -46,10 +46,15 @@ def positive(*values: float) -> bool:
 
 def test_simulator():
     rows = bench_simulator.measure(scale=0.01)
-    assert len(rows) == 18  # no --reference, no --before
+    assert len(rows) == 23  # no --reference, no --before
     assert [row.name for row in rows][:2] == ["reset, new random track, all options on", "MicroRacerEnv.step, one car"]
-    assert positive(*(row.value for row in rows))
-    assert {row.unit for row in rows} == {"us", "car-steps/s", "steps/s"}
+    share = {row.name.strip(): row for row in rows if row.name.startswith("  8 envs:")}
+    assert list(share) == ["8 envs: new tracks' share of the loop", "8 envs: the ratio to sync were new tracks free",
+                           "8 envs: the ratio to sync with a reset of 0.5 ms", "8 envs: the reset 5x needs"]
+    assert 0 <= share["8 envs: new tracks' share of the loop"].value < 100  # (0 when the pool's loop is slower)
+    assert positive(*(row.value for row in rows if not row.name.startswith("  8 envs:")),
+                    share["8 envs: the ratio to sync were new tracks free"].value)
+    assert {row.unit for row in rows} == {"us", "car-steps/s", "steps/s", "%", "x"}
 
 
 def test_toolkit(tmp_path):
@@ -133,7 +138,8 @@ def test_server_evaluation(tmp_path):
 
     f = bench_server.bench_evaluation(thesis_actor(tmp_path), episodes=2)
     assert f.episodes == 2 and 0 <= f.completed <= 2
-    assert positive(f.first_sandbox_s, f.plain_s, f.lockstep_s, f.cached_lockstep_s, f.sandboxed_s)
+    assert positive(f.first_sandbox_s, f.plain_s, f.lockstep_s, f.cached_lockstep_s, f.sandboxed_s,
+                    f.cached_sandboxed_s)
     bench_server.report_evaluation(f)
 
 

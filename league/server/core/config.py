@@ -196,8 +196,9 @@ class Settings(BaseSettings):
     queue_poll_s: float | None = Field(None, gt=0, le=600,
                                        description="how often an idle worker looks for queued jobs in the "
                                                    "database; default 0.5 on SQLite, 2 on PostgreSQL "
-                                                   "(where an enqueue also wakes workers at once: "
-                                                   "LISTEN/NOTIFY)")
+                                                   "(an enqueue also wakes workers at once: LISTEN/NOTIFY "
+                                                   "on PostgreSQL, the commit's change to the database's "
+                                                   "files on SQLite)")
     worker_heartbeat_s: float = Field(5.0, gt=0, le=3600,
                                       description="how often a worker or API process says it is alive "
                                                   "(the workers table; /api/health, league migrate)")

@@ -93,19 +93,21 @@ class Worker:
             self.stop()
 
     def start(self) -> None:
-        """Register, then start the heartbeat, the reaper, the listener (PostgreSQL) and the job threads."""
+        """Register, then start the heartbeat, the reaper, the listener (NOTIFY, or the SQLite files) and the job
+        threads."""
         self.worker_id = registry.register(self.context.sessions)
         set_track_cache_size(self.context.settings.track_cache_size)  # the job threads share the tracks
         self.beat.start()
         self.reaper.start()
-        if self.context.queue.notifies:
-            threading.Thread(target=self.context.queue.listen, args=(self._stop_listening,),
-                             name="league-listener", daemon=True).start()
+        queue = self.context.queue
+        if queue.listens:
+            threading.Thread(target=queue.listen, args=(self._stop_listening,), name="league-listener",
+                             daemon=True).start()
         for thread in self.threads:
             thread.start()
+        woken = ", woken by NOTIFY" if queue.notifies else ", woken by the database's commits" if queue.listens else ""
         log.info("worker started: %d job threads claiming from the database (looking every %g s%s)",
-                 len(self.threads), self.context.settings.resolved_queue_poll_s,
-                 ", woken by NOTIFY" if self.context.queue.notifies else "")
+                 len(self.threads), self.context.settings.resolved_queue_poll_s, woken)
 
     def stop(self) -> None:
         """Claim no more, hand the running jobs back, stop the other threads, unregister."""

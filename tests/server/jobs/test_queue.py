@@ -1,6 +1,8 @@
 """The jobs table is the queue (both backends): a job queued by its row alone, with no wake-up at all
 (a restore, a lost notification, another process's insert), runs within a poll while a worker is
-alive; two workers never run one job. In-process workers with a recording job kind (no sandboxes)."""
+alive; another process's enqueue wakes the workers at once (a NOTIFY, or on SQLite the commit's change
+to the database's files); two workers never run one job. In-process workers with a recording job
+kind (no sandboxes)."""
 from __future__ import annotations
 
 import threading
@@ -48,7 +50,7 @@ class Counting:
 
 @pytest.fixture
 def league(backend, tmp_path):
-    """(settings, engine, sessions, handlers) of a fresh database; the workers started are stopped."""
+    """(start_worker, sessions, handler) of a fresh database; the workers started are stopped."""
     _, database_url = backend
     settings = Settings(_env_file=None, data_dir=tmp_path / "data", database_url=database_url, bootstrap=False,
                         cpu_placement=False, reaper_interval_s=0.5, worker_heartbeat_s=0.5)
@@ -56,9 +58,9 @@ def league(backend, tmp_path):
     migrate(engine)
     workers: list[Worker] = []
 
-    def start_worker(threads: int = 2) -> Worker:
-        context = WorkerContext(settings, make_sessionmaker(engine), JobQueue(engine), BlobStore(settings.data_dir),
-                                handlers={"count": handler})
+    def start_worker(threads: int = 2, **changed) -> Worker:
+        context = WorkerContext(settings.model_copy(update=changed), make_sessionmaker(engine), JobQueue(engine),
+                                BlobStore(settings.data_dir), handlers={"count": handler})
         worker = Worker(context, threads=threads, prepare_thread=lambda settings: None)
         worker.start()
         workers.append(worker)
@@ -84,14 +86,28 @@ def statuses(sessions, ids: list[int]) -> set[str]:
 
 def test_a_job_inserted_without_a_wake_up_runs_within_a_poll(league):
     start_worker, sessions, handler = league
-    worker = start_worker()
-    generation = worker.context.queue.wakeup.generation
+    start_worker()
     ids = insert_jobs(sessions, 3)
-    # the default polls are 0.5 s (SQLite) and 2 s (PostgreSQL): 10 s is a bound for a loaded machine
+    # the default polls are 0.5 s (SQLite, whose commit also wakes the worker) and 2 s (PostgreSQL): 10 s
+    # is a bound for a loaded machine
     wait_for(lambda: statuses(sessions, ids), lambda found: found == {DONE}, timeout=10)
     assert handler.runs == Counter({job_id: 1 for job_id in ids})
-    if not worker.context.queue.notifies:
-        assert worker.context.queue.wakeup.generation == generation  # nothing woke it: its poll found them
+
+
+def test_on_sqlite_another_connections_commit_wakes_the_workers(backend, league):
+    """Their listener watches the database's files: with a poll of 10 minutes, the job runs all the same."""
+    if backend[0] != "sqlite":
+        pytest.skip("PostgreSQL's workers are woken by NOTIFY (the next test)")
+    start_worker, sessions, handler = league
+    worker = start_worker(queue_poll_s=600)
+    wait_for(lambda: worker.context.queue.wakeup.generation, lambda generation: generation >= 1)  # watching
+    api_engine = make_engine(sessions.kw["bind"].url.render_as_string(hide_password=False))  # another process's
+    try:
+        [job_id] = insert_jobs(make_sessionmaker(api_engine), 1)
+        wait_for(lambda: statuses(sessions, [job_id]), lambda found: found == {DONE}, timeout=60)
+    finally:
+        api_engine.dispose()
+    assert handler.runs == Counter({job_id: 1})
 
 
 def test_on_postgresql_an_enqueue_in_another_process_wakes_the_workers(backend, league):
