@@ -6,13 +6,14 @@
 
 (a) 100 episodes of a thesis-size ONNX actor (5 -> 64 -> 64 -> 2), one core, three ways: the
     plain per-episode loop a student writes (no sandbox), lockstep metrics_run without a sandbox,
-    and in a sandbox process (start included): targets <= 15 s, the sandbox <= 1.5x the
-    unsandboxed lockstep run (issue 12);
+    and in a sandbox process (start included), each lockstep run again with its tracks cached:
+    targets <= 15 s, the sandbox <= 1.5x the unsandboxed lockstep run (issue 12);
 (b) from upload to figures, a `league worker` on one CPU: target >= 1x the plain loop of (a);
 (c) 20 uploads at once to that worker (validation and evaluation each), once its fork servers have
     prepared their runtimes (the steady state; once per worker start): target >= 300
-    evaluations per core-minute (issue 33), beside the same uploads to a worker that keeps no
-    tracks (LEAGUE_TRACK_CACHE_SIZE=0: every evaluation draws its 100 tracks again);
+    evaluations per core-minute (issue 33), beside the ceilings (a)'s cached runs set and the same
+    uploads to a worker that keeps no tracks (LEAGUE_TRACK_CACHE_SIZE=0: every evaluation draws its
+    100 tracks again);
 (d) GET /api/submissions/{id} of an evaluated submission (100 episodes) at 200 requests/s on
     loopback while a worker keeps evaluating another one (re-runs): target p99 <= 50 ms, and the API
     process's CPU time per answer under that load (/proc: steadier than latencies on a busy machine); with
@@ -187,8 +188,7 @@ def bench_worker_on_one_cpu(model: Path, episodes: int, uploads: int) -> WorkerO
 
 
 def uploads_without_shared_tracks(league: League, client, model: Path, uploads: int, cpu: str) -> float:
-    """(c) by a new worker on the same CPU that keeps no tracks (the path issue 33 replaced), once it has
-    seen an upload."""
+    """(c) by a new worker on the same CPU that keeps no tracks (its cache off), once it has seen an upload."""
     league.stop_workers()
     worker = league.start_worker(wait=True, cpus=cpu, settings={"LEAGUE_TRACK_CACHE_SIZE": "0"}).pid
     wait_evaluated(client, [upload_file(client, model)])  # its fork servers
