@@ -7,7 +7,9 @@ Prints medians over many calls (one process, one thread, pinned to one core). Ca
 SPEC's heuristic driver, computed for all cars at once in numpy, so they stay on the road; only
 the step calls are timed, never the resets, except in the vector env rows, which time whole
 loops (driver, steps and the autoresets with their new tracks) as a training loop runs them, and
-beside them their step calls alone (the driver, the same numpy code on both sides, left out).
+beside them their step calls alone (the driver, the same numpy code on both sides, left out);
+at 8 envs also the loop on a pool of 8 tracks, the new tracks' share it shows (the same on both
+sides) and the ratio to sync that share leaves (new_tracks_share).
 Resets and loops are timed in CPU time of the process (time.process_time): on a shared machine
 the other processes' time slices on this core are not counted; microsecond calls use the wall
 clock (a median over thousands of calls).

@@ -140,3 +140,15 @@ def test_track_png_shows_the_race_track(tmp_path):
     episode = league_cli("track", "--seed", 4, "--episode", 2, "--no-obstacles", "--save", "ep.png", cwd=tmp_path)
     assert episode.returncode == 0, episode.stderr
     assert_clean_error(league_cli("track", "--seed", 4), "--save track.png")
+
+
+def test_a_waiting_command_looks_again_soon_then_once_a_second():
+    """`league submit --wait`, `league race` and a watched round: an upload evaluated in a third of a
+    second is seen within a few looks; a long wait asks the server once a second, as before."""
+    import itertools
+
+    from league.client.api import poll_delays
+
+    delays = list(itertools.islice(poll_delays(), 12))
+    assert delays[0] == 0.1 and delays == sorted(delays)
+    assert sum(delays[:4]) < 1.0 and delays[-3:] == [1.0, 1.0, 1.0]

@@ -15,6 +15,16 @@ from pathlib import Path
 from league.exit_codes import EXIT_AUTH, EXIT_ERROR, EXIT_REFUSED, EXIT_UNREACHABLE
 
 
+def poll_delays(first: float = 0.1, growth: float = 1.5, most: float = 1.0):
+    """The pauses between a waiting command's looks at the server: short at first (an upload is
+    often evaluated within a second), growing to one a second (a student waiting through a
+    deadline's queue asks no more often than before)."""
+    delay = first
+    while True:
+        yield delay
+        delay = min(most, delay * growth)
+
+
 class ClientError(Exception):
     """One line for the user and the exit status it means."""
 

@@ -6,7 +6,7 @@ import argparse
 import sys
 import time
 
-from league.client.api import Api, ClientError, connection
+from league.client.api import Api, ClientError, connection, poll_delays
 from league.client.assignments import find_assignment
 from league.client.output import local_time, print_table
 from league.command import add_env_switches, env_options
@@ -78,7 +78,7 @@ def watch_round(api: Api, championship: int, number: int, timeout: float, progre
     """Poll a round until it is over (done or failed), with a bar of its heats done."""
     from tqdm import tqdm
 
-    deadline = time.monotonic() + timeout
+    deadline, delays = time.monotonic() + timeout, poll_delays()
     path = f"/api/championships/{championship}/rounds/{number}"
     with tqdm(total=None, disable=not progress, file=sys.stderr, unit="heat",
               bar_format="{desc} {bar} {n}/{total} heats") as bar:
@@ -93,7 +93,7 @@ def watch_round(api: Api, championship: int, number: int, timeout: float, progre
                 raise ClientError(f"round {number} is still {round_['status']} after {timeout:g} s "
                                   f"({round_['heats_done']}/{round_['heats_total']} heats done); follow it with "
                                   f"`league championships rounds {championship}`", EXIT_TIMEOUT)
-            time.sleep(1.0)
+            time.sleep(next(delays))
 
 
 def report_round(round_: dict) -> int:

@@ -8,7 +8,7 @@ import sys
 import time
 from pathlib import Path
 
-from league.client.api import Api, ClientError, connection
+from league.client.api import Api, ClientError, connection, poll_delays
 from league.exit_codes import EXIT_OK, EXIT_REJECTED, EXIT_TIMEOUT
 from league.statuses import ENDED, FAILED
 
@@ -18,13 +18,13 @@ def run_race_server(args: argparse.Namespace) -> int:
     with Api(connection(args)) as api:
         created = api.call("POST", "/api/races", json=body)
         print(f"race {created['id']}: {api.conn.server}/races/{created['id']}", file=sys.stderr)
-        deadline = time.monotonic() + args.timeout
+        deadline, delays = time.monotonic() + args.timeout, poll_delays()
         race = api.get(f"/api/races/{created['id']}")
         while race["status"] not in ENDED:
             if time.monotonic() > deadline:
                 raise ClientError(f"race {created['id']} is still {race['status']} after {args.timeout:g} s",
                                   EXIT_TIMEOUT)
-            time.sleep(1.0)
+            time.sleep(next(delays))
             race = api.get(f"/api/races/{created['id']}")
         if race["status"] == FAILED:
             print(f"race {race['id']} failed: {race['error']}")

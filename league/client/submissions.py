@@ -12,7 +12,7 @@ import time
 from pathlib import Path
 from typing import TYPE_CHECKING
 
-from league.client.api import Api, ClientError, connection
+from league.client.api import Api, ClientError, connection, poll_delays
 from league.client.check import check_files, check_limits, check_report
 from league.client.output import print_table
 from league.exit_codes import EXIT_ERROR, EXIT_OK, EXIT_REJECTED, EXIT_TIMEOUT
@@ -122,7 +122,7 @@ def wait_settled(api: Api, submission_id: int, timeout: float, progress: bool = 
     stages, not episodes: the server tells an evaluation's figures when it is done)."""
     from tqdm import tqdm
 
-    deadline = time.monotonic() + timeout
+    deadline, delays = time.monotonic() + timeout, poll_delays()
     with tqdm(total=len(STAGES), disable=not progress, file=sys.stderr,
               bar_format="{desc} {bar} stage {n}/{total}") as bar:
         while True:
@@ -138,7 +138,7 @@ def wait_settled(api: Api, submission_id: int, timeout: float, progress: bool = 
             if time.monotonic() > deadline:
                 raise ClientError(f"submission {submission_id} is still {now} after {timeout:g} s; "
                                   f"see `league submissions`", EXIT_TIMEOUT)
-            time.sleep(1.0)
+            time.sleep(next(delays))
 
 
 def report_submission(submission: dict, as_json: bool) -> int:
