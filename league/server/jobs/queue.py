@@ -54,7 +54,11 @@ class JobQueue:
         self.wakeup = Wakeup()
         self.notifies = engine.dialect.name == "postgresql"
         self.watched = sqlite_files(engine)
-        self.listens = self.notifies or bool(self.watched)  # whether `listen` has anything to listen to
+
+    @property
+    def listens(self) -> bool:
+        """Whether `listen` has anything to listen to: NOTIFY, or the SQLite database's files."""
+        return self.notifies or bool(self.watched)
 
     def enqueue(self, job_id: int) -> None:
         self.wakeup.wake()
@@ -87,7 +91,6 @@ class JobQueue:
             except Exception as error:  # noqa: BLE001 - an outage: the poll carries on; try again later
                 log.warning("job notifications: %s; polling only, listening again in %g s", error, RECONNECT_S)
                 stop.wait(RECONNECT_S)
-
 
     def _watch(self, stop: threading.Event) -> None:
         """Wake the job threads whenever the SQLite database's files changed since the last look: any

@@ -58,8 +58,11 @@ def league(backend, tmp_path):
     migrate(engine)
     workers: list[Worker] = []
 
-    def start_worker(threads: int = 2, **changed) -> Worker:
-        context = WorkerContext(settings.model_copy(update=changed), make_sessionmaker(engine), JobQueue(engine),
+    def start_worker(threads: int = 2, watch: bool = True, **changed) -> Worker:
+        queue = JobQueue(engine)
+        if not watch:
+            queue.watched = ()  # no listener on SQLite: only the poll finds a job
+        context = WorkerContext(settings.model_copy(update=changed), make_sessionmaker(engine), queue,
                                 BlobStore(settings.data_dir), handlers={"count": handler})
         worker = Worker(context, threads=threads, prepare_thread=lambda settings: None)
         worker.start()
@@ -86,12 +89,14 @@ def statuses(sessions, ids: list[int]) -> set[str]:
 
 def test_a_job_inserted_without_a_wake_up_runs_within_a_poll(league):
     start_worker, sessions, handler = league
-    start_worker()
+    worker = start_worker(watch=False)
+    generation = worker.context.queue.wakeup.generation
     ids = insert_jobs(sessions, 3)
-    # the default polls are 0.5 s (SQLite, whose commit also wakes the worker) and 2 s (PostgreSQL): 10 s
-    # is a bound for a loaded machine
+    # the default polls are 0.5 s (SQLite) and 2 s (PostgreSQL): 10 s is a bound for a loaded machine
     wait_for(lambda: statuses(sessions, ids), lambda found: found == {DONE}, timeout=10)
     assert handler.runs == Counter({job_id: 1 for job_id in ids})
+    if not worker.context.queue.listens:
+        assert worker.context.queue.wakeup.generation == generation  # nothing woke it: its poll found them
 
 
 def test_on_sqlite_another_connections_commit_wakes_the_workers(backend, league):
