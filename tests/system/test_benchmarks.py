@@ -138,8 +138,8 @@ def test_server_evaluation(tmp_path):
 
     f = bench_server.bench_evaluation(thesis_actor(tmp_path), episodes=2)
     assert f.episodes == 2 and 0 <= f.completed <= 2
-    assert positive(f.first_sandbox_s, f.plain_s, f.lockstep_s, f.cached_lockstep_s, f.sandboxed_s,
-                    f.cached_sandboxed_s)
+    assert positive(f.first_sandbox_s, f.sandbox_start_s, f.plain_s, f.lockstep_s, f.cached_lockstep_s,
+                    f.sandboxed_s, f.cached_sandboxed_s)
     bench_server.report_evaluation(f)
 
 

@@ -28,25 +28,34 @@ def fork_servers(worker: int) -> list[int]:
     return found
 
 
+def served_runtime(pid: int) -> str:
+    """The runtime a fork server serves: the argument after its control socket's fd."""
+    command = Path(f"/proc/{pid}/cmdline").read_bytes().split(b"\0")
+    return command[command.index(b"--fork-server") + 2].decode()
+
+
 def has_torch(pid: int) -> bool:
     return "libtorch_cpu" in Path(f"/proc/{pid}/maps").read_text()
 
 
 def test_a_new_workers_job_threads_prepare_torch_before_their_first_job(tmp_path):
-    """Each job thread starts its fork server when the worker starts, at the jobs' nice value, and the
-    server prepares every runtime (a tiny model of each, run) while no job asks: the first
-    TorchScript model a new worker sees waits for no import of torch (35 s of a first upload's
-    47.8 s on a busy machine, issue 25). The isolation probe's own fork server is gone."""
+    """Each job thread starts its fork servers when the worker starts, one per runtime, at the jobs'
+    nice value, and the TorchScript one prepares torch (a tiny model, run) while no job asks: the
+    first TorchScript model a new worker sees waits for no import of torch (35 s of a first
+    upload's 47.8 s on a busy machine, issue 25). The ONNX one holds no torch (an ONNX sandbox
+    forked from it starts faster). The isolation probe's own fork servers are gone."""
     with fresh_backend("sqlite", tmp_path) as database_url:
         server = make_server(tmp_path, database_url, LEAGUE_WORKER_THREADS="2", LEAGUE_JOB_NICE="10")
         worker = server.start_worker()
         try:
             servers = wait_for(lambda: fork_servers(worker.pid),
-                               lambda pids: len(pids) == 2 and all(has_torch(pid) for pid in pids), timeout=240)
+                               lambda pids: len(pids) == 4 and sum(map(has_torch, pids)) == 2, timeout=240)
+            runtimes = sorted(served_runtime(pid) for pid in servers)
             nice = {int(Path(f"/proc/{pid}/stat").read_text().rsplit(")", 1)[1].split()[16]) for pid in servers}
             threads = {len(list(Path(f"/proc/{pid}/task").iterdir())) for pid in servers}
         finally:
             server.stop_all()
+    assert runtimes == [".onnx", ".onnx", ".pt", ".pt"]
     assert nice == {10}  # their sandboxes inherit it
     assert threads == {1}  # prepared, still forkable: torch and onnxruntime started no thread
 

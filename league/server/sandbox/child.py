@@ -1,8 +1,8 @@
 """The sandbox process: loads one untrusted model and answers observation batches over a pipe.
 
-Forked by the fork server (`python -s -B -P child.py --fork-server FD`, which
-league.server.sandbox.process starts once per job thread and which has loaded and run a tiny model
-of each runtime) as if run as `child.py MODEL MEMORY_MB CPU_S USER` in a private temporary
+Forked by a fork server (`python -s -B -P child.py --fork-server FD RUNTIME`, which
+league.server.sandbox.process starts once per job thread and runtime, and which has loaded and run a
+tiny model of its runtime) as if run as `child.py MODEL MEMORY_MB CPU_S USER` in a private temporary
 directory that holds only the model. Before it reads the model it limits itself (CPU time, open
 files, file size, no core dumps), leaves the network (a new, empty network namespace), drops root
 to USER, and forbids regaining privileges; after its runtime is imported it caps its address
@@ -19,6 +19,7 @@ from __future__ import annotations
 
 import contextlib
 import ctypes
+import functools
 import importlib
 import importlib.util
 import json
@@ -42,7 +43,7 @@ LINUX_CAPABILITY_VERSION_3 = 0x20080522
 MAX_OPEN_FILES = 64
 MAX_FILE_WRITE = 1024 * 1024  # bytes a model may write (it has no reason to write at all)
 MAX_THREADS = 64  # of a sandbox's own user id
-IDLE_BEFORE_PREPARING_S = 1.0  # a fork server prepares its other runtimes once no request came for this long
+IDLE_BEFORE_PREPARING_S = 1.0  # a job thread's TorchScript server prepares torch once no request came for this long
 # The runtimes installed here (so to sandboxes), by the suffix of the model file the server names them by
 RUNTIMES = {suffix: all(importlib.util.find_spec(module) for module in modules)
             for suffix, modules in ((".onnx", ("onnx", "onnxruntime")), (".pt", ("torch",)))}
@@ -77,8 +78,8 @@ DENIED_SYSCALLS = (
     "capset",  # identities, once the sandbox has its own
 )
 # System calls that act on the process one of their arguments names (0: the caller), and which argument:
-# refused for every process but the sandbox itself, 0 or its pid. (seccomp cannot tell the ids of its
-# threads from other processes'; the runtimes, on one thread, call these on 0 only.)
+# refused for every process but the sandbox itself, named 0 (its own pid and its threads' ids are
+# refused like any other: the runtimes, on one thread, call these on 0 only).
 ON_A_PROCESS = {"prlimit64": 0, "sched_setaffinity": 0, "sched_setattr": 0, "sched_setscheduler": 0,
                 "sched_setparam": 0, "migrate_pages": 0, "move_pages": 0, "get_robust_list": 0,
                 "setpriority": 1, "ioprio_set": 1}
@@ -86,7 +87,7 @@ ON_A_PROCESS = {"prlimit64": 0, "sched_setaffinity": 0, "sched_setattr": 0, "sch
 # process group or a user (every process of the server's user)
 PRIO_PROCESS, IOPRIO_WHO_PROCESS = 0, 1
 ONLY_A_PROCESS = {"setpriority": PRIO_PROCESS, "ioprio_set": IOPRIO_WHO_PROCESS}
-ALL_BITS = (1 << 64) - 1  # seccomp compares a system call's arguments as 64-bit values
+LIBC = ctypes.CDLL(None, use_errno=True)
 
 
 # --------------------------------------------------------------------------- isolation
@@ -117,10 +118,9 @@ def isolate_network(user_namespace: bool = True) -> str:
     unprivileged ones. Where neither works (e.g. Docker's default seccomp profile), the sandbox runs
     with proxies unset, seccomp refusing sockets, and reports "unavailable".
     """
-    libc = ctypes.CDLL(None, use_errno=True)
-    if libc.unshare(CLONE_NEWNET) == 0:
+    if LIBC.unshare(CLONE_NEWNET) == 0:
         return "namespace"
-    if user_namespace and libc.unshare(CLONE_NEWUSER | CLONE_NEWNET) == 0:
+    if user_namespace and LIBC.unshare(CLONE_NEWUSER | CLONE_NEWNET) == 0:
         return "user-namespace"
     return "unavailable"
 
@@ -152,29 +152,29 @@ def drop_capabilities() -> None:
     class Data(ctypes.Structure):
         _fields_ = [("effective", ctypes.c_uint32), ("permitted", ctypes.c_uint32), ("inheritable", ctypes.c_uint32)]
 
-    libc = ctypes.CDLL(None, use_errno=True)
-    if libc.capset(ctypes.byref(Header(LINUX_CAPABILITY_VERSION_3, 0)), (Data * 2)()) != 0:
+    if LIBC.capset(ctypes.byref(Header(LINUX_CAPABILITY_VERSION_3, 0)), (Data * 2)()) != 0:
         raise OSError(ctypes.get_errno(), "capset failed: cannot drop root's capabilities")
 
 
 def die_with_the_server(server: int) -> None:
     """The parent-death signal, set after leaving root (a change of user clears it), then a check that
     the server did not die before it was set."""
-    libc = ctypes.CDLL(None, use_errno=True)
-    libc.prctl(PR_SET_PDEATHSIG, signal.SIGKILL)
+    LIBC.prctl(PR_SET_PDEATHSIG, signal.SIGKILL)
     if os.getppid() != server:
         os._exit(1)
-    libc.prctl(PR_SET_NO_NEW_PRIVS, 1, 0, 0, 0)
+    LIBC.prctl(PR_SET_NO_NEW_PRIVS, 1, 0, 0, 0)
 
 
-def read_roots() -> list[str]:
+@functools.cache
+def read_roots() -> tuple[str, ...]:
     """What a sandbox may read: this Python (its prefixes, standard library and site-packages, never
     a path a .pth file added), our package, the system's shared libraries, and the CPU description
-    the runtimes read. Everything else (the data directory, other sandboxes, /etc, /tmp) is denied."""
+    the runtimes read. Everything else (the data directory, other sandboxes, /etc, /tmp) is denied.
+    Found once by the fork server (sysconfig's first answer costs a sandbox's start several ms)."""
     paths = sysconfig.get_paths()
     roots = {sys.base_prefix, sys.base_exec_prefix, paths["stdlib"], paths["platstdlib"], paths["purelib"],
              paths["platlib"], str(LEAGUE_DIR), *SYSTEM_READ}
-    return sorted(root for root in roots if os.path.exists(root))
+    return tuple(sorted(root for root in roots if os.path.exists(root)))
 
 
 def files_ruleset() -> tuple[int, int]:
@@ -190,7 +190,7 @@ def files_ruleset() -> tuple[int, int]:
     try:
         read_dir, read_file = LANDLOCK_FS["execute"][0] | LANDLOCK_FS["read_file"][0], LANDLOCK_FS["read_file"][0]
         read_dir |= LANDLOCK_FS["read_dir"][0]
-        for root in read_roots() + ["/proc/self"]:
+        for root in (*read_roots(), "/proc/self"):
             _allow(fd, root, read_dir if os.path.isdir(root) else read_file)
         _allow(fd, ".", fs_rights)
         _allow(fd, os.devnull, read_file | LANDLOCK_FS["write_file"][0])
@@ -228,8 +228,7 @@ def _allow(ruleset_fd: int, path: str, rights: int) -> None:
 
 def _landlock(call: int, *args) -> int:
     """landlock_create_ruleset (0), landlock_add_rule (1), landlock_restrict_self (2), checked."""
-    libc = ctypes.CDLL(None, use_errno=True)
-    result = libc.syscall(ctypes.c_long(SYS_LANDLOCK_CREATE_RULESET + call), *args)
+    result = LIBC.syscall(ctypes.c_long(SYS_LANDLOCK_CREATE_RULESET + call), *args)
     if result < 0:
         error = ctypes.get_errno()
         raise OSError(error, f"Landlock ({('create_ruleset', 'add_rule', 'restrict_self')[call]}): "
@@ -245,36 +244,35 @@ def restrict_syscalls() -> None:
 
     import pyseccomp as seccomp
 
+    rules = syscall_rules()  # (a copy of the fork server's, in a sandbox it forked)
+    own = os.getpid()
+    rules.add_rule(seccomp.ERRNO(errno.EPERM), "tgkill", seccomp.Arg(0, seccomp.NE, own))  # signals to itself only
+    rules.load()
+
+
+@functools.cache
+def syscall_rules():
+    """The rules that name no process: built once per fork server, since libseccomp takes several ms
+    of a sandbox's start for them. A system call ON_A_PROCESS is refused unless its argument is 0:
+    the sandbox itself by the only name that is the same in every sandbox."""
+    import errno
+
+    import pyseccomp as seccomp
+
     rules = seccomp.SyscallFilter(seccomp.ALLOW)
     refuse = seccomp.ERRNO(errno.EPERM)
     for name in DENIED_SYSCALLS:
         with contextlib.suppress(RuntimeError, ValueError):  # a syscall this architecture does not have
             rules.add_rule(refuse, name)
-    own = os.getpid()
     for name, argument in ON_A_PROCESS.items():
         if name in ONLY_A_PROCESS:
             rules.add_rule(refuse, name, seccomp.Arg(0, seccomp.NE, ONLY_A_PROCESS[name]))
-        # a rule compares an argument once, and rules of one action are alternatives: "neither 0 nor
-        # our pid" is "above our pid, or in one of the blocks that tile 1 .. pid - 1"
-        rules.add_rule(refuse, name, seccomp.Arg(argument, seccomp.GT, own))
-        for mask, value in blocks_between_zero_and(own):
-            rules.add_rule(refuse, name, seccomp.Arg(argument, seccomp.MASKED_EQ, mask, value))
-    rules.add_rule(refuse, "tgkill", seccomp.Arg(0, seccomp.NE, own))  # signals to itself only
+        rules.add_rule(refuse, name, seccomp.Arg(argument, seccomp.NE, 0))
     rules.add_rule(refuse, "clone", seccomp.Arg(0, seccomp.MASKED_EQ, CLONE_THREAD, 0))  # threads, no processes
     for flag in CLONE_NAMESPACES:
         rules.add_rule(refuse, "clone", seccomp.Arg(0, seccomp.MASKED_EQ, flag, flag))
     rules.add_rule(seccomp.ERRNO(errno.ENOSYS), "clone3")  # its flags are out of reach: glibc falls back to clone
-    rules.load()
-
-
-def blocks_between_zero_and(pid: int) -> list[tuple[int, int]]:
-    """(mask, value) pairs such that `x & mask == value` for one of them exactly when 0 < x < pid:
-    the aligned blocks [2**b, 2**(b+1)) below pid's highest bit, then, for each lower bit b that pid
-    has, the values that equal pid above b and have 0 at b."""
-    top = pid.bit_length() - 1
-    below_top = [(ALL_BITS ^ ((1 << bit) - 1), 1 << bit) for bit in range(top)]
-    under_pid = [(ALL_BITS ^ ((1 << bit) - 1), pid >> (bit + 1) << (bit + 1)) for bit in range(top) if pid >> bit & 1]
-    return below_top + under_pid
+    return rules
 
 
 def single_thread_environment() -> None:
@@ -347,33 +345,36 @@ def run_tiny_model(path: Path) -> None:
 # --------------------------------------------------------------------------- fork server
 
 
-def fork_server(control_fd: int, prepare_all: bool = False) -> int:
-    """Prepare the runtimes once, then fork one sandbox per request: a start costs a fork and a
-    model load instead of a new interpreter and its imports (~0.25 s of CPU per sandbox).
+def fork_server(control_fd: int, runtime: str, prepare_when_idle: bool = False) -> int:
+    """Prepare one runtime once (`runtime`, its models' suffix), then fork one sandbox per request:
+    a start costs a fork and a model load instead of a new interpreter and its imports (~0.25 s of
+    CPU per sandbox). One runtime per server: a fork copies the server's page tables, and an ONNX
+    sandbox forked from a server that also holds torch starts in 1.7x the time.
 
     Requests on the control socket (SOCK_SEQPACKET, JSON): {"args", "workdir", "env"} with the
     sandbox's stdin, stdout and stderr as SCM_RIGHTS fds -> {"pid"}; {"wait": pid} -> {"status":
     exit code, -signal, or null while it runs}. A child stays a zombie until it is waited for, so
     its pid cannot be reused while the parent holds it. Ends when the control socket closes.
     ONNX is prepared at once; TorchScript before the first sandbox that needs it or, with
-    `prepare_all` (a worker's job threads), once no request came for IDLE_BEFORE_PREPARING_S (a
-    backlog of jobs at a worker's start is served first).
+    `prepare_when_idle` (a worker's job threads), once no request came for IDLE_BEFORE_PREPARING_S.
     """
     import select
     import socket
     import traceback
 
-    libc = ctypes.CDLL(None, use_errno=True)
-    libc.prctl(PR_SET_PDEATHSIG, signal.SIGKILL)  # the worker's thread ended: so does this server
+    LIBC.prctl(PR_SET_PDEATHSIG, signal.SIGKILL)  # the worker's thread ended: so does this server
     keep_our_nice_in_our_autogroup()  # (started in a session of its own)
     single_thread_environment()  # before numpy: a fork must find one thread
     preload_runtimes()
+    if runtime == ".onnx":
+        prepare_runtime(runtime)
     control = socket.socket(fileno=control_fd)
-    unprepared = [suffix for suffix in RUNTIMES if prepare_all and suffix not in PREPARED]
+    unprepared = prepare_when_idle and runtime not in PREPARED
     while True:
         if unprepared and not select.select([control], [], [], IDLE_BEFORE_PREPARING_S)[0]:
+            unprepared = False
             try:
-                prepare_runtime(unprepared.pop())
+                prepare_runtime(runtime)
             except Exception:  # tried again (and this server ends) when a sandbox needs it
                 traceback.print_exc()
             continue
@@ -386,23 +387,22 @@ def fork_server(control_fd: int, prepare_all: bool = False) -> int:
             reply = {"status": os.waitstatus_to_exitcode(status) if pid else None}
         else:
             model = request["args"][0]
-            for suffix in RUNTIMES if model == "--probe" else [Path(model).suffix]:
-                prepare_runtime(suffix)  # once, before the first sandbox that uses it
+            prepare_runtime(runtime if model == "--probe" else Path(model).suffix)  # once, before its first sandbox
             reply = {"pid": fork_sandbox(request, fds, control)}
         control.send(json.dumps(reply).encode())
 
 
 def preload_runtimes() -> None:
-    """What every sandbox imports, then ONNX prepared (prepare_runtime): none of it starts a thread
-    (onnxruntime only with its telemetry off), and neither does torch, prepared later."""
+    """What every sandbox imports and the parts of its confinement that are the same in every
+    sandbox: no runtime yet, and none of it starts a thread (nor do the runtimes, prepared next:
+    onnxruntime only with its telemetry off)."""
     import encodings.cp437  # noqa: F401  (zipfile's, for names in archives that do not say UTF-8)
     import traceback  # noqa: F401  (a sandbox's unexpected failure is printed with it)
 
-    import pyseccomp  # noqa: F401  (what every sandbox confines itself with)
-
+    read_roots()
+    syscall_rules()
     for module in ("league.agents", "league.validation.loading", "league.validation.checks"):  # agents: numpy
         importlib.import_module(module)
-    prepare_runtime(".onnx")
 
 
 def set_autogroup_nice(nice: int, pid: int | str = "self", wait_s: float = 2.0) -> None:
@@ -451,7 +451,7 @@ def fork_sandbox(request: dict, fds: list[int], control) -> int:
         os.chdir(request["workdir"])
         os.environ.clear()
         os.environ.update(request["env"])
-        ctypes.CDLL(None, use_errno=True).prctl(PR_SET_PDEATHSIG, signal.SIGKILL)  # the server dies: so do we
+        LIBC.prctl(PR_SET_PDEATHSIG, signal.SIGKILL)  # the server dies: so do we
         if os.getppid() == server:  # (it did not die before the line above)
             code = run_sandbox(request["args"], server)
     except BaseException:
@@ -573,15 +573,15 @@ def main(argv: list[str]) -> int:
     # the sandbox's, off the path; a worker may run from a checkout).
     if str(LEAGUE_DIR.parent) not in sys.path:
         sys.path.insert(0, str(LEAGUE_DIR.parent))
-    if argv[1:2] == ["--fork-server"]:
-        return fork_server(int(argv[2]), prepare_all="--prepare-all" in argv[3:])
+    if argv[1:2] == ["--fork-server"]:  # --fork-server FD RUNTIME [--prepare-when-idle]
+        return fork_server(int(argv[2]), argv[3], prepare_when_idle="--prepare-when-idle" in argv[4:])
     return run_sandbox(argv[1:], os.getppid())
 
 
 def run_sandbox(args: list[str], server: int) -> int:
     """Serve one model: MODEL MEMORY_MB CPU_S UID_BASE, the protocol on stdin/stdout; `server` is the
-    process it must not outlive. With MODEL "--probe", confine, run the tiny model of each runtime
-    and report how the sandbox is isolated."""
+    process it must not outlive. With MODEL "--probe", confine, run the tiny model of the runtime
+    its server prepared and report how the sandbox is isolated."""
     from league.validation.loading import failure_reason
 
     model, memory_mb, cpu_seconds, uid_base = args[0], int(args[1]), int(args[2]), int(args[3])
@@ -619,7 +619,7 @@ def confine(cpu_seconds: int, uid_base: int, server: int) -> dict:
 
 
 def probe_runtimes() -> dict:
-    """Under the sandbox's confinement, load and run the tiny model of each runtime its server
+    """Under the sandbox's confinement, load and run the tiny model of the runtime its server
     prepared (does this install let sandboxes load models?), and say whether the sandbox's user can
     read its runtime's files or uses them as its server loaded them."""
     for suffix, data in PREPARED.items():

@@ -1,12 +1,12 @@
 """The sandbox process seen from the worker: starting it (a fork server per thread), who it runs
 as, its environment and directory, and the pipe protocol of league/server/sandbox/child.py.
 
-Each thread that starts sandboxes has a `ForkServer`, a child.py process that has loaded and run a
-tiny model of each runtime once and forks a sandbox per model (one start is a fork and a model
-load, ~0.03 s, instead of a new interpreter, ~0.25 s, and torch's import, ~2.5 s). A worker's job
-threads start theirs when they start (ForkServer.prepare_this_thread). The server dies with its
-thread and takes its sandboxes with it (the kernel's parent-death signal, which follows the
-starting thread).
+Each thread that starts sandboxes has a `ForkServer` per runtime, a child.py process that has
+loaded and run a tiny model of that runtime once and forks a sandbox per model (one start is a fork
+and a model load, ~0.015 s for ONNX, instead of a new interpreter, ~0.25 s, and torch's import,
+~2.5 s). A worker's job threads start theirs when they start (ForkServer.prepare_this_thread). A
+server dies with its thread and takes its sandboxes with it (the kernel's parent-death signal,
+which follows the starting thread).
 Sandboxes run on the CPUs their thread may use when they start (see league.server.jobs.placement).
 """
 from __future__ import annotations
@@ -107,12 +107,12 @@ class SandboxProcess:
         uid_base = isolation(limits).uid_base  # before the directory: a refusal leaves nothing behind
         self.workdir = Path(tempfile.mkdtemp(prefix="league-sandbox-"))
         try:
-            model_name = "model.onnx" if model_kind == "onnx" else "model.pt"
+            runtime = ".onnx" if model_kind == "onnx" else ".pt"
+            model_name = f"model{runtime}"
             shutil.copyfile(model_file, self.workdir / model_name)
             os.chmod(self.workdir / model_name, 0o644)  # readable by the sandbox's own user
-            self.proc = ForkServer.of_this_thread().spawn([model_name, str(limits.memory_mb), str(limits.cpu_seconds),
-                                                           str(uid_base)], self.workdir,
-                                                          _child_environment(self.workdir))
+            args = [model_name, str(limits.memory_mb), str(limits.cpu_seconds), str(uid_base)]
+            self.proc = ForkServer.of_this_thread(runtime).spawn(args, self.workdir, _child_environment(self.workdir))
         except BaseException:
             shutil.rmtree(self.workdir, ignore_errors=True)
             raise
@@ -295,44 +295,53 @@ class AnswerReader:
 
 
 class ForkServer:
-    """child.py's fork server: one per thread that starts sandboxes, since the kernel's
-    parent-death signal follows the thread that started a process; it ends with that thread."""
+    """child.py's fork server for one runtime (its models' suffix): one per thread that starts
+    sandboxes and runtime, since the kernel's parent-death signal follows the thread that started a
+    process; it ends with that thread."""
 
     _threads = threading.local()
 
     @classmethod
-    def of_this_thread(cls) -> ForkServer:
-        server = getattr(cls._threads, "server", None)
+    def of_this_thread(cls, runtime: str) -> ForkServer:
+        servers = cls._servers()
+        server = servers.get(runtime)
         if server is None or server.proc.poll() is not None:
-            server = cls._threads.server = cls(prepare_all=getattr(cls._threads, "prepare_all", False))
+            server = servers[runtime] = cls(runtime, prepare_when_idle=getattr(cls._threads, "prepare", False))
         return server
 
     @classmethod
+    def _servers(cls) -> dict[str, ForkServer]:
+        if not hasattr(cls._threads, "servers"):
+            cls._threads.servers = {}
+        return cls._threads.servers
+
+    @classmethod
     def prepare_this_thread(cls) -> None:
-        """Start this thread's server now, and have it (and any that replaces it) prepare every runtime
-        while no sandbox is asked for: a worker's job thread, so that its first TorchScript model
-        waits for no import of torch. Costs each job thread torch's memory from the start."""
-        cls._threads.prepare_all = True
-        cls.of_this_thread()
+        """Start this thread's servers now, one per installed runtime, and have the TorchScript one
+        (and any that replaces it) prepare torch while no sandbox is asked for: a worker's job thread,
+        so that its first TorchScript model waits for no import of torch. Costs each job thread
+        torch's memory from the start."""
+        cls._threads.prepare = True
+        for runtime in installed_runtimes():
+            cls.of_this_thread(runtime)
 
     @classmethod
     def release_this_thread(cls) -> None:
-        """End this thread's server: the thread starts no more sandboxes (it only probed isolation)."""
-        server = getattr(cls._threads, "server", None)
-        if server is not None:
-            cls._threads.server = None
-            server.close()
+        """End this thread's servers: the thread starts no more sandboxes (it only probed isolation)."""
+        servers = cls._servers()
+        while servers:
+            servers.popitem()[1].close()
 
-    def __init__(self, prepare_all: bool = False):
+    def __init__(self, runtime: str, prepare_when_idle: bool = False):
         ours, theirs = socket.socketpair(socket.AF_UNIX, socket.SOCK_SEQPACKET)
         home = Path(tempfile.gettempdir())
         with theirs:
             self.proc = subprocess.Popen(
-                [sys.executable, "-s", "-B", "-P", str(CHILD_SCRIPT), "--fork-server", str(theirs.fileno()),
-                 *(["--prepare-all"] if prepare_all else [])],
+                [sys.executable, "-s", "-B", "-P", str(CHILD_SCRIPT), "--fork-server", str(theirs.fileno()), runtime,
+                 *(["--prepare-when-idle"] if prepare_when_idle else [])],
                 cwd="/", env=_child_environment(home), stdin=subprocess.DEVNULL, stdout=subprocess.DEVNULL,
                 pass_fds=[theirs.fileno()], start_new_session=True)
-        self.control = ours
+        self.runtime, self.control = runtime, ours
         self.control.settimeout(FORK_SERVER_TIMEOUT_S)
         self.cpus = os.sched_getaffinity(0)  # the thread's, inherited by the server
         self._lock = threading.Lock()
@@ -536,12 +545,22 @@ def _probe_isolation(uid_base: int) -> Isolation:
 
 
 def _run_probe(uid_base: int) -> dict | str:
-    """A sandbox without a model: confined as sandboxes are, it loads and runs a tiny model of each
-    runtime and says how it is isolated (a dict), or fails (the reason)."""
+    """Sandboxes without a model, one from each runtime's fork server: confined as sandboxes are,
+    each loads and runs a tiny model of its runtime and says how it is isolated. Their findings
+    together (a dict), or the first failure (the reason)."""
+    found = [_probe_one(runtime, uid_base) for runtime in installed_runtimes() or [".onnx"]]
+    failures = [one for one in found if isinstance(one, str)]
+    if failures:
+        return failures[0]
+    return {**found[0], "runtimes": sorted({kind for one in found for kind in one["runtimes"]}),
+            "runtime": "preloaded" if any(one["runtime"] == "preloaded" for one in found) else "readable"}
+
+
+def _probe_one(runtime: str, uid_base: int) -> dict | str:
     workdir = Path(tempfile.mkdtemp(prefix="league-probe-"))
     try:
-        proc = ForkServer.of_this_thread().spawn(["--probe", "0", "600", str(uid_base)], workdir,
-                                                 _child_environment(workdir))
+        proc = ForkServer.of_this_thread(runtime).spawn(["--probe", "0", "600", str(uid_base)], workdir,
+                                                        _child_environment(workdir))
         with proc.stdout, proc.stderr, proc.stdin:
             tag, message = proc.stdout.read(1), proc.stdout.read()
             errors = proc.stderr.read().decode(errors="replace").strip()
@@ -555,3 +574,8 @@ def _run_probe(uid_base: int) -> dict | str:
         lines = (text or errors).strip().splitlines()
         return lines[-1] if lines else "the probe sandbox died"
     return json.loads(text)["isolation"]
+
+
+def installed_runtimes() -> list[str]:
+    """The model suffixes whose runtime is installed here (so in sandboxes)."""
+    return [suffix for suffix, installed in child.RUNTIMES.items() if installed]

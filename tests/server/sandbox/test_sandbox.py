@@ -228,7 +228,7 @@ def wait_gone(pids: list[int], timeout: float = 10) -> list[int]:
 
 def test_sandboxes_are_forked_from_a_single_threaded_server_that_reaps_them(files):
     agents = [SandboxedAgent(files["good"], "onnx", FAST) for _ in range(3)]
-    server = ForkServer.of_this_thread()
+    server = ForkServer.of_this_thread(".onnx")
     try:
         assert len(os.listdir(f"/proc/{server.proc.pid}/task")) == 1  # forking a threaded process is unsafe
         assert [a._process.proc.pid in children(server.proc.pid) for a in agents] == [True] * 3
@@ -259,7 +259,7 @@ def test_sandboxes_end_with_the_thread_that_started_them(files):
 
     def start():
         started["agent"] = SandboxedAgent(files["good"], "onnx", FAST)
-        started["server"] = ForkServer.of_this_thread().proc.pid
+        started["server"] = ForkServer.of_this_thread(".onnx").proc.pid
 
     thread = threading.Thread(target=start)
     thread.start()
@@ -280,7 +280,7 @@ def test_nothing_outlives_a_killed_worker(files, tmp_path):
               "from league.validation.limits import SandboxLimits\n"
               "from league.server.sandbox.process import ForkServer\n"
               "agent = SandboxedAgent(sys.argv[1], 'onnx', SandboxLimits(load_cpu_s=20))\n"
-              "print(ForkServer.of_this_thread().proc.pid, agent._process.proc.pid, flush=True)\n"
+              "print(ForkServer.of_this_thread('.onnx').proc.pid, agent._process.proc.pid, flush=True)\n"
               "os.kill(os.getpid(), signal.SIGKILL)\n")
     result = subprocess.run([sys.executable, "-c", script, str(files["good"])], capture_output=True, text=True,
                             timeout=60, env={**os.environ, "PYTHONPATH": str(Path(__file__).resolve().parents[3])})
