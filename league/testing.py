@@ -304,6 +304,25 @@ def torchscript_mlp(path: Path, in_dim: int = 5, seed: int = 0) -> Path:
     return path
 
 
+def torchscript_raises_when_close(path: Path, distance: float = 0.05) -> Path:
+    """The thesis driver, scripted, raising when a batch holds an observation with something closer
+    ahead than `distance` (observation[2]): a model that fails on some observations only."""
+    import torch
+
+    class RaisesWhenClose(torch.nn.Module):
+        def __init__(self, driver: torch.nn.Module, distance: float):
+            super().__init__()
+            self.driver, self.distance = driver, distance
+
+        def forward(self, obs: torch.Tensor) -> torch.Tensor:
+            if bool(obs[:, 2].min() < self.distance):
+                raise RuntimeError("too close to a wall")
+            return self.driver(obs)
+
+    torch.jit.script(RaisesWhenClose(thesis_driver(), distance)).save(str(path))
+    return path
+
+
 def torchscript_fixed_batch(module, path: Path, obs_dim: int = 5) -> Path:
     """A torch policy traced for one observation at a time (wrapped in `BatchOfOne`): a batch of 2
     is an error, as in many students' exports."""

@@ -7,7 +7,8 @@ bank of `first_call_allowance` spent by calls that overrun it (warm-up, JIT), wi
 for the whole run. CPU time, not wall time: a model gets the same result on a quiet machine and
 on a busy one. A call over its budget, a crash, a NaN or a model exception raises
 `AgentError(reason)` -- a DNF -- and a dead or killed child is restarted for the next call, at
-most `max_restarts` times.
+most `max_restarts` times. A NaN or an exception of the model is isolable (the sandbox answered):
+an evaluation fails only the observations that fail, as in process.
 """
 from __future__ import annotations
 
@@ -89,7 +90,10 @@ class SandboxedAgent(Agent):
             try:
                 return process.receive_actions(budget)
             except SandboxFailure as failure:
-                raise AgentError(self._failure_reason(failure, budget, rows)) from failure
+                # the model's own failure on these observations (an answer, the sandbox lives on) is
+                # isolable, as in-process: metrics_run asks again row by row and fails only the rows
+                # that fail, as `league evaluate` does
+                raise AgentError(self._failure_reason(failure, budget, rows), isolable=not failure.fatal) from failure
             finally:
                 allowance.account(budget.used(), rows)
 

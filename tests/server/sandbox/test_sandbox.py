@@ -1,6 +1,7 @@
 """The sandbox process on its own: deadlines, restarts, isolation, logs."""
 from __future__ import annotations
 
+import functools
 import json
 import os
 import signal
@@ -16,6 +17,7 @@ import pytest
 
 from league import testing as mf
 from league.agents import AgentError, dry_run_observations
+from league.evaluation import metrics_run
 from league.server.sandbox.agent import SandboxedAgent
 from league.server.sandbox.log import LogBuffer
 from league.server.sandbox.process import ForkServer, Isolation, IsolationUnavailable, _child_environment
@@ -42,6 +44,26 @@ def test_sandboxed_agent_answers_like_the_model(files):
     with SandboxedAgent(files["good"], "onnx", FAST) as agent:
         assert (agent.obs_dim, agent.name) == (5, "submission")
         np.testing.assert_array_equal(agent(obs(3)), load_agent(files["good"])(obs(3)))
+
+
+@pytest.mark.parametrize("make, kind, reason", [
+    (functools.partial(mf.onnx_nan_when_straight, threshold=-0.5), "onnx", "the model returned NaN or infinite"),
+    (mf.torchscript_raises_when_close, "torchscript", "the model raised"),
+])
+def test_a_model_failing_on_some_observations_fails_only_those_episodes_as_in_process(tmp_path, make, kind, reason):
+    """The sandbox's answer "the model failed on these observations" is isolable: metrics_run asks
+    again row by row, so the server's figures equal `league evaluate`'s, episode by episode."""
+    from league.agents import load_agent
+
+    model = make(tmp_path / f"flaky{'.onnx' if kind == 'onnx' else '.pt'}")
+    alone = metrics_run(load_agent(model), episodes=12, seed=3)
+    with SandboxedAgent(model, kind, FAST) as agent:
+        boxed = metrics_run(agent, episodes=12, seed=3)
+        assert agent.restarts == 0
+    failed = [e for e in boxed.episodes if e.outcome == "dnf"]
+    assert 0 < len(failed) < 12 and all(e.reason.startswith(reason) for e in failed), boxed.episodes
+    assert len({e.steps for e in failed}) > 1  # not all at once, on the first batch that failed
+    assert [e.to_dict() for e in boxed.episodes] == [e.to_dict() for e in alone.episodes]
 
 
 def test_a_call_over_its_cpu_budget_is_a_dnf_then_the_sandbox_restarts_then_gives_up(files):
