@@ -40,8 +40,9 @@ log = logging.getLogger("league.server.sandbox")
 CHILD_SCRIPT = Path(child.__file__).resolve()
 HEADER, LENGTH = child.HEADER, child.LENGTH
 MAX_MESSAGE = 65536
-# A reason the child sends is made plain text again (the child may lie) and kept whole up to this
-# length: the child's reasons are the toolkit's own, of ~300 characters and the exception's type
+# A model's failure on a batch, as the child says it, is made plain text again (the child may lie)
+# and kept whole up to this length: the toolkit's own reason, as `league evaluate` gives it ("the
+# model raised TYPE: " and 300 characters). (A load's failure is cut at 300, as `league check`'s.)
 REASON_CHARS = 1000
 # The child's answers are read into one buffer that holds the largest frame twice over: an action
 # frame of MAX_BATCH rows (9 + 8 * 4096 bytes) or a text message of MAX_MESSAGE bytes (5 + 65536)
@@ -154,7 +155,7 @@ class SandboxProcess:
                 raise SandboxFailure(load_over(self.limits), fatal=True) from failure
             raise
         if tag == b"E":
-            raise SandboxFailure(plain_text(payload.decode("utf-8", errors="replace"), REASON_CHARS), fatal=True)
+            raise SandboxFailure(plain_text(payload.decode("utf-8", errors="replace")), fatal=True)
         return json.loads(payload)
 
     def _send_buffer(self, size: int) -> None:
