@@ -94,7 +94,10 @@ class Rating:
 
 
 def update_ratings(ratings: dict[str, Rating], order: list[str]) -> dict[str, Rating]:
-    """OpenSkill (Plackett-Luce) ratings after one heat, `order` being its classification."""
+    """OpenSkill (Plackett-Luce) ratings after one heat, `order` being its classification. A heat of
+    one entrant (3 entrants in heats of 2 make one) compares no one: its rating stays as it was."""
+    if len(order) < 2:
+        return {e: ratings.get(e, Rating()) for e in order}
     from openskill.models import PlackettLuce
 
     model = PlackettLuce()

@@ -73,3 +73,13 @@ def test_ratings_move_toward_the_order():
     again = update_ratings(ratings, ["c", "b", "a"])
     assert again["c"].mu > ratings["c"].mu and again["a"].mu < ratings["a"].mu
     assert Rating().conservative == pytest.approx(0.0)
+
+
+def test_a_heat_of_one_entrant_leaves_its_rating_as_it_was():
+    """3 entrants in heats of 2 make a heat of one: OpenSkill rates no single team, and nothing is
+    learnt from it (the leaderboard answered 500 on such a round)."""
+    heats = split_into_heats(["a", "b", "c"], 2, np.random.default_rng(3))
+    assert sorted(map(len, heats)) == [1, 2]
+    before = {"a": Rating(30.0, 5.0)}
+    assert update_ratings(before, ["a"]) == {"a": Rating(30.0, 5.0)}
+    assert update_ratings({}, ["z"]) == {"z": Rating()}
