@@ -345,7 +345,7 @@ class ForkServer:
                  *(["--prepare-when-idle"] if prepare_when_idle else [])],
                 cwd="/", env=_child_environment(home), stdin=subprocess.DEVNULL, stdout=subprocess.DEVNULL,
                 pass_fds=[theirs.fileno()], start_new_session=True)
-        self.runtime, self.control = runtime, ours
+        self.control = ours
         self.control.settimeout(FORK_SERVER_TIMEOUT_S)
         self.cpus = os.sched_getaffinity(0)  # the thread's, inherited by the server
         self._lock = threading.Lock()
