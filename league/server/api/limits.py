@@ -65,6 +65,7 @@ class _Guarded:
         self.limit, self.timeout_s, self.min_rate = limit, timeout_s, min_rate
         self.received, self.started, self.refused, self.body_done = 0, False, False, False
         self.first_read_at: float | None = None
+        self.last_arrival: float | None = None  # when the last chunk came (the first read until one has)
 
     async def run(self) -> None:
         try:
@@ -81,15 +82,19 @@ class _Guarded:
         clock = asyncio.get_running_loop().time
         waiting_since = clock()
         self.first_read_at = self.first_read_at or waiting_since
+        self.last_arrival = self.last_arrival or waiting_since
         # past the first timeout, the body so far must have come at min_rate
         allowed = self.first_read_at + self.timeout_s + self.received / self.min_rate - waiting_since
         try:
             message = await asyncio.wait_for(self._receive(), max(0.0, min(self.timeout_s, allowed)))
         except asyncio.TimeoutError:
-            if clock() - waiting_since >= self.timeout_s:  # said by what happened, not by which bound was nearer
+            # said by what the client did: silent since its last chunk (not since this read, which a
+            # busy loop may start late) for the whole timeout, or sending, but too slowly
+            if clock() - self.last_arrival >= self.timeout_s:
                 return await self.refuse(408, f"the request body stopped arriving for {self.timeout_s:g} s")
             return await self.refuse(408, f"the request body arrived slower than {self.min_rate / KB:g} KB/s")
         if message["type"] == "http.request":
+            self.last_arrival = clock()
             self.received += len(message.get("body", b""))
             if self.received > self.limit.size:
                 return await self.refuse(413, self.limit.refusal)

@@ -98,6 +98,26 @@ def test_a_body_that_trickles_in_is_refused_once_under_the_minimum_rate():
     assert answer.endswith(b'{"detail": "the request body arrived slower than 1 KB/s"}')
 
 
+async def read_busily(scope, receive, send):
+    """Reads the first chunk, then blocks its event loop for 50 ms (a busy server) before reading on."""
+    await receive()
+    time.sleep(0.05)
+    while (await receive())["type"] == "http.request":
+        pass
+
+
+def test_a_body_that_stops_is_said_stopped_even_when_a_busy_loop_reads_it_late():
+    """The rate bound (19 bytes past 1 s at 8 KB/s) is nearer than a full timeout from the late read;
+    what the client did is that it sent nothing for the whole timeout."""
+    app = BodyLimits(read_busily, default=Limit.of(64 * KB), limits={}, read_timeout_s=1, min_rate=8 * KB)
+    with guarded_server(app, max_connections=10, max_per_client=0, head_timeout_s=30) as address:
+        with connect(address) as sock:
+            sock.sendall(b"POST / HTTP/1.1\r\nHost: league\r\nContent-Length: 1000\r\n\r\n{\"submission_ids\": ")
+            answer = read_all(sock)
+    assert status_line(answer) == "HTTP/1.1 408 Request Timeout"
+    assert answer.endswith(b'{"detail": "the request body stopped arriving for 1 s"}'), answer
+
+
 def test_an_answer_streamed_after_the_body_is_not_cut_by_the_body_timeout():
     with guarded_server(limited(read_timeout_s=0.5, min_rate=1024), max_connections=10, max_per_client=0,
                         head_timeout_s=30) as address:
