@@ -85,8 +85,8 @@ class Settings(BaseSettings):
     max_upload_mb: float = Field(MAX_UPLOAD_MB, gt=0, le=1024, description="largest model file accepted")
     request_body_timeout_s: float = Field(30.0, gt=0, le=3600,
                                           description="a request body that stops arriving this long, or "
-                                                      "past it arrives slower than 8 KB/s, is refused "
-                                                      "(408): slow clients cannot hold the API")
+                                                      "past twice this arrives slower than 8 KB/s, is "
+                                                      "refused (408): slow clients cannot hold the API")
 
     # connections (league serve; league/server/api/connections.py)
     max_connections: int = Field(1000, ge=1, le=1_000_000,
